@@ -1,0 +1,192 @@
+"""The body hierarchy: a minimum spanning tree over joint-fit residuals (O'Brien section 3.3).
+
+Each sensor is a node, each pair of sensors an edge weighted by its rms joint-fit residual; the
+hierarchy that minimises the sum of the joints' residuals is the minimum spanning tree.
+
+**Tiny weights.** scipy's ``minimum_spanning_tree`` treats entries near zero as missing edges,
+and noise-free residuals are exactly that small. The tree only depends on the order of the edge
+weights (Kruskal), so the graph is built from the *ranks* of the residuals (1, 2, ...), which
+keeps every edge and gives the same tree.
+
+**Root rule** (when no root is given): the centre of the tree -- the sensor whose largest
+number of joints to any other sensor is smallest; ties go to the one with the smaller sum of
+joint counts to all others, then to the earlier sensor in input order. For a human torso
+chain this picks a trunk segment, for O'Brien's linkage the chest bar.
+
+**Loop joints** (section 5): a pair left out of the tree whose residual is no larger than
+``loop_factor`` times the largest residual among the tree's joints would have made as good a
+joint as one the tree accepted; such pairs are reported as possible loop joints (or as pairs
+the motion did not tell apart, such as two sensors on one rigid piece).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import (
+    breadth_first_order,
+    connected_components,
+    minimum_spanning_tree,
+    shortest_path,
+)
+
+from calibration.errors import CalibrationError, CalibrationInputError
+
+#: Default factor of :func:`loop_candidates`.
+LOOP_FACTOR = 1.0
+
+
+@dataclass(frozen=True)
+class Hierarchy:
+    """A tree over sensors.
+
+    Attributes:
+        parent: ``(N,)`` parent index of each sensor, ``-1`` for the root.
+        root: index of the root sensor.
+        order: ``(N,)`` sensor indices, every parent before its children (root first).
+    """
+
+    parent: np.ndarray
+    root: int
+    order: np.ndarray
+
+    @property
+    def joints(self) -> list[tuple[int, int]]:
+        """``(parent, child)`` index pairs, in ``order``."""
+        return [(int(self.parent[c]), int(c)) for c in self.order if self.parent[c] >= 0]
+
+
+def _tree_from_edges(n: int, edges: np.ndarray, root: int) -> Hierarchy:
+    """Orient an undirected spanning tree ``(n-1, 2)`` from ``root``."""
+    graph = csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    order, pred = breadth_first_order(graph, root, directed=False, return_predecessors=True)
+    if len(order) != n:
+        raise CalibrationError("the edges given do not connect every sensor")
+    parent = np.where(pred < 0, -1, pred).astype(np.int64)
+    parent[root] = -1
+    return Hierarchy(parent=parent, root=int(root), order=np.asarray(order, dtype=np.int64))
+
+
+def centre_of_tree(n: int, edges: np.ndarray) -> int:
+    """The root chosen by the rule in the module docstring, for a tree given by its edges."""
+    graph = csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    hops = shortest_path(graph, directed=False, unweighted=True)
+    ecc = hops.max(axis=1)
+    total = hops.sum(axis=1)
+    candidates = np.lexsort((np.arange(n), total, ecc))  # last key sorts first
+    return int(candidates[0])
+
+
+def spanning_tree(
+    residual: np.ndarray, *, root: int | None = None, names: Sequence[str] | None = None
+) -> Hierarchy:
+    """Minimum spanning tree of the pair residuals, oriented from a root.
+
+    Args:
+        residual: ``(N, N)`` symmetric rms residuals, metres; ``inf`` where a pair cannot be
+            fitted (the diagonal is ignored).
+        root: index of the root, or ``None`` for the rule in the module docstring.
+        names: sensor names, for error messages.
+
+    Raises:
+        CalibrationError: when some sensors cannot be joined to the others (no pair with enough
+            common frames), naming them.
+    """
+    residual = np.asarray(residual, dtype=float)
+    n = residual.shape[0]
+    if residual.shape != (n, n):
+        raise CalibrationInputError(f"Expected a square residual matrix, got {residual.shape}")
+    if n < 2:
+        raise CalibrationInputError(f"A hierarchy needs at least 2 sensors, got {n}")
+    labels = list(names) if names is not None else [str(k) for k in range(n)]
+    i, j = np.triu_indices(n, k=1)
+    w = residual[i, j]
+    usable = np.isfinite(w)
+    i, j, w = i[usable], j[usable], w[usable]
+    n_comp, comp = connected_components(csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n)), directed=False)
+    if n_comp > 1:
+        groups = [[labels[k] for k in np.flatnonzero(comp == c)] for c in range(n_comp)]
+        raise CalibrationError(
+            "the sensors fall into groups with no fittable pair between them "
+            f"(fewer than 3 common valid frames): {groups}"
+        )
+    ranks = np.empty(len(w))
+    ranks[np.argsort(w, kind="stable")] = np.arange(1, len(w) + 1)
+    mst = minimum_spanning_tree(csr_matrix((ranks, (i, j)), shape=(n, n))).tocoo()
+    edges = np.stack([mst.row, mst.col], axis=1).astype(np.int64)
+    if root is None:
+        root = centre_of_tree(n, edges)
+    elif not 0 <= root < n:
+        raise CalibrationInputError(f"root index must be in [0, {n}), got {root}")
+    return _tree_from_edges(n, edges, root)
+
+
+def hierarchy_from_parents(
+    parent_of: Mapping[str, str], names: Sequence[str], *, root: str | None = None
+) -> Hierarchy:
+    """A known hierarchy given as ``{child: parent}`` by sensor name.
+
+    Every sensor but one (the root) must appear as a child exactly once; names must be known
+    and the map must be a tree. If ``root`` is also given it must be that sensor.
+
+    Raises:
+        CalibrationInputError: naming the unknown, missing or cyclic sensors.
+    """
+    index = {name: k for k, name in enumerate(names)}
+    unknown = sorted({*parent_of.keys(), *parent_of.values()} - index.keys())
+    if unknown:
+        raise CalibrationInputError(
+            f"the hierarchy names sensors the data lacks: {unknown} (sensors are {list(names)})"
+        )
+    self_parent = sorted(c for c, p in parent_of.items() if c == p)
+    if self_parent:
+        raise CalibrationInputError(f"the hierarchy makes sensors their own parent: {self_parent}")
+    roots = [name for name in names if name not in parent_of]
+    if len(roots) != 1:
+        raise CalibrationInputError(
+            "the hierarchy must give a parent to every sensor but one (the root); "
+            f"sensors without a parent: {roots}"
+        )
+    if root is not None and root != roots[0]:
+        raise CalibrationInputError(f"--root is {root!r} but the hierarchy's root is {roots[0]!r}")
+    n = len(names)
+    edges = np.array([[index[c], index[p]] for c, p in parent_of.items()], dtype=np.int64)
+    n_comp, comp = connected_components(
+        csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)), directed=False
+    )
+    if n_comp > 1:
+        cut = [names[k] for k in np.flatnonzero(comp != comp[index[roots[0]]])]
+        raise CalibrationInputError(f"the hierarchy has a cycle: sensors not reachable from the root: {cut}")
+    tree = _tree_from_edges(n, edges, index[roots[0]])
+    for child, par in parent_of.items():
+        if tree.parent[index[child]] != index[par]:  # pragma: no cover - a tree orients uniquely
+            raise CalibrationInputError(f"the hierarchy is not a tree at {child!r}")
+    return tree
+
+
+def loop_candidates(
+    residual: np.ndarray, tree: Hierarchy, *, loop_factor: float = LOOP_FACTOR
+) -> list[tuple[int, int, float]]:
+    """Pairs left out of the tree that fit about as well as its joints (possible loop joints).
+
+    Args:
+        residual: ``(N, N)`` pair residuals, metres.
+        tree: the hierarchy.
+        loop_factor: a non-tree pair is reported when its residual is at most this times the
+            largest residual among the tree's joints.
+
+    Returns:
+        ``(i, j, residual)`` with ``i < j``, smallest residual first.
+    """
+    n = residual.shape[0]
+    in_tree = np.zeros((n, n), dtype=bool)
+    for p, c in tree.joints:
+        in_tree[p, c] = in_tree[c, p] = True
+    worst = max((residual[p, c] for p, c in tree.joints), default=0.0)
+    i, j = np.triu_indices(n, k=1)
+    pick = ~in_tree[i, j] & (residual[i, j] <= loop_factor * worst)
+    out = [(int(a), int(b), float(residual[a, b])) for a, b in zip(i[pick], j[pick], strict=True)]
+    return sorted(out, key=lambda t: t[2])

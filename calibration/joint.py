@@ -1,0 +1,254 @@
+"""The least-squares rotary-joint fit of one pair of sensors (O'Brien et al. 2000, section 3.1-3.2).
+
+For a parent sensor ``p`` and a child sensor ``c`` joined by a rotary joint, the joint centre is
+a point fixed in both sensor frames, ``joint_in_parent`` and ``joint_in_child``, such that at
+every frame ``f`` (O'Brien eq. 8)::
+
+    R_w_p[f] @ joint_in_parent + p_w_p[f] == R_w_c[f] @ joint_in_child + p_w_c[f]
+
+Stacked over frames this is the linear system ``A x = b`` of O'Brien eqs. 9-13 with
+``A[f] = [R_w_p[f], -R_w_c[f]]`` (3 x 6), ``x = [joint_in_parent; joint_in_child]`` and
+``b[f] = p_w_c[f] - p_w_p[f]``, solved here by the singular value decomposition.
+
+**Conditioning and single-axis joints.** ``A`` holds only rotations, so its singular values are
+dimensionless and do not depend on the length unit of the positions: metres or centimetres give
+the same singular values and the same verdicts. Its Gram matrix is
+``F [[I, -M], [-M^T, I]]`` with ``M`` the mean relative rotation ``R_w_p^T R_w_c`` over the
+frames, so the singular values are ``sqrt(F (1 +- sigma_k(M)))``: all equal when the joint turns
+through large angles in every direction, one near zero when the relative motion is about a
+single axis (section 3.2), three near zero when the sensors do not rotate relative to each other.
+The ratio ``s_min / s_max`` is about half the rms rotation angle (rad) off the weakest axis.
+
+A direction whose singular value is below ``single_axis_ratio * s_max`` (default 0.02, about
+2.3 degrees rms of rotation off the weakest axis) is treated as not determined by the motion:
+it is left out of the solution, which then is the minimum-norm one along it -- the point closest
+to the origins of both sensor frames, as the paper chooses -- instead of an arbitrary point
+driven by noise. One such direction marks a single-axis joint, and its right singular vector
+gives the axis in both frames (section 3.2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration.errors import CalibrationError, CalibrationInputError
+
+#: Default threshold on ``s / s_max`` below which a direction of the joint fit is undetermined.
+SINGLE_AXIS_RATIO = 0.02
+
+#: Fewest frames a joint fit accepts (two frames give 6 equations for 6 unknowns).
+MIN_FRAMES = 3
+
+
+@dataclass(frozen=True)
+class JointFit:
+    """The rotary joint fitted between a parent and a child sensor.
+
+    Attributes:
+        joint_in_parent: ``(3,)`` joint centre in the parent sensor's frame, metres.
+        joint_in_child: ``(3,)`` joint centre in the child sensor's frame, metres.
+        rms_residual: root mean square over the used frames of the 3-D residual's norm
+            (O'Brien eq. 13), metres.
+        frame_residual: ``(frames,)`` residual norm per input frame, metres; NaN where a frame
+            was dropped (non-finite pose). ``None`` when per-frame residuals were not kept.
+        singular_values: ``(6,)`` singular values of ``A`` in descending order (dimensionless,
+            they scale as ``sqrt(frames)``).
+        rank: number of directions the motion determines (6 for a well exercised ball joint,
+            5 for a single-axis joint, 3 when the sensors do not rotate relative to each other).
+        single_axis: the relative motion is about one axis only (section 3.2).
+        axis_in_parent: ``(3,)`` unit joint axis in the parent frame when ``single_axis``.
+        axis_in_child: ``(3,)`` unit joint axis in the child frame when ``single_axis``.
+        n_frames: frames used in the fit.
+        n_dropped: frames dropped because a pose of either sensor was not finite or was marked
+            invalid.
+    """
+
+    joint_in_parent: np.ndarray
+    joint_in_child: np.ndarray
+    rms_residual: float
+    frame_residual: np.ndarray | None
+    singular_values: np.ndarray
+    rank: int
+    single_axis: bool
+    axis_in_parent: np.ndarray | None
+    axis_in_child: np.ndarray | None
+    n_frames: int
+    n_dropped: int
+
+    @property
+    def condition(self) -> float:
+        """``s_max / s_min`` of ``A``; ``inf`` when a direction is exactly undetermined."""
+        s_min = float(self.singular_values[-1])
+        return float("inf") if s_min == 0.0 else float(self.singular_values[0]) / s_min
+
+    @property
+    def weak_ratio(self) -> float:
+        """``s_min / s_max`` of ``A``: about half the rms rotation (rad) off the weakest axis."""
+        s_max = float(self.singular_values[0])
+        return 0.0 if s_max == 0.0 else float(self.singular_values[-1]) / s_max
+
+
+@dataclass(frozen=True)
+class Spectrum:
+    """How a joint fit's singular spectrum is read (shared by the SVD and normal-equation paths).
+
+    Attributes:
+        keep: ``(6,)`` bool, the directions used in the solution.
+        rank: number of kept directions.
+        single_axis: exactly one direction is undetermined.
+        axis_in_parent: ``(3,)`` unit axis in the parent frame, or ``None``.
+        axis_in_child: ``(3,)`` unit axis in the child frame, or ``None``.
+    """
+
+    keep: np.ndarray
+    rank: int
+    single_axis: bool
+    axis_in_parent: np.ndarray | None
+    axis_in_child: np.ndarray | None
+
+
+def read_spectrum(
+    singular_values: np.ndarray, right_vectors: np.ndarray, single_axis_ratio: float
+) -> Spectrum:
+    """Decide which directions a joint fit determines, and the joint axis if there is one.
+
+    Args:
+        singular_values: ``(6,)`` singular values of ``A``, descending.
+        right_vectors: ``(6, 6)`` right singular vectors as columns, in the same order.
+        single_axis_ratio: directions with ``s < single_axis_ratio * s_max`` are undetermined.
+
+    Returns:
+        The kept directions, the rank and, for a single-axis joint, the axis in both frames
+        (sign chosen so that the parent-frame axis has a positive largest component).
+    """
+    s = np.asarray(singular_values, dtype=float)
+    if s[0] <= 0.0:
+        keep = np.zeros(6, dtype=bool)
+    else:
+        keep = s >= single_axis_ratio * s[0]
+    rank = int(np.count_nonzero(keep))
+    single_axis = rank == 5
+    axis_p = axis_c = None
+    if single_axis:
+        v = right_vectors[:, 5]
+        axis_p = v[:3] / np.linalg.norm(v[:3])
+        axis_c = v[3:] / np.linalg.norm(v[3:])
+        if axis_p[np.argmax(np.abs(axis_p))] < 0.0:
+            axis_p, axis_c = -axis_p, -axis_c
+    return Spectrum(keep, rank, single_axis, axis_p, axis_c)
+
+
+def check_pair(
+    R_w_p: np.ndarray, p_w_p: np.ndarray, R_w_c: np.ndarray, p_w_c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Check the shapes of one pair's pose arrays and return them as float arrays."""
+    arrays = [np.asarray(a, dtype=float) for a in (R_w_p, p_w_p, R_w_c, p_w_c)]
+    names = ("R_w_p", "p_w_p", "R_w_c", "p_w_c")
+    n_frames = arrays[0].shape[0] if arrays[0].ndim else 0
+    for name, a, tail in zip(names, arrays, ((3, 3), (3,), (3, 3), (3,)), strict=True):
+        if a.ndim != 1 + len(tail) or a.shape[1:] != tail:
+            raise CalibrationInputError(
+                f"Expected {name} to have shape (frames, {', '.join(map(str, tail))}), got {a.shape}"
+            )
+        if a.shape[0] != n_frames:
+            raise CalibrationInputError(
+                f"Expected {name} to have {n_frames} frames like R_w_p, got {a.shape[0]}"
+            )
+    return arrays[0], arrays[1], arrays[2], arrays[3]
+
+
+def joint_residual_vectors(
+    R_w_p: np.ndarray,
+    p_w_p: np.ndarray,
+    R_w_c: np.ndarray,
+    p_w_c: np.ndarray,
+    joint_in_parent: np.ndarray,
+    joint_in_child: np.ndarray,
+) -> np.ndarray:
+    """World-frame residual of the joint constraint (O'Brien eq. 8) at every frame.
+
+    Args:
+        R_w_p, R_w_c: ``(..., 3, 3)`` sensor rotations (sensor to world).
+        p_w_p, p_w_c: ``(..., 3)`` sensor positions in world, metres.
+        joint_in_parent, joint_in_child: ``(3,)`` joint centre in each sensor frame, metres.
+
+    Returns:
+        ``(..., 3)`` ``(R_w_p l_p + p_w_p) - (R_w_c l_c + p_w_c)``, metres.
+    """
+    at_parent = np.einsum("...ij,j->...i", R_w_p, joint_in_parent) + p_w_p
+    at_child = np.einsum("...ij,j->...i", R_w_c, joint_in_child) + p_w_c
+    return at_parent - at_child
+
+
+def fit_joint(
+    R_w_p: np.ndarray,
+    p_w_p: np.ndarray,
+    R_w_c: np.ndarray,
+    p_w_c: np.ndarray,
+    *,
+    valid: np.ndarray | None = None,
+    single_axis_ratio: float = SINGLE_AXIS_RATIO,
+) -> JointFit:
+    """Fit the rotary joint between two sensors by SVD of O'Brien eq. 13.
+
+    This is the reference implementation (one SVD per pair, as in the paper); the all-pairs
+    path in :mod:`calibration.pairs` gives the same answer from a few matrix products.
+
+    Args:
+        R_w_p: ``(frames, 3, 3)`` parent sensor rotations, sensor to world.
+        p_w_p: ``(frames, 3)`` parent sensor positions in world, metres.
+        R_w_c: ``(frames, 3, 3)`` child sensor rotations, sensor to world.
+        p_w_c: ``(frames, 3)`` child sensor positions in world, metres.
+        valid: optional ``(frames,)`` bool; frames marked False are dropped. Frames with any
+            non-finite value in either pose are always dropped.
+        single_axis_ratio: see the module docstring.
+
+    Returns:
+        The fitted joint, residuals and diagnostics.
+
+    Raises:
+        CalibrationInputError: on malformed arrays.
+        CalibrationError: when fewer than :data:`MIN_FRAMES` usable frames remain.
+    """
+    R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
+    n_total = R_w_p.shape[0]
+    ok = (
+        np.isfinite(R_w_p).all(axis=(1, 2))
+        & np.isfinite(R_w_c).all(axis=(1, 2))
+        & np.isfinite(p_w_p).all(axis=1)
+        & np.isfinite(p_w_c).all(axis=1)
+    )
+    if valid is not None:
+        valid = np.asarray(valid, dtype=bool)
+        if valid.shape != (n_total,):
+            raise CalibrationInputError(f"Expected valid to have shape ({n_total},), got {valid.shape}")
+        ok &= valid
+    n_used = int(np.count_nonzero(ok))
+    if n_used < MIN_FRAMES:
+        raise CalibrationError(
+            f"A joint fit needs at least {MIN_FRAMES} frames where both poses are valid, got {n_used}"
+        )
+    Rp, Rc = R_w_p[ok], R_w_c[ok]
+    A = np.concatenate([Rp, -Rc], axis=2).reshape(3 * n_used, 6)  # O'Brien eq. 12-13
+    b = (p_w_c[ok] - p_w_p[ok]).reshape(3 * n_used)  # O'Brien eq. 11
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    spectrum = read_spectrum(s, Vt.T, single_axis_ratio)
+    k = spectrum.keep
+    x = Vt[k].T @ ((U[:, k].T @ b) / s[k])  # minimum-norm solution over kept directions
+    residual = np.full(n_total, np.nan)
+    residual[ok] = np.linalg.norm((A @ x - b).reshape(n_used, 3), axis=1)
+    return JointFit(
+        joint_in_parent=x[:3].copy(),
+        joint_in_child=x[3:].copy(),
+        rms_residual=float(np.sqrt(np.mean(residual[ok] ** 2))),
+        frame_residual=residual,
+        singular_values=s,
+        rank=spectrum.rank,
+        single_axis=spectrum.single_axis,
+        axis_in_parent=spectrum.axis_in_parent,
+        axis_in_child=spectrum.axis_in_child,
+        n_frames=n_used,
+        n_dropped=n_total - n_used,
+    )

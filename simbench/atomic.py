@@ -1,0 +1,62 @@
+"""Atomic file writes: a crash never leaves a half-written result.
+
+Output goes to a temporary file in the destination's folder, is flushed to disk, and replaces
+the destination in one ``os.replace``; if anything fails the temporary file is removed and the
+destination is left as it was.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+from simbench.errors import InputError
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs) -> Iterator[IO]:
+    """Open a temporary file that replaces ``path`` when the ``with`` block ends without error.
+
+    Args:
+        path: destination file.
+        mode: ``"w"`` (text) or ``"wb"`` (binary).
+        **kwargs: passed to :func:`open` (e.g. ``newline=""``, ``encoding``).
+
+    Raises:
+        InputError: when the destination's folder does not exist or is not writable.
+    """
+    if mode not in ("w", "wb"):
+        raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
+    dest = Path(path)
+    folder = dest.parent if str(dest.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {dest}: folder {folder} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write {dest}: {exc.strerror}") from exc
+    if "b" not in mode:
+        kwargs.setdefault("encoding", "utf-8")
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
+    try:
+        with os.fdopen(fd, mode, **kwargs) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, dest)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` atomically (UTF-8)."""
+    with atomic_open(path, "w") as fh:
+        fh.write(text)

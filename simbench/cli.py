@@ -1,0 +1,222 @@
+"""The ``simbench`` command line.
+
+Every subcommand reports bad input as ``simbench: error: ...`` on stderr with exit status 2,
+never as a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import simbench
+from calibration import CalibrationError, calibrate, detect_slip
+from calibration.joint import SINGLE_AXIS_RATIO
+from calibration.pipeline import Calibration
+from calibration.slip import SlipReport
+from simbench.calibration_json import calibration_to_dict, write_calibration_json
+from simbench.errors import InputError
+from simbench.poses import UNITS, PoseRecording, read_pose_csv
+
+
+def _load_hierarchy(path: str) -> dict[str, str]:
+    """Read ``{"child": "parent", ...}`` from a JSON file, rejecting repeated keys."""
+
+    def no_repeats(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        keys = [k for k, _ in pairs]
+        repeated = sorted({k for k in keys if keys.count(k) > 1})
+        if repeated:
+            raise InputError(f"{path}: sensors given a parent twice: {repeated}")
+        return dict(pairs)
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        doc = json.loads(text, object_pairs_hook=no_repeats)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
+    if not isinstance(doc, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in doc.items()
+    ):
+        raise InputError(f'{path}: expected a JSON object {{"child": "parent", ...}} of sensor names')
+    return doc
+
+
+def read_poses(path: str, units: str) -> PoseRecording:
+    """Read a pose file, choosing the reader from the file's extension."""
+    suffix = Path(path).suffix.lower()
+    if suffix in (".csv", ".txt"):
+        return read_pose_csv(path, units=units)
+    raise InputError(f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv)")
+
+
+def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list[tuple[str, SlipReport]]:
+    window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
+    window = min(max(window, 2), rec.n_frames // 2)
+    if window < 2:
+        return []
+    index = {name: k for k, name in enumerate(rec.names)}
+    out = []
+    for j in cal.joints:
+        p, c = index[j.parent], index[j.child]
+        out.append(
+            (
+                j.name,
+                detect_slip(
+                    rec.R_w_s[:, p],
+                    rec.p_w_s[:, p],
+                    rec.R_w_s[:, c],
+                    rec.p_w_s[:, c],
+                    j.fit.joint_in_parent,
+                    j.fit.joint_in_child,
+                    window=window,
+                ),
+            )
+        )
+    return out
+
+
+def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str, SlipReport]]) -> str:
+    """A readable summary: joints (mm), limb lengths (cm), sensor offsets (cm), warnings."""
+    lines = [
+        f"simbench calibrate: {rec.source}",
+        f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   rate: {rec.rate_hz:.4g} Hz   "
+        f"time: {cal.seconds.get('total', float('nan')):.3f} s",
+        f"  hierarchy: {'given' if cal.hierarchy_given else 'inferred'}, root {cal.root}",
+        "",
+        f"  {'joint (parent -> child)':<34}{'rms mm':>9}{'max mm':>9}{'cond':>8}  {'axis':<12}{'frames':>8}",
+    ]
+    for j in cal.joints:
+        fit = j.fit
+        mx = np.nanmax(fit.frame_residual) if fit.frame_residual is not None else float("nan")
+        cond = f"{fit.condition:.3g}" if np.isfinite(fit.condition) else "inf"
+        axis = "single" if fit.single_axis else ("none" if fit.rank < 5 else "-")
+        lines.append(
+            f"  {j.parent + ' -> ' + j.child:<34}{fit.rms_residual * 1e3:>9.3f}{mx * 1e3:>9.3f}"
+            f"{cond:>8}  {axis:<12}{fit.n_frames:>8}"
+        )
+    lines += ["", f"  {'limb lengths (cm)':<22}{'from joint':<30}{'to joint':<30}{'length':>8}"]
+    for x in cal.lengths:
+        lines.append(f"  {x.segment:<22}{x.joint_a:<30}{x.joint_b:<30}{x.length * 100:>8.2f}")
+    lines += ["", f"  {'sensor offsets (cm)':<22}{'joint':<30}{'offset in sensor frame':<28}{'dist':>8}"]
+    for pl in cal.placements:
+        for name, off, d in zip(pl.joints, pl.offsets, pl.distances, strict=True):
+            vec = " ".join(f"{v * 100:7.2f}" for v in off)
+            lines.append(f"  {pl.sensor:<22}{name:<30}{vec:<28}{d * 100:>8.2f}")
+    events = [(name, ev) for name, rep in slips for ev in rep.events]
+    if slips:
+        lines += ["", "  slip events (residual offset jumps)"]
+        if not events:
+            lines.append("    none found")
+        for name, ev in events:
+            lines.append(
+                f"    {name}: at {rec.time_s[ev.frame]:.3f} s, jump {ev.jump * 1e3:.1f} mm "
+                f"(steady in the {ev.sensor_frame} frame, z {ev.z:.3g})"
+            )
+    notes = [*rec.notes, *cal.warnings]
+    if notes:
+        lines += ["", "  warnings"]
+        lines += [f"    - {w}" for w in notes]
+    return "\n".join(lines)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
+    rec = read_poses(args.input, args.units)
+    parent_of = _load_hierarchy(args.hierarchy) if args.hierarchy else None
+    cal = calibrate(
+        rec.R_w_s,
+        rec.p_w_s,
+        rec.names,
+        valid=rec.valid,
+        parent_of=parent_of,
+        root=args.root,
+        single_axis_ratio=args.single_axis_ratio,
+    )
+    slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window)
+    print(format_table(rec, cal, slips))
+    if args.json:
+        doc = calibration_to_dict(
+            cal,
+            time_s=rec.time_s,
+            slips=slips,
+            input_info={
+                "source": rec.source,
+                "sensors": list(rec.names),
+                "frames": rec.n_frames,
+                "rate_hz": rec.rate_hz,
+                "units": args.units,
+            },
+            notes=rec.notes,
+            options={
+                "hierarchy_file": args.hierarchy,
+                "root": args.root,
+                "single_axis_ratio": args.single_axis_ratio,
+                "slip_window_s": None if args.no_slip else args.slip_window,
+            },
+        )
+        write_calibration_json(args.json, doc)
+        print(f"\n  wrote {args.json}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``simbench`` command."""
+    parser = argparse.ArgumentParser(
+        prog="simbench",
+        description="Physics-simulation validation testbed for motion-capture skeleton calibration.",
+    )
+    parser.add_argument("--version", action="version", version=f"simbench {simbench.__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    cal = sub.add_parser(
+        "calibrate",
+        help="joint centres, hierarchy, limb lengths and sensor offsets from sensor poses",
+        description="Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
+        "6-DoF sensor poses (O'Brien et al. 2000).",
+    )
+    cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz)")
+    cal.add_argument(
+        "--units", choices=sorted(UNITS), default="m", help="length unit of the file (default m)"
+    )
+    cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
+    cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
+    cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
+    cal.add_argument(
+        "--single-axis-ratio",
+        type=float,
+        default=SINGLE_AXIS_RATIO,
+        metavar="R",
+        help=f"s_min/s_max below which a joint is single-axis (default {SINGLE_AXIS_RATIO})",
+    )
+    cal.add_argument(
+        "--slip-window", type=float, default=1.0, metavar="SECONDS", help="slip detector window (default 1 s)"
+    )
+    cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
+    cal.set_defaults(func=cmd_calibrate)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``simbench`` command; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (InputError, CalibrationError) as exc:
+        print(f"simbench: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"simbench: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,255 @@
+"""Sensor pose recordings and the pose CSV format of DESIGN.md.
+
+**Pose CSV**: header ``time,sensor,x,y,z,qw,qx,qy,qz`` (extra columns are ignored), one row per
+sensor per frame; ``time`` in seconds, rows of one frame share the same time; positions in the
+file's units (``m``, ``cm``, ``mm`` or ``in``, metres unless told); ``qw..qz`` the scalar-first
+quaternion of ``R_w_s`` (sensor to world).
+
+Reading is strict about what cannot be guessed and explicit about what it repairs:
+
+- errors (with file and line): empty file, missing columns, a row with the wrong number of
+  fields, a value that is not a number, a non-finite time, an empty sensor name, the same
+  sensor twice in one frame, a zero quaternion, unknown units;
+- repaired and reported in ``notes``: a sensor missing from some frames, and rows with NaN or
+  inf values (both become missing poses, which each pair of sensors drops), quaternions off
+  unit norm by more than 1e-3 (normalised).
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calibration.rotations import UNIT_TOLERANCE, matrix_to_quat, quat_to_matrix
+from simbench.atomic import atomic_open
+from simbench.errors import InputError
+
+#: Length units accepted at the edges, as metres per unit.
+UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+
+CSV_COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+def metres_per_unit(units: str) -> float:
+    """Metres in one ``units`` (``m``, ``cm``, ``mm``, ``in``)."""
+    try:
+        return UNITS[units]
+    except KeyError:
+        raise InputError(f"unknown units {units!r}: expected one of {', '.join(UNITS)}") from None
+
+
+@dataclass(frozen=True)
+class PoseRecording:
+    """6-DoF sensor poses over time.
+
+    Attributes:
+        names: ``(sensors,)`` sensor names.
+        time_s: ``(frames,)`` strictly increasing times, seconds.
+        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world (NaN where missing).
+        p_w_s: ``(frames, sensors, 3)`` sensor positions in world, metres (NaN where missing).
+        valid: ``(frames, sensors)`` bool, False where a pose is missing or not finite.
+        source: where the data came from (a path, or a description).
+        notes: what the reader repaired or noticed, in plain language.
+    """
+
+    names: tuple[str, ...]
+    time_s: np.ndarray
+    R_w_s: np.ndarray
+    p_w_s: np.ndarray
+    valid: np.ndarray
+    source: str = ""
+    notes: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        f, n = self.time_s.shape[0], len(self.names)
+        expected = {"time_s": (f,), "R_w_s": (f, n, 3, 3), "p_w_s": (f, n, 3), "valid": (f, n)}
+        for name, shape in expected.items():
+            got = getattr(self, name).shape
+            if got != shape:
+                raise InputError(f"Expected {name} to have shape {shape}, got {got}")
+        if f > 1 and not np.all(np.diff(self.time_s) > 0):
+            raise InputError("times must be strictly increasing")
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames."""
+        return int(self.time_s.shape[0])
+
+    @property
+    def rate_hz(self) -> float:
+        """Median sample rate, Hz (NaN with fewer than 2 frames)."""
+        if self.n_frames < 2:
+            return float("nan")
+        return float(1.0 / np.median(np.diff(self.time_s)))
+
+
+def _fail(path: str | os.PathLike[str], line: int | None, message: str) -> InputError:
+    where = f"{path}" if line is None else f"{path}, line {line}"
+    return InputError(f"{where}: {message}")
+
+
+def read_pose_csv(path: str | os.PathLike[str], *, units: str = "m") -> PoseRecording:
+    """Read a pose CSV (see the module docstring).
+
+    Args:
+        path: the file.
+        units: length unit of the file's positions; converted to metres.
+
+    Raises:
+        InputError: naming the file, line and problem.
+    """
+    scale = metres_per_unit(units)
+    path = Path(path)
+    try:
+        fh = path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    with fh:
+        reader = csv.reader(fh)
+        header = None
+        for row in reader:
+            if any(cell.strip() for cell in row):
+                header = [cell.strip() for cell in row]
+                break
+        if header is None:
+            raise _fail(path, None, f"the file is empty; expected a header {','.join(CSV_COLUMNS)}")
+        missing = [c for c in CSV_COLUMNS if c not in header]
+        if missing:
+            raise _fail(
+                path,
+                reader.line_num,
+                f"missing columns {missing}; expected {','.join(CSV_COLUMNS)}, got {','.join(header)}",
+            )
+        repeated = sorted({c for c in header if header.count(c) > 1 and c in CSV_COLUMNS})
+        if repeated:
+            raise _fail(path, reader.line_num, f"columns repeated in the header: {repeated}")
+        col = [header.index(c) for c in CSV_COLUMNS]
+        times: list[float] = []
+        sensors: list[str] = []
+        values: list[list[float]] = []
+        lines: list[int] = []
+        for row in reader:
+            if not any(cell.strip() for cell in row):
+                continue
+            line = reader.line_num
+            if len(row) != len(header):
+                raise _fail(path, line, f"expected {len(header)} fields, got {len(row)}")
+            name = row[col[1]].strip()
+            if not name:
+                raise _fail(path, line, "empty sensor name")
+            nums = []
+            for c, k in zip(CSV_COLUMNS, col, strict=True):
+                if c == "sensor":
+                    continue
+                try:
+                    nums.append(float(row[k]))
+                except ValueError:
+                    raise _fail(path, line, f"column {c!r} is not a number: {row[k]!r}") from None
+            if not np.isfinite(nums[0]):
+                raise _fail(path, line, f"time is not finite: {row[col[0]]!r}")
+            times.append(nums[0])
+            sensors.append(name)
+            values.append(nums[1:])
+            lines.append(line)
+    if not times:
+        raise _fail(path, None, "no data rows after the header")
+    return _assemble(path, np.array(times), sensors, np.array(values), np.array(lines), scale, units)
+
+
+def _assemble(
+    path: Path,
+    times: np.ndarray,
+    sensors: list[str],
+    values: np.ndarray,
+    lines: np.ndarray,
+    scale: float,
+    units: str,
+) -> PoseRecording:
+    """Arrange parsed rows ``(rows, 7)`` = ``x, y, z, qw, qx, qy, qz`` into frames x sensors."""
+    names = tuple(dict.fromkeys(sensors))
+    s_idx = _index(names, sensors)
+    frame_times, t_idx = np.unique(times, return_inverse=True)
+    n_frames, n = len(frame_times), len(names)
+    key = t_idx * n + s_idx
+    order = np.argsort(key, kind="stable")
+    dup = np.flatnonzero(np.diff(key[order]) == 0)
+    if dup.size:
+        a, b = lines[order[dup[0]]], lines[order[dup[0] + 1]]
+        raise _fail(
+            path,
+            int(b),
+            f"sensor {sensors[order[dup[0]]]!r} appears twice at time "
+            f"{times[order[dup[0]]]!r} (also on line {a}); {dup.size} duplicate row(s) in all",
+        )
+    notes: list[str] = []
+    q = values[:, 3:]
+    finite = np.isfinite(values).all(axis=1)
+    qnorm = np.linalg.norm(q, axis=1)
+    zero = finite & (qnorm == 0.0)
+    if zero.any():
+        raise _fail(
+            path, int(lines[np.flatnonzero(zero)[0]]), f"zero quaternion ({int(zero.sum())} in the file)"
+        )
+    off = finite & (np.abs(qnorm - 1.0) > UNIT_TOLERANCE)
+    if off.any():
+        worst = int(np.argmax(np.where(off, np.abs(qnorm - 1.0), -1.0)))
+        notes.append(
+            f"{int(off.sum())} quaternion(s) off unit norm by more than {UNIT_TOLERANCE:g} were "
+            f"normalised (worst |q| = {qnorm[worst]:.6g} on line {int(lines[worst])})"
+        )
+    R = np.full((n_frames, n, 3, 3), np.nan)
+    p = np.full((n_frames, n, 3), np.nan)
+    valid = np.zeros((n_frames, n), dtype=bool)
+    R[t_idx[finite], s_idx[finite]] = quat_to_matrix(q[finite])
+    p[t_idx[finite], s_idx[finite]] = values[finite, :3] * scale
+    valid[t_idx[finite], s_idx[finite]] = True
+    present = np.zeros((n_frames, n), dtype=bool)
+    present[t_idx, s_idx] = True
+    for k, name in enumerate(names):
+        absent = int(n_frames - present[:, k].sum())
+        bad = int(present[:, k].sum() - valid[:, k].sum())
+        if absent:
+            notes.append(f"sensor {name}: no row in {absent} of {n_frames} frames (treated as missing)")
+        if bad:
+            notes.append(f"sensor {name}: {bad} row(s) with NaN or inf values (treated as missing)")
+    if units != "m":
+        notes.append(f"positions read in {units} and converted to metres")
+    return PoseRecording(
+        names=names, time_s=frame_times, R_w_s=R, p_w_s=p, valid=valid, source=str(path), notes=tuple(notes)
+    )
+
+
+def _index(names: tuple[str, ...], sensors: list[str]) -> np.ndarray:
+    lookup = {name: k for k, name in enumerate(names)}
+    return np.array([lookup[s] for s in sensors])
+
+
+def write_pose_csv(
+    path: str | os.PathLike[str], rec: PoseRecording, *, units: str = "m", digits: int | None = None
+) -> None:
+    """Write a pose CSV atomically; missing poses are left out (no row).
+
+    Args:
+        path: destination.
+        rec: the poses.
+        units: length unit for the positions in the file.
+        digits: significant digits per value; ``None`` writes every value exactly (``repr``),
+            so that reading gives back the same numbers.
+    """
+    scale = metres_per_unit(units)
+    fmt = repr if digits is None else (lambda v: f"{v:.{digits}g}")
+    q = matrix_to_quat(np.where(rec.valid[..., None, None], rec.R_w_s, np.eye(3)))
+    with atomic_open(path, "w", newline="") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(CSV_COLUMNS)
+        for f in range(rec.n_frames):
+            t = repr(float(rec.time_s[f]))
+            for k, name in enumerate(rec.names):
+                if not rec.valid[f, k]:
+                    continue
+                pos = rec.p_w_s[f, k] / scale
+                writer.writerow([t, name, *map(fmt, pos.tolist()), *map(fmt, q[f, k].tolist())])
