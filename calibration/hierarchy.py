@@ -14,7 +14,8 @@ joint counts to all others, then to the earlier sensor in input order. For a hum
 chain this picks a trunk segment, for O'Brien's linkage the chest bar.
 
 **Loop joints** (section 5): a pair left out of the tree whose residual is no larger than
-``loop_factor`` times the largest residual among the tree's joints would have made as good a
+``loop_factor`` times the largest residual among the tree's joints (or below
+:data:`LOOP_FLOOR`, 1 micrometre, where all are numerically zero) would have made as good a
 joint as one the tree accepted; such pairs are reported as possible loop joints (or as pairs
 the motion did not tell apart, such as two sensors on one rigid piece).
 """
@@ -25,7 +26,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import (
     breadth_first_order,
     connected_components,
@@ -37,6 +37,10 @@ from calibration.errors import CalibrationError, CalibrationInputError
 
 #: Default factor of :func:`loop_candidates`.
 LOOP_FACTOR = 1.0
+
+#: Residuals below this (metres) are numerically zero: the normal equations' rounding floor on
+#: exact data is about 1e-8 m (see :mod:`calibration.pairs`).
+LOOP_FLOOR = 1e-6
 
 
 @dataclass(frozen=True)
@@ -59,10 +63,18 @@ class Hierarchy:
         return [(int(self.parent[c]), int(c)) for c in self.order if self.parent[c] >= 0]
 
 
+def _adjacency(n: int, edges: np.ndarray) -> np.ndarray:
+    """Dense 0/1 adjacency matrix ``(n, n)`` of an undirected edge list ``(E, 2)``."""
+    adj = np.zeros((n, n))
+    if len(edges):
+        adj[edges[:, 0], edges[:, 1]] = 1.0
+        adj[edges[:, 1], edges[:, 0]] = 1.0
+    return adj
+
+
 def _tree_from_edges(n: int, edges: np.ndarray, root: int) -> Hierarchy:
     """Orient an undirected spanning tree ``(n-1, 2)`` from ``root``."""
-    graph = csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    order, pred = breadth_first_order(graph, root, directed=False, return_predecessors=True)
+    order, pred = breadth_first_order(_adjacency(n, edges), root, directed=False, return_predecessors=True)
     if len(order) != n:
         raise CalibrationError("the edges given do not connect every sensor")
     parent = np.where(pred < 0, -1, pred).astype(np.int64)
@@ -72,12 +84,17 @@ def _tree_from_edges(n: int, edges: np.ndarray, root: int) -> Hierarchy:
 
 def centre_of_tree(n: int, edges: np.ndarray) -> int:
     """The root chosen by the rule in the module docstring, for a tree given by its edges."""
-    graph = csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    hops = shortest_path(graph, directed=False, unweighted=True)
+    hops = shortest_path(_adjacency(n, edges), directed=False, unweighted=True)
     ecc = hops.max(axis=1)
     total = hops.sum(axis=1)
     candidates = np.lexsort((np.arange(n), total, ecc))  # last key sorts first
     return int(candidates[0])
+
+
+def _groups(n: int, edges: np.ndarray, labels: Sequence[str]) -> list[list[str]]:
+    """Names of the sensors in each connected group of an edge list."""
+    n_comp, comp = connected_components(_adjacency(n, edges), directed=False)
+    return [[labels[k] for k in np.flatnonzero(comp == c)] for c in range(n_comp)]
 
 
 def spanning_tree(
@@ -106,17 +123,16 @@ def spanning_tree(
     w = residual[i, j]
     usable = np.isfinite(w)
     i, j, w = i[usable], j[usable], w[usable]
-    n_comp, comp = connected_components(csr_matrix((np.ones(len(i)), (i, j)), shape=(n, n)), directed=False)
-    if n_comp > 1:
-        groups = [[labels[k] for k in np.flatnonzero(comp == c)] for c in range(n_comp)]
+    ranks = np.zeros((n, n))  # 0 = no edge; edges weigh 1, 2, ... in residual order
+    by_residual = np.argsort(w, kind="stable")
+    ranks[i[by_residual], j[by_residual]] = np.arange(1, len(w) + 1)
+    mst = minimum_spanning_tree(ranks).tocoo()
+    edges = np.stack([mst.row, mst.col], axis=1).astype(np.int64)
+    if len(edges) != n - 1:
         raise CalibrationError(
             "the sensors fall into groups with no fittable pair between them "
-            f"(fewer than 3 common valid frames): {groups}"
+            f"(fewer than 3 common valid frames): {_groups(n, np.stack([i, j], axis=1), labels)}"
         )
-    ranks = np.empty(len(w))
-    ranks[np.argsort(w, kind="stable")] = np.arange(1, len(w) + 1)
-    mst = minimum_spanning_tree(csr_matrix((ranks, (i, j)), shape=(n, n))).tocoo()
-    edges = np.stack([mst.row, mst.col], axis=1).astype(np.int64)
     if root is None:
         root = centre_of_tree(n, edges)
     elif not 0 <= root < n:
@@ -153,12 +169,10 @@ def hierarchy_from_parents(
     if root is not None and root != roots[0]:
         raise CalibrationInputError(f"--root is {root!r} but the hierarchy's root is {roots[0]!r}")
     n = len(names)
-    edges = np.array([[index[c], index[p]] for c, p in parent_of.items()], dtype=np.int64)
-    n_comp, comp = connected_components(
-        csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n)), directed=False
-    )
-    if n_comp > 1:
-        cut = [names[k] for k in np.flatnonzero(comp != comp[index[roots[0]]])]
+    edges = np.array([[index[c], index[p]] for c, p in parent_of.items()], dtype=np.int64).reshape(-1, 2)
+    groups = _groups(n, edges, names)
+    if len(groups) > 1:
+        cut = sorted(name for g in groups if roots[0] not in g for name in g)
         raise CalibrationInputError(f"the hierarchy has a cycle: sensors not reachable from the root: {cut}")
     tree = _tree_from_edges(n, edges, index[roots[0]])
     for child, par in parent_of.items():
@@ -176,7 +190,7 @@ def loop_candidates(
         residual: ``(N, N)`` pair residuals, metres.
         tree: the hierarchy.
         loop_factor: a non-tree pair is reported when its residual is at most this times the
-            largest residual among the tree's joints.
+            largest residual among the tree's joints, or below :data:`LOOP_FLOOR`.
 
     Returns:
         ``(i, j, residual)`` with ``i < j``, smallest residual first.
@@ -187,6 +201,6 @@ def loop_candidates(
         in_tree[p, c] = in_tree[c, p] = True
     worst = max((residual[p, c] for p, c in tree.joints), default=0.0)
     i, j = np.triu_indices(n, k=1)
-    pick = ~in_tree[i, j] & (residual[i, j] <= loop_factor * worst)
+    pick = ~in_tree[i, j] & (residual[i, j] <= max(loop_factor * worst, LOOP_FLOOR))
     out = [(int(a), int(b), float(residual[a, b])) for a, b in zip(i[pick], j[pick], strict=True)]
     return sorted(out, key=lambda t: t[2])

@@ -183,7 +183,7 @@ def _assemble(
             path,
             int(b),
             f"sensor {sensors[order[dup[0]]]!r} appears twice at time "
-            f"{times[order[dup[0]]]!r} (also on line {a}); {dup.size} duplicate row(s) in all",
+            f"{float(times[order[dup[0]]])!r} (also on line {a}); {dup.size} duplicate row(s) in all",
         )
     notes: list[str] = []
     q = values[:, 3:]

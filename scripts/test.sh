@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Set up and run the checks: ruff (lint and format) and the test suite.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh test
+.venv/bin/ruff check .
+.venv/bin/ruff format --check .
+.venv/bin/python -m pytest "$@"

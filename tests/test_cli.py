@@ -1,0 +1,186 @@
+"""``simbench calibrate``: the table, the calibration JSON, and clear errors on bad input."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from simbench.cli import main
+from simbench.poses import PoseRecording, write_pose_csv
+
+HEADER = "time,sensor,x,y,z,qw,qx,qy,qz\n"
+
+
+@pytest.fixture(scope="module")
+def linkage_csv(tmp_path_factory, linkage_noisy_module):
+    cap = linkage_noisy_module
+    path = tmp_path_factory.mktemp("csv") / "linkage.csv"
+    rec = PoseRecording(cap.names, cap.time_s, cap.R_w_s, cap.p_w_s, np.ones(cap.p_w_s.shape[:2], bool))
+    write_pose_csv(path, rec)
+    return path
+
+
+@pytest.fixture(scope="module")
+def linkage_noisy_module():
+    from simbench.synthetic import linkage, simulate_motion
+
+    return simulate_motion(
+        linkage(), n_frames=1200, rate_hz=120.0, rng=np.random.default_rng(31), position_noise_m=0.002
+    )
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_calibrate_prints_table_and_writes_json(capsys, tmp_path, linkage_csv, linkage_noisy_module):
+    out_json = tmp_path / "cal.json"
+    code, out, err = run(capsys, "calibrate", str(linkage_csv), "--json", str(out_json))
+    assert code == 0, err
+    assert "hierarchy: inferred, root chest" in out
+    for joint in ("chest -> head", "chest -> upper_arm_l", "upper_arm_l -> forearm_l"):
+        assert joint in out
+    assert "limb lengths (cm)" in out and "sensor offsets (cm)" in out
+    doc = json.loads(out_json.read_text())
+    assert doc["units"] == "m" and doc["root"] == "chest"
+    truth = linkage_noisy_module.skeleton
+    assert {j["child"]: j["parent"] for j in doc["joints"]} == truth.parent_of
+    exact = truth.joint_in_sensor_frames()
+    for j in doc["joints"]:
+        assert set(j) >= {
+            "parent",
+            "child",
+            "joint_in_parent",
+            "joint_in_child",
+            "rms_residual",
+            "single_axis",
+            "axis_in_parent",
+            "axis_in_child",
+        }
+        # 2 mm noise, 1200 frames: joints within a few mm of the truth
+        assert np.linalg.norm(np.array(j["joint_in_parent"]) - exact[j["child"]][0]) < 0.005
+        assert 0.001 < j["rms_residual"] < 0.01
+        assert j["single_axis"] is False and j["axis_in_parent"] is None
+    lengths = {(x["segment"], x["joint_a"], x["joint_b"]): x["length"] for x in doc["limb_lengths"]}
+    for key, value in truth.segment_lengths().items():
+        assert lengths[key] == pytest.approx(value, abs=0.005)
+    assert doc["software"]["numpy"] == np.__version__
+    assert doc["input"]["frames"] == 1200
+    assert not list(tmp_path.glob(".*.tmp"))  # the atomic write left nothing behind
+
+
+def test_units_and_given_hierarchy(capsys, tmp_path, linkage_noisy_module):
+    cap = linkage_noisy_module
+    rec = PoseRecording(cap.names, cap.time_s, cap.R_w_s, cap.p_w_s, np.ones(cap.p_w_s.shape[:2], bool))
+    csv_cm = tmp_path / "cm.csv"
+    write_pose_csv(csv_cm, rec, units="cm")
+    hier = tmp_path / "h.json"
+    hier.write_text(json.dumps(cap.skeleton.parent_of))
+    out_json = tmp_path / "cal.json"
+    code, _out, err = run(
+        capsys,
+        "calibrate",
+        str(csv_cm),
+        "--units",
+        "cm",
+        "--hierarchy",
+        str(hier),
+        "--root",
+        "chest",
+        "--json",
+        str(out_json),
+    )
+    assert code == 0, err
+    doc = json.loads(out_json.read_text())
+    assert doc["hierarchy"] == "given"
+    arm = next(x for x in doc["limb_lengths"] if x["segment"] == "upper_arm_r")
+    assert arm["length"] == pytest.approx(0.286, abs=0.005)  # metres, although the file was in cm
+
+
+def test_nan_rows_dropped_per_pair_and_reported(capsys, tmp_path, linkage_noisy_module):
+    cap = linkage_noisy_module
+    p = cap.p_w_s.copy()
+    p[100:110, 1] = np.nan
+    rec = PoseRecording(cap.names, cap.time_s, cap.R_w_s, p, np.ones(p.shape[:2], bool))
+    path = tmp_path / "nan.csv"
+    write_pose_csv(path, rec)
+    code, out, err = run(capsys, "calibrate", str(path))
+    assert code == 0, err
+    assert "sensor head: 10 row(s) with NaN or inf values" in out
+    assert "joint chest-head: 10 of 1200 frames dropped" in out
+
+
+def csv_file(tmp_path, text, name="bad.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def hierarchy_file(tmp_path, text):
+    path = tmp_path / "h.json"
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("make_args", "message"),
+    [
+        (lambda t, c: [str(t / "missing.csv")], "cannot read"),
+        (lambda t, c: [csv_file(t, "")], "the file is empty"),
+        (lambda t, c: [csv_file(t, "time,sensor,x\n0,a,1\n")], "missing columns"),
+        (
+            lambda t, c: [csv_file(t, HEADER + "".join(f"{k},a,0,0,0,1,0,0,0\n" for k in range(5)))],
+            "at least 2 sensors",
+        ),
+        (
+            lambda t, c: [
+                csv_file(
+                    t, HEADER + "0,a,0,0,0,1,0,0,0\n0,b,1,0,0,1,0,0,0\n1,a,0,0,0,1,0,0,0\n1,b,1,0,0,1,0,0,0\n"
+                )
+            ],
+            "at least 3 frames",
+        ),
+        (lambda t, c: [csv_file(t, HEADER + "0,a,0,0,0,1,0,0,0\n0,a,0,0,0,1,0,0,0\n")], "appears twice"),
+        (lambda t, c: [csv_file(t, "x", name="poses.trc")], "unknown pose file type '.trc'"),
+        (lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '{"head": "neck"}')], "lacks: \\['neck'\\]"),
+        (lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, "{oops")], "line 1: not valid JSON"),
+        (lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '["a"]')], "expected a JSON object"),
+        (
+            lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '{"head": "chest", "head": "x"}')],
+            "parent twice",
+        ),
+        (lambda t, c: [str(c), "--root", "nobody"], "root 'nobody' is not a sensor"),
+        (lambda t, c: [str(c), "--json", str(t / "no" / "such" / "dir.json")], "does not exist"),
+    ],
+)
+def test_bad_input_exits_2_with_message(capsys, tmp_path, linkage_csv, make_args, message):
+    code, _out, err = run(capsys, "calibrate", *make_args(tmp_path, linkage_csv))
+    assert code == 2
+    assert err.startswith("simbench: error:")
+    assert "Traceback" not in err
+    assert re.search(message, err), err
+
+
+def test_unknown_units_rejected_by_parser(capsys, linkage_csv):
+    with pytest.raises(SystemExit) as info:
+        main(["calibrate", str(linkage_csv), "--units", "ft"])
+    assert info.value.code == 2
+    assert "invalid choice: 'ft'" in capsys.readouterr().err
+
+
+def test_console_entry_point_runs(linkage_csv):
+    done = subprocess.run(
+        [sys.executable, "-m", "simbench", "calibrate", str(linkage_csv), "--no-slip"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "chest -> head" in done.stdout

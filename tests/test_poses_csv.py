@@ -1,0 +1,117 @@
+"""The pose CSV of DESIGN.md: round trip, units, and every kind of bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from simbench.errors import InputError
+from simbench.poses import PoseRecording, read_pose_csv, write_pose_csv
+
+HEADER = "time,sensor,x,y,z,qw,qx,qy,qz\n"
+
+
+def recording(cap, valid=None):
+    valid = np.ones(cap.p_w_s.shape[:2], dtype=bool) if valid is None else valid
+    R = np.where(valid[..., None, None], cap.R_w_s, np.nan)
+    p = np.where(valid[..., None], cap.p_w_s, np.nan)
+    return PoseRecording(cap.names, cap.time_s, R, p, valid, source="test")
+
+
+def test_round_trip_is_lossless(linkage_noisy, tmp_path):
+    rec = recording(linkage_noisy)
+    path = tmp_path / "poses.csv"
+    write_pose_csv(path, rec)
+    back = read_pose_csv(path)
+    assert back.names == rec.names
+    assert np.array_equal(back.time_s, rec.time_s)
+    assert np.array_equal(back.p_w_s, rec.p_w_s)  # repr of a float64 reads back exactly
+    # quaternion -> matrix -> quaternion -> matrix: a few ulp
+    assert_allclose(back.R_w_s, rec.R_w_s, atol=1e-15)
+    assert back.valid.all() and back.notes == ()
+
+
+@pytest.mark.parametrize(("units", "factor"), [("cm", 100.0), ("mm", 1000.0), ("in", 1 / 0.0254)])
+def test_units_converted_to_metres(linkage_exact, tmp_path, units, factor):
+    rec = recording(linkage_exact)
+    path = tmp_path / "p.csv"
+    write_pose_csv(path, rec, units=units)
+    back = read_pose_csv(path, units=units)
+    assert_allclose(back.p_w_s, rec.p_w_s, rtol=1e-14)
+    first = path.read_text().splitlines()[1].split(",")
+    assert float(first[2]) == pytest.approx(rec.p_w_s[0, 0, 0] * factor, rel=1e-14)
+
+
+def test_missing_poses_are_marked_and_reported(linkage_exact, tmp_path):
+    valid = np.ones(linkage_exact.p_w_s.shape[:2], dtype=bool)
+    valid[3:7, 2] = False
+    path = tmp_path / "p.csv"
+    write_pose_csv(path, recording(linkage_exact, valid))
+    back = read_pose_csv(path)
+    assert np.array_equal(back.valid, valid)
+    assert np.isnan(back.p_w_s[3:7, 2]).all()
+    assert any("upper_arm_l: no row in 4 of 800 frames" in n for n in back.notes)
+
+
+def write(tmp_path, text, name="in.csv"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+ROW_A = "0.0,a,0,0,0,1,0,0,0\n"
+ROW_B = "0.0,b,1,0,0,1,0,0,0\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("", "the file is empty"),
+        ("\n\n", "the file is empty"),
+        (HEADER, "no data rows after the header"),
+        ("time,sensor,x,y,z,qw,qx,qy\n" + ROW_A, r"line 1: missing columns \['qz'\]"),
+        (HEADER + "0.0,a,0,0,0,1,0,0\n", "line 2: expected 9 fields, got 8"),
+        (HEADER + "0.0,a,0,zero,0,1,0,0,0\n", "line 2: column 'y' is not a number: 'zero'"),
+        (HEADER + ROW_A + "nan,b,0,0,0,1,0,0,0\n", "line 3: time is not finite"),
+        (HEADER + "0.0, ,0,0,0,1,0,0,0\n", "line 2: empty sensor name"),
+        (HEADER + ROW_A + ROW_B + ROW_A, r"line 4: sensor 'a' appears twice at time 0.0 \(also on line 2\)"),
+        (HEADER + ROW_A + "0.0,b,1,0,0,0,0,0,0\n", "line 3: zero quaternion"),
+        ("time,sensor,x,y,z,qw,qx,qy,qz,x\n" + ROW_A, r"columns repeated in the header: \['x'\]"),
+    ],
+)
+def test_bad_files_name_file_and_line(tmp_path, text, message):
+    path = write(tmp_path, text)
+    with pytest.raises(InputError, match=message) as info:
+        read_pose_csv(path)
+    assert str(path) in str(info.value)
+
+
+def test_unknown_units_and_missing_file(tmp_path):
+    with pytest.raises(InputError, match="unknown units 'ft': expected one of m, cm, mm, in"):
+        read_pose_csv(write(tmp_path, HEADER + ROW_A), units="ft")
+    with pytest.raises(InputError, match="cannot read"):
+        read_pose_csv(tmp_path / "nope.csv")
+
+
+def test_repairs_are_reported(tmp_path):
+    text = (
+        "sensor,time,qw,qx,qy,qz,x,y,z,extra\n"  # any column order, extra columns ignored
+        "a,0.0,2,0,0,0,0,0,0,foo\n"
+        "b,0.0,1,0,0,0,1,0,0,foo\n"
+        "a,0.1,1,0,0,0,nan,0,0,foo\n"
+        "b,0.1,1.0000001,0,0,0,1,0,0,foo\n"
+    )
+    rec = read_pose_csv(write(tmp_path, text))
+    assert rec.names == ("a", "b")
+    assert rec.valid.tolist() == [[True, True], [False, True]]
+    assert_allclose(rec.R_w_s[0, 0], np.eye(3), atol=1e-15)  # |q| = 2 normalised
+    assert any("1 quaternion(s) off unit norm" in n and "line 2" in n for n in rec.notes)
+    assert any("sensor a: 1 row(s) with NaN or inf" in n for n in rec.notes)
+
+
+def test_frames_sorted_by_time(tmp_path):
+    text = HEADER + "0.2,a,2,0,0,1,0,0,0\n0.1,a,1,0,0,1,0,0,0\n0.1,b,1,0,0,1,0,0,0\n0.2,b,1,0,0,1,0,0,0\n"
+    rec = read_pose_csv(write(tmp_path, text))
+    assert rec.time_s.tolist() == [0.1, 0.2]
+    assert rec.p_w_s[:, 0, 0].tolist() == [1.0, 2.0]
