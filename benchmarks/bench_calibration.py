@@ -109,10 +109,17 @@ def write_large(path: Path, n_frames: int, n_sensors: int, chunk: int) -> list[s
     return list(skeleton.names)
 
 
+# Peak RSS is read from /proc/self/status (VmHWM), which belongs to this process image alone;
+# getrusage's ru_maxrss would also count the parent's memory at fork time.
 CHILD = """
-import json, resource, sys, time
+import json, sys, time
 import h5py
 from calibration import calibrate
+def peak_rss_mib():
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
 path, names = sys.argv[1], json.loads(sys.argv[2])
 with h5py.File(path, "r") as fh:
     t0 = time.perf_counter()
@@ -121,8 +128,8 @@ with h5py.File(path, "r") as fh:
     truth = json.loads(fh.attrs["parent_of"])
 print(json.dumps({
     "seconds": seconds,
-    "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-    "hierarchy_correct": cal.parent_of == truth if cal.root == "b0" else None,
+    "peak_rss_mib": peak_rss_mib(),
+    "tree_correct": {frozenset(e) for e in cal.parent_of.items()} == {frozenset(e) for e in truth.items()},
     "root": cal.root,
 }))
 """
@@ -150,7 +157,7 @@ def large_case(n_frames: int, n_sensors: int) -> dict:
         "calibrate_s": child["seconds"],
         "peak_rss_mib": child["peak_rss_mib"],
         "root": child["root"],
-        "hierarchy_correct_if_rooted_at_b0": child["hierarchy_correct"],
+        "tree_correct": child["tree_correct"],
     }
 
 
@@ -175,7 +182,10 @@ def main() -> None:
         big = large_case(1_000_000, 32)
         out["large_case"] = big
         print(f"1,000,000 frames x 32 sensors from HDF5 ({big['file_mib']:.0f} MiB)")
-        print(f"  calibrate {big['calibrate_s']:.1f} s, peak RSS {big['peak_rss_mib']:.0f} MiB")
+        print(
+            f"  calibrate {big['calibrate_s']:.1f} s, peak RSS {big['peak_rss_mib']:.0f} MiB, "
+            f"tree correct: {big['tree_correct']}"
+        )
     if args.save:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / "calibration.json").write_text(json.dumps(out, indent=2) + "\n")

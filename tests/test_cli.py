@@ -184,3 +184,28 @@ def test_console_entry_point_runs(linkage_csv):
     )
     assert done.returncode == 0, done.stderr
     assert "chest -> head" in done.stdout
+
+
+def test_scale_command(capsys, tmp_path):
+    rng = np.random.default_rng(4)
+    n = 2000
+    a = rng.normal(size=(n, 3))
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    b = a + 0.565 * u
+    factor = 0.94
+    p = np.stack([a, b], axis=1) / factor  # the system reports lengths divided by the factor
+    R = np.tile(np.eye(3), (n, 2, 1, 1))
+    path = tmp_path / "rigid.csv"
+    write_pose_csv(
+        path, PoseRecording(("s1", "s2"), np.arange(n) / 100.0, R, p, np.ones((n, 2), bool)), units="cm"
+    )
+    code, out, err = run(
+        capsys, "scale", str(path), "--sensors", "s1", "s2", "--distance", "56.5", "--units", "cm"
+    )
+    assert code == 0, err
+    assert "scale factor        0.9400" in out
+    code, _, err = run(capsys, "scale", str(path), "--sensors", "s1", "s9", "--distance", "56.5")
+    assert code == 2 and "no sensor named ['s9']" in err
+    code, _, err = run(capsys, "scale", str(path), "--sensors", "s1", "s2", "--distance", "-1")
+    assert code == 2 and "positive length" in err
