@@ -18,8 +18,13 @@ if [ ! -x .venv/bin/python ]; then
     exit 1
   fi
   "$py" -m venv .venv
-  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet --upgrade pip > /dev/null 2>&1 || true
 fi
 spec="."
 [ -n "$extras" ] && spec=".[$extras]"
-.venv/bin/python -m pip install --quiet --disable-pip-version-check -e "$spec"
+# pip's chatter goes to a log that is shown only if the install fails
+if ! .venv/bin/python -m pip install --quiet --disable-pip-version-check -e "$spec" > .venv/setup.log 2>&1; then
+  cat .venv/setup.log >&2
+  echo "simbench setup: pip install -e '$spec' failed (log above, also in .venv/setup.log)" >&2
+  exit 1
+fi

@@ -209,3 +209,28 @@ def test_scale_command(capsys, tmp_path):
     assert code == 2 and "no sensor named ['s9']" in err
     code, _, err = run(capsys, "scale", str(path), "--sensors", "s1", "s2", "--distance", "-1")
     assert code == 2 and "positive length" in err
+
+
+def test_slip_reported_in_table_and_json(capsys, tmp_path):
+    from simbench.synthetic import Slip, linkage, simulate_motion
+
+    cap = simulate_motion(
+        linkage(),
+        n_frames=2400,
+        rate_hz=120.0,
+        rng=np.random.default_rng(41),
+        position_noise_m=0.002,
+        slips=[Slip("forearm_r", 1500, (0.0, 0.04, 0.0))],
+    )
+    path = tmp_path / "slip.csv"
+    write_pose_csv(path, PoseRecording(cap.names, cap.time_s, cap.R_w_s, cap.p_w_s, np.ones((2400, 6), bool)))
+    out_json = tmp_path / "cal.json"
+    code, out, err = run(capsys, "calibrate", str(path), "--json", str(out_json))
+    assert code == 0, err
+    assert re.search(
+        r"upper_arm_r-forearm_r: at 12\.[45]\d\d s, jump (3[89]|4[01])\.\d mm \(steady in the child", out
+    )
+    slips = {s["joint"]: s for s in json.loads(out_json.read_text())["slip"]}
+    events = slips["upper_arm_r-forearm_r"]["events"]
+    assert len(events) == 1 and abs(events[0]["frame"] - 1500) <= 12
+    assert all(not s["events"] for name, s in slips.items() if name != "upper_arm_r-forearm_r")
