@@ -19,8 +19,10 @@ through large angles in every direction, one near zero when the relative motion 
 single axis (section 3.2), three near zero when the sensors do not rotate relative to each other.
 The ratio ``s_min / s_max`` is about half the rms rotation angle (rad) off the weakest axis.
 
-A direction whose singular value is below ``single_axis_ratio * s_max`` (default 0.02, about
-2.3 degrees rms of rotation off the weakest axis) is treated as not determined by the motion:
+A direction whose singular value is below ``single_axis_ratio * s_max`` (default 0.01, about
+1.1 degrees rms of rotation off the weakest axis, averaged over *all* frames -- a joint exercised
+during a tenth of the recording needs about 3.6 degrees rms while it moves) is treated as not
+determined by the motion:
 it is left out of the solution, which then is the minimum-norm one along it -- the point closest
 to the origins of both sensor frames, as the paper chooses -- instead of an arbitrary point
 driven by noise. One such direction marks a single-axis joint, and its right singular vector
@@ -36,7 +38,7 @@ import numpy as np
 from calibration.errors import CalibrationError, CalibrationInputError
 
 #: Default threshold on ``s / s_max`` below which a direction of the joint fit is undetermined.
-SINGLE_AXIS_RATIO = 0.02
+SINGLE_AXIS_RATIO = 0.01
 
 #: Fewest frames a joint fit accepts (two frames give 6 equations for 6 unknowns).
 MIN_FRAMES = 3

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from calibration import CalibrationError, CalibrationInputError, fit_joint
+from calibration import SINGLE_AXIS_RATIO, CalibrationError, CalibrationInputError, fit_joint
 from calibration.rotations import rotvec_to_matrix
 from simbench.synthetic import HINGE, chain, linkage, simulate_motion
 from tests.helpers import pair_arrays
@@ -91,7 +91,7 @@ def test_weak_ratio_is_half_the_off_axis_angle():
         pc = pp + np.einsum("fij,j->fi", Rp, [0.1, 0.2, 0.3]) - np.einsum("fij,j->fi", Rc, [0.0, 0.1, 0.0])
         fit = fit_joint(Rp, pp, Rc, pc)
         assert fit.weak_ratio == pytest.approx(theta / 2, rel=0.1)
-        assert fit.single_axis == (theta / 2 < 0.02)
+        assert fit.single_axis == (theta / 2 < SINGLE_AXIS_RATIO)
 
 
 def test_error_shrinks_as_frames_grow():

@@ -1,0 +1,271 @@
+"""The Dataset: measured sensor data, exact ground truth and metadata, and its HDF5 file.
+
+HDF5 layout (``format = "simbench-dataset"``, ``format_version = 1``); arrays ``(F, N, ...)``
+for ``F`` frames and ``N`` sensors, ``J = N - 1`` joints; quaternions scalar-first ``(w, x, y,
+z)``; SI units (m, s, rad, m/s^2, rad/s) and microtesla for magnetic field::
+
+    /                      attrs: format, format_version, meta (JSON: model, program, seed,
+                           rate_hz, physics_timestep_s, duration_s, versions, config, warnings)
+    /time_s                (F,)        sample times, s
+    /sensors               (N,)        sensor names (= the bodies they sit on)
+    /measured/p_w_s        (F, N, 3)   sensor positions in world, m
+    /measured/q_w_s        (F, N, 4)   sensor orientations (R_w_s), wxyz
+    /measured/valid        (F, N)      False where a sample is missing
+    /measured/acc          (F, N, 3)   accelerometer: specific force in the sensor frame, m/s^2
+    /measured/gyro         (F, N, 3)   angular velocity in the sensor frame, rad/s
+    /measured/mag          (F, N, 3)   magnetic field in the sensor frame, uT
+    /truth/...             the same six names, exact (bone-rigid) values, plus:
+    /truth/p_w_b, q_w_b    (F, N, 3/4) pose of each sensor's body (segment) frame
+    /truth/joint_w         (F, J, 3)   world position of each joint centre, m
+    /truth/parent, child   (J,)        sensor names of each joint
+    /truth/joint_in_parent (J, 3)      joint centre in the parent sensor's frame, m
+    /truth/joint_in_child  (J, 3)      joint centre in the child sensor's frame, m
+    /truth/single_axis     (J,)        the joint is a single hinge
+    /truth/axis_in_parent, axis_in_child (J, 3)  its axis (NaN when not a hinge)
+    /truth/p_b_s, q_b_s    (N, 3/4)    sensor placement in its body frame
+
+The world frame is ENU-like: z up (gravity -z), the Earth field's horizontal part along +y.
+Writes are atomic: the file appears complete or not at all.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from calibration.rotations import quat_to_matrix
+from calibration.skeleton import segment_lengths
+from simbench.atomic import atomic_path
+from simbench.errors import InputError
+from simbench.poses import PoseRecording
+
+FORMAT = "simbench-dataset"
+FORMAT_VERSION = 1
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a)  # an own copy: a Dataset never shares memory with its inputs
+    a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True)
+class SensorData:
+    """Sensor readings, ``(F, N, ...)`` (see the module docstring for units and frames)."""
+
+    p_w_s: np.ndarray
+    q_w_s: np.ndarray
+    valid: np.ndarray
+    acc: np.ndarray
+    gyro: np.ndarray
+    mag: np.ndarray
+
+    def __post_init__(self) -> None:
+        f, n = self.valid.shape
+        for name, tail in (("p_w_s", 3), ("q_w_s", 4), ("acc", 3), ("gyro", 3), ("mag", 3)):
+            if getattr(self, name).shape != (f, n, tail):
+                raise InputError(
+                    f"Expected {name} to have shape {(f, n, tail)}, got {getattr(self, name).shape}"
+                )
+        for x in fields(self):
+            object.__setattr__(self, x.name, _frozen(getattr(self, x.name)))
+
+
+@dataclass(frozen=True)
+class Truth:
+    """Exact ground truth of a simulated session (module docstring for the fields)."""
+
+    sensors: SensorData
+    p_w_b: np.ndarray
+    q_w_b: np.ndarray
+    joint_w: np.ndarray
+    parent: tuple[str, ...]
+    child: tuple[str, ...]
+    joint_in_parent: np.ndarray
+    joint_in_child: np.ndarray
+    single_axis: np.ndarray
+    axis_in_parent: np.ndarray
+    axis_in_child: np.ndarray
+    p_b_s: np.ndarray
+    q_b_s: np.ndarray
+
+    def __post_init__(self) -> None:
+        for x in fields(self):
+            value = getattr(self, x.name)
+            if isinstance(value, np.ndarray):
+                object.__setattr__(self, x.name, _frozen(value))
+
+    @property
+    def parent_of(self) -> dict[str, str]:
+        """``{child: parent}``."""
+        return dict(zip(self.child, self.parent, strict=True))
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A capture session: times, sensor names, measured data, truth (if simulated), metadata."""
+
+    time_s: np.ndarray
+    sensors: tuple[str, ...]
+    measured: SensorData
+    truth: Truth | None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time_s", _frozen(self.time_s))
+        f, n = self.measured.valid.shape
+        if self.time_s.shape != (f,) or len(self.sensors) != n:
+            raise InputError(
+                f"Expected {f} times and {n} sensor names, got {self.time_s.shape[0]} and {len(self.sensors)}"
+            )
+
+    def poses(self) -> PoseRecording:
+        """The measured poses as the calibration reads them."""
+        m = self.measured
+        R = quat_to_matrix(np.where(m.valid[..., None], m.q_w_s, [1.0, 0.0, 0.0, 0.0]))
+        R = np.where(m.valid[..., None, None], R, np.nan)
+        p = np.where(m.valid[..., None], m.p_w_s, np.nan)
+        return PoseRecording(
+            names=self.sensors,
+            time_s=np.array(self.time_s),
+            R_w_s=R,
+            p_w_s=p,
+            valid=np.array(m.valid),
+            source=str(self.meta.get("source", "dataset")),
+        )
+
+
+def _write_group(group: h5py.Group, data: SensorData) -> None:
+    for x in fields(data):
+        group.create_dataset(x.name, data=getattr(data, x.name))
+
+
+def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
+    """Write a dataset to HDF5 atomically (layout in the module docstring)."""
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as fh:
+        fh.attrs["format"] = FORMAT
+        fh.attrs["format_version"] = FORMAT_VERSION
+        fh.attrs["meta"] = json.dumps(ds.meta, sort_keys=True)
+        fh.create_dataset("time_s", data=ds.time_s)
+        fh.create_dataset("sensors", data=np.array(ds.sensors, dtype=h5py.string_dtype()))
+        _write_group(fh.create_group("measured"), ds.measured)
+        if ds.truth is not None:
+            g = fh.create_group("truth")
+            _write_group(g, ds.truth.sensors)
+            for x in fields(ds.truth):
+                if x.name == "sensors":
+                    continue
+                value = getattr(ds.truth, x.name)
+                if isinstance(value, tuple):
+                    value = np.array(value, dtype=h5py.string_dtype())
+                g.create_dataset(x.name, data=value)
+
+
+def _read_sensor_data(group: h5py.Group, path: Path) -> SensorData:
+    try:
+        return SensorData(**{x.name: group[x.name][()] for x in fields(SensorData)})
+    except KeyError as exc:
+        raise InputError(f"{path}: missing dataset {group.name}/{exc.args[0]}") from None
+
+
+def read_dataset(path: str | os.PathLike[str]) -> Dataset:
+    """Read a dataset written by :func:`write_dataset`.
+
+    Raises:
+        InputError: not an HDF5 file, not a simbench dataset, a newer format, missing fields.
+    """
+    path = Path(path)
+    try:
+        fh = h5py.File(path, "r")
+    except FileNotFoundError:
+        raise InputError(f"{path}: cannot read: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
+    with fh:
+        if fh.attrs.get("format") != FORMAT:
+            raise InputError(f"{path}: not a simbench dataset (format attribute {fh.attrs.get('format')!r})")
+        version = int(fh.attrs.get("format_version", 0))
+        if version > FORMAT_VERSION:
+            raise InputError(f"{path}: dataset format version {version} is newer than this simbench reads")
+        try:
+            meta = json.loads(fh.attrs["meta"])
+            sensors = tuple(s.decode() if isinstance(s, bytes) else str(s) for s in fh["sensors"][()])
+            time_s = fh["time_s"][()]
+            measured = _read_sensor_data(fh["measured"], path)
+        except KeyError as exc:
+            raise InputError(f"{path}: missing {exc.args[0]}") from None
+        truth = None
+        if "truth" in fh:
+            g = fh["truth"]
+            values: dict[str, Any] = {"sensors": _read_sensor_data(g, path)}
+            for x in fields(Truth):
+                if x.name == "sensors":
+                    continue
+                if x.name not in g:
+                    raise InputError(f"{path}: missing dataset /truth/{x.name}")
+                value = g[x.name][()]
+                if x.name in ("parent", "child"):
+                    value = tuple(v.decode() if isinstance(v, bytes) else str(v) for v in value)
+                values[x.name] = value
+            truth = Truth(**values)
+    meta["source"] = str(path)
+    return Dataset(time_s=time_s, sensors=sensors, measured=measured, truth=truth, meta=meta)
+
+
+def truth_calibration_dict(ds: Dataset) -> dict[str, Any]:
+    """The truth in the calibration JSON schema of DESIGN.md, to compare field by field."""
+    if ds.truth is None:
+        raise InputError("the dataset has no ground truth")
+    t = ds.truth
+    index = {name: k for k, name in enumerate(ds.sensors)}
+    joints = [(index[p], index[c]) for p, c in zip(t.parent, t.child, strict=True)]
+    root = next(s for s in ds.sensors if s not in t.child)
+
+    def vec(v: np.ndarray) -> list[float] | None:
+        return None if not np.all(np.isfinite(v)) else [float(x) for x in v]
+
+    return {
+        "format": "simbench-calibration",
+        "format_version": 1,
+        "units": "m",
+        "root": root,
+        "hierarchy": "truth",
+        "joints": [
+            {
+                "parent": p,
+                "child": c,
+                "joint_in_parent": vec(t.joint_in_parent[k]),
+                "joint_in_child": vec(t.joint_in_child[k]),
+                "rms_residual": 0.0,
+                "single_axis": bool(t.single_axis[k]),
+                "axis_in_parent": vec(t.axis_in_parent[k]),
+                "axis_in_child": vec(t.axis_in_child[k]),
+            }
+            for k, (p, c) in enumerate(zip(t.parent, t.child, strict=True))
+        ],
+        "limb_lengths": [
+            {"segment": x.segment, "joint_a": x.joint_a, "joint_b": x.joint_b, "length": x.length}
+            for x in segment_lengths(ds.sensors, joints, t.joint_in_parent, t.joint_in_child)
+        ],
+        "sensor_placement": [
+            {"sensor": s, "p_b_s": [float(v) for v in t.p_b_s[k]], "q_b_s": [float(v) for v in t.q_b_s[k]]}
+            for k, s in enumerate(ds.sensors)
+        ],
+        "meta": {k: v for k, v in ds.meta.items() if k in ("model", "program", "seed", "rate_hz")},
+    }
+
+
+__all__ = [
+    "Dataset",
+    "SensorData",
+    "Truth",
+    "read_dataset",
+    "truth_calibration_dict",
+    "write_dataset",
+]
