@@ -20,9 +20,11 @@ from calibration import CalibrationError, calibrate, detect_slip, unit_scale
 from calibration.joint import SINGLE_AXIS_RATIO
 from calibration.pipeline import Calibration
 from calibration.slip import SlipReport
+from simbench.atomic import atomic_write_text
 from simbench.calibration_json import calibration_to_dict, write_calibration_json
+from simbench.dataset import read_dataset, truth_calibration_dict, write_dataset
 from simbench.errors import InputError
-from simbench.poses import UNITS, PoseRecording, metres_per_unit, read_pose_csv
+from simbench.poses import UNITS, PoseRecording, metres_per_unit, read_pose_csv, write_pose_csv
 
 
 def _load_hierarchy(path: str) -> dict[str, str]:
@@ -51,11 +53,21 @@ def _load_hierarchy(path: str) -> dict[str, str]:
 
 
 def read_poses(path: str, units: str) -> PoseRecording:
-    """Read a pose file, choosing the reader from the file's extension."""
+    """Read a pose file, choosing the reader from the file's extension.
+
+    ``.csv``: the pose CSV (positions in ``units``); ``.h5``/``.hdf5``: a simbench dataset (its
+    measured poses, always in metres).
+    """
     suffix = Path(path).suffix.lower()
     if suffix in (".csv", ".txt"):
         return read_pose_csv(path, units=units)
-    raise InputError(f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv)")
+    if suffix in (".h5", ".hdf5"):
+        if units != "m":
+            raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
+        return read_dataset(path).poses()
+    raise InputError(
+        f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv) or a simbench dataset (.h5)"
+    )
 
 
 def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list[tuple[str, SlipReport]]:
@@ -191,6 +203,43 @@ def cmd_scale(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """``simbench simulate``: a physics-simulated capture session with exact ground truth."""
+    from simbench.simulate import SessionConfig, run_session
+
+    for out in (args.output, args.csv, args.truth_json):
+        if out is not None and not Path(out).resolve().parent.is_dir():
+            raise InputError(f"cannot write {out}: folder {Path(out).parent} does not exist")
+    bodies = tuple(b.strip() for b in args.sensors_on.split(",") if b.strip()) if args.sensors_on else None
+    config = SessionConfig(
+        model=args.model,
+        motion=args.motion,
+        duration_s=args.duration,
+        rate_hz=args.rate,
+        seed=args.seed,
+        sensor_bodies=bodies,
+    )
+    ds = run_session(config)
+    meta = ds.meta
+    print(f"simbench simulate: model {args.model}, motion {meta['program']}, seed {args.seed}")
+    print(
+        f"  sensors: {len(ds.sensors)}   samples: {meta['n_samples']} at {args.rate:g} Hz   physics: "
+        f"{1 / meta['physics_timestep_s']:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
+    )
+    print(f"  sensors on: {', '.join(ds.sensors)}")
+    if meta["mujoco_warnings"]:
+        print(f"  MuJoCo warnings: {meta['mujoco_warnings']}")
+    write_dataset(args.output, ds)
+    print(f"  wrote {args.output}")
+    if args.csv:
+        write_pose_csv(args.csv, ds.poses())
+        print(f"  wrote {args.csv}")
+    if args.truth_json:
+        atomic_write_text(args.truth_json, json.dumps(truth_calibration_dict(ds), indent=2) + "\n")
+        print(f"  wrote {args.truth_json}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``simbench`` command."""
     parser = argparse.ArgumentParser(
@@ -205,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
         "6-DoF sensor poses (O'Brien et al. 2000).",
     )
-    cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz)")
+    cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
     cal.add_argument(
         "--units", choices=sorted(UNITS), default="m", help="length unit of the file (default m)"
     )
@@ -235,6 +284,34 @@ def build_parser() -> argparse.ArgumentParser:
     scale.add_argument("--distance", type=float, required=True, help="their true distance, in --units")
     scale.add_argument("--units", choices=sorted(UNITS), default="m", help="length unit (default m)")
     scale.set_defaults(func=cmd_scale)
+    sim = sub.add_parser(
+        "simulate",
+        help="a physics-simulated capture session with exact ground truth",
+        description="Move a MuJoCo model through a capture session by physics and record ideal sensor "
+        "data with exact ground truth.",
+    )
+    sim.add_argument(
+        "--model",
+        default="linkage",
+        help="linkage, humanoid, dm_control:NAME or an MJCF .xml path (default linkage)",
+    )
+    sim.add_argument(
+        "--motion",
+        default="exercise",
+        help="exercise, walk, single-axis, static, or a program .toml (default exercise)",
+    )
+    sim.add_argument(
+        "--duration", type=float, default=20.0, metavar="SECONDS", help="session length (default 20)"
+    )
+    sim.add_argument("--rate", type=float, default=120.0, metavar="HZ", help="capture rate (default 120)")
+    sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sim.add_argument(
+        "--sensors-on", metavar="BODY,BODY,...", help="bodies that carry a sensor (default: the model's)"
+    )
+    sim.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="the dataset (HDF5)")
+    sim.add_argument("--csv", metavar="OUT.csv", help="also export the measured poses as a pose CSV")
+    sim.add_argument("--truth-json", metavar="OUT.json", help="also export the truth as calibration JSON")
+    sim.set_defaults(func=cmd_simulate)
     return parser
 
 

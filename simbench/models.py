@@ -301,7 +301,10 @@ def load_capture_model(source: str, *, sensor_bodies: Sequence[str] | None = Non
         )
         weld.name1 = "simbench_root_driver"
         weld.name2 = bname(root)
-        weld.solref = np.array([0.01, 1.0])
+        # anchor at the driver's origin, relative pose taken from the reference pose, torque
+        # scale 1 (MjSpec's default data belong to other constraint types)
+        weld.data = np.array([0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1.0] + [0.0] * (len(weld.data) - 11))
+        weld.solref = np.array([0.005, 1.0])
     for b in order[1:]:
         jbody = joint_body[b]
         for j in jb[jbody]:

@@ -1,0 +1,146 @@
+"""The Dataset container and its HDF5 file; exports to the pose CSV and the truth JSON."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from simbench.cli import main
+from simbench.dataset import read_dataset, truth_calibration_dict, write_dataset
+from simbench.errors import InputError
+from simbench.simulate import SessionConfig, run_session
+
+
+@pytest.fixture(scope="module")
+def session():
+    return run_session(SessionConfig(model="linkage", motion="walk", duration_s=2.0, seed=9))
+
+
+def test_hdf5_round_trip_is_lossless(session, tmp_path):
+    path = tmp_path / "run.h5"
+    write_dataset(path, session)
+    back = read_dataset(path)
+    assert back.sensors == session.sensors
+    assert np.array_equal(back.time_s, session.time_s)
+    for name in ("p_w_s", "q_w_s", "valid", "acc", "gyro", "mag"):
+        assert np.array_equal(getattr(back.measured, name), getattr(session.measured, name))
+        assert np.array_equal(getattr(back.truth.sensors, name), getattr(session.truth.sensors, name))
+    for name in (
+        "p_w_b",
+        "q_w_b",
+        "joint_w",
+        "joint_in_parent",
+        "joint_in_child",
+        "single_axis",
+        "p_b_s",
+        "q_b_s",
+    ):
+        assert np.array_equal(getattr(back.truth, name), getattr(session.truth, name))
+    assert np.array_equal(back.truth.axis_in_parent, session.truth.axis_in_parent, equal_nan=True)
+    assert back.truth.parent == session.truth.parent and back.truth.child == session.truth.child
+    assert back.meta["seed"] == 9 and back.meta["versions"]["mujoco"]
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_truth_json_matches_truth(session):
+    doc = truth_calibration_dict(session)
+    assert doc["root"] == "chest" and doc["units"] == "m"
+    lengths = sorted(round(x["length"] * 100, 6) for x in doc["limb_lengths"])
+    assert lengths == [28.6, 31.4, 34.3, 39.0, 39.7]
+    for k, j in enumerate(doc["joints"]):
+        assert j["parent"] == session.truth.parent[k]
+        assert_allclose(j["joint_in_child"], session.truth.joint_in_child[k])
+        assert j["single_axis"] is False and j["axis_in_parent"] is None
+
+
+def test_bad_files(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        read_dataset(tmp_path / "none.h5")
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not hdf5")
+    with pytest.raises(InputError, match="not an HDF5 file"):
+        read_dataset(junk)
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as fh:
+        fh["x"] = 1
+    with pytest.raises(InputError, match="not a simbench dataset"):
+        read_dataset(other)
+
+
+def test_failed_write_leaves_nothing(session, tmp_path, monkeypatch):
+    path = tmp_path / "run.h5"
+    path.write_text("old")
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr("simbench.dataset._write_group", boom)
+    with pytest.raises(RuntimeError):
+        write_dataset(path, session)
+    assert path.read_text() == "old"  # the old file is untouched
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_simulate_then_calibrate_from_the_command_line(tmp_path, capsys):
+    h5, csv, truth, cal = (tmp_path / n for n in ("run.h5", "run.csv", "truth.json", "cal.json"))
+    code = main(
+        [
+            "simulate",
+            "--model",
+            "linkage",
+            "--motion",
+            "exercise",
+            "--duration",
+            "10",
+            "--rate",
+            "120",
+            "--seed",
+            "1",
+            "-o",
+            str(h5),
+            "--csv",
+            str(csv),
+            "--truth-json",
+            str(truth),
+        ]
+    )
+    assert code == 0, capsys.readouterr().err
+    for source in (h5, csv):
+        assert main(["calibrate", str(source), "--json", str(cal), "--no-slip"]) == 0
+        doc = json.loads(cal.read_text())
+        exact = json.loads(truth.read_text())
+        assert {j["child"]: j["parent"] for j in doc["joints"]} == {
+            j["child"]: j["parent"] for j in exact["joints"]
+        }
+        got = {(x["segment"], x["joint_a"], x["joint_b"]): x["length"] for x in doc["limb_lengths"]}
+        for x in exact["limb_lengths"]:
+            # noise-free physics: exact to rounding (the CSV holds every digit)
+            assert got[(x["segment"], x["joint_a"], x["joint_b"])] == pytest.approx(x["length"], abs=1e-9)
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--model", "robot"], "unknown model 'robot'"),
+        (["--sensors-on", "chest,tail"], "no body 'tail'"),
+        (["--motion", "dance"], "unknown motion 'dance'"),
+        (["--rate", "5000"], "above the model's physics rate"),
+        (["--duration", "0"], "duration must be > 0"),
+        (["--duration", "-3"], "duration must be > 0"),
+    ],
+)
+def test_simulate_bad_input_exits_2(tmp_path, capsys, args, message):
+    code = main(["simulate", *args, "-o", str(tmp_path / "x.h5"), "--duration", "1", *args])
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and "Traceback" not in err
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_simulate_unwritable_output(tmp_path, capsys):
+    code = main(["simulate", "--duration", "1", "-o", str(tmp_path / "missing" / "x.h5")])
+    assert code == 2 and "does not exist" in capsys.readouterr().err
