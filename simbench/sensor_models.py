@@ -1,0 +1,244 @@
+"""Sensor models: what real trackers make of the exact truth (issue 4, first part).
+
+Every model is a pure function of the truth arrays, a frozen configuration and a
+``numpy.random.Generator``: the same inputs and seed give the same output, and a configuration
+whose every parameter is zero returns the truth unchanged (bit for bit).
+
+**Magnetic 6-DoF tracker** (:class:`TrackerConfig`, :func:`apply_tracker`), as an Ascension Flock
+of Birds or a Polhemus Liberty/Fastrak reports poses:
+
+- white position and orientation noise whose standard deviation grows with the distance ``r``
+  from the transmitter: ``sigma(r) = sigma_ref (r / r_ref)^n``. A dipole field falls as
+  ``r^-3``, so at fixed signal noise the position error grows about as ``r^4`` (``n = 4``,
+  DESIGN.md, after Day et al. 2000) and the orientation error as ``r^3``;
+- the unit scale factor: positions are reported in the system's units, ``true / scale``
+  (O'Brien et al. measured a factor 0.94 between Flock units and centimetres);
+- resolution: positions quantised to ``resolution_m``, orientations' rotation vectors to
+  ``resolution_rad``;
+- latency: each report shows the pose ``latency_s`` earlier (linear interpolation of positions,
+  nearest sample of orientations); the first ``latency_s`` are dropped (marked missing);
+- dropouts: each sample is lost with probability ``dropout_rate`` (marked missing, never zero).
+
+**Inertial/magnetic unit** (:class:`ImuConfig`, :func:`apply_imu`), as the MEMS trackers of
+Fontaine et al.: per sensor a constant bias, scale error and axis misalignment drawn once;
+white noise from the noise density and the sample rate (``sigma = density sqrt(rate)``);
+saturation at the range; quantisation. Magnetometer: white noise, hard-iron offset, soft-iron
+matrix. Gyroscope: white noise, constant bias, bias random walk.
+
+Not here yet (issue 4's remaining parts): field distortion near metal, local magnetic
+disturbances, skin slip and soft-tissue artefact, joint laxity, TOML configuration files and the
+named presets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from calibration.rotations import matrix_to_quat, matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
+from simbench.errors import InputError
+
+
+def _check_non_negative(obj: object) -> None:
+    for f in fields(obj):  # type: ignore[arg-type]
+        value = getattr(obj, f.name)
+        if isinstance(value, tuple):
+            continue
+        if not np.isfinite(value) or value < 0:
+            raise InputError(f"{type(obj).__name__}.{f.name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Magnetic tracker imperfections (module docstring). Zero everywhere: an ideal tracker.
+
+    Attributes:
+        position_noise_m: position noise standard deviation per axis at ``reference_distance_m``.
+        orientation_noise_rad: orientation noise (rotation-vector component std) at the same.
+        reference_distance_m: ``r_ref``, m (> 0).
+        position_exponent: ``n`` of the position noise's distance law (4 for a dipole field).
+        orientation_exponent: ``n`` of the orientation noise's distance law (3).
+        transmitter_pos: ``(3,)`` transmitter position in world, m.
+        unit_scale: reported positions are ``true / unit_scale`` (1 = metres, 0.94 = O'Brien's
+            Flock); 0 is not allowed.
+        resolution_m: position quantisation step, m (0 = none).
+        resolution_rad: orientation quantisation step of the rotation vector, rad (0 = none).
+        latency_s: report delay, s.
+        dropout_rate: probability that a sample is lost, in [0, 1).
+    """
+
+    position_noise_m: float = 0.0
+    orientation_noise_rad: float = 0.0
+    reference_distance_m: float = 1.0
+    position_exponent: float = 4.0
+    orientation_exponent: float = 3.0
+    transmitter_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    unit_scale: float = 1.0
+    resolution_m: float = 0.0
+    resolution_rad: float = 0.0
+    latency_s: float = 0.0
+    dropout_rate: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_non_negative(self)
+        if self.reference_distance_m <= 0:
+            raise InputError(
+                f"TrackerConfig.reference_distance_m must be > 0, got {self.reference_distance_m}"
+            )
+        if self.unit_scale <= 0:
+            raise InputError(f"TrackerConfig.unit_scale must be > 0, got {self.unit_scale}")
+        if self.dropout_rate >= 1:
+            raise InputError(f"TrackerConfig.dropout_rate must be in [0, 1), got {self.dropout_rate}")
+        if len(self.transmitter_pos) != 3 or not np.all(np.isfinite(self.transmitter_pos)):
+            raise InputError(
+                f"TrackerConfig.transmitter_pos must be 3 finite numbers, got {self.transmitter_pos}"
+            )
+
+
+def _quantise(x: np.ndarray, step: float) -> np.ndarray:
+    return x if step == 0 else np.round(x / step) * step
+
+
+def apply_tracker(
+    time_s: np.ndarray,
+    p_w_s: np.ndarray,
+    q_w_s: np.ndarray,
+    config: TrackerConfig,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What a magnetic tracker reports for exact sensor poses.
+
+    Args:
+        time_s: ``(F,)`` sample times, s, strictly increasing.
+        p_w_s: ``(F, N, 3)`` true sensor positions in world, m.
+        q_w_s: ``(F, N, 4)`` true sensor orientations (R_w_s), wxyz.
+        config: the tracker.
+        rng: the only source of randomness.
+
+    Returns:
+        ``(p, q, valid)``: reported positions ``(F, N, 3)`` in the system's units (m divided by
+        ``unit_scale``), orientations ``(F, N, 4)``, and ``(F, N)`` bool, False where a sample
+        was lost; lost samples are NaN.
+    """
+    f, n = p_w_s.shape[:2]
+    p = np.array(p_w_s, dtype=float)
+    q = np.array(q_w_s, dtype=float)
+    valid = np.ones((f, n), dtype=bool)
+    if config.latency_s > 0:
+        shifted = time_s - config.latency_s
+        for k in range(n):
+            for a in range(3):
+                p[:, k, a] = np.interp(shifted, time_s, p_w_s[:, k, a])
+        nearest = np.clip(np.searchsorted(time_s, shifted), 0, f - 1)
+        q = q[nearest]
+        valid &= (shifted >= time_s[0])[:, None]
+    r = np.linalg.norm(p - np.asarray(config.transmitter_pos), axis=2) / config.reference_distance_m
+    if config.position_noise_m > 0:
+        sigma = config.position_noise_m * r**config.position_exponent
+        p = p + rng.normal(size=p.shape) * sigma[..., None]
+    if config.orientation_noise_rad > 0 or config.resolution_rad > 0:
+        R = quat_to_matrix(q)
+        if config.orientation_noise_rad > 0:
+            sigma = config.orientation_noise_rad * r**config.orientation_exponent
+            R = rotvec_to_matrix(rng.normal(size=(f, n, 3)) * sigma[..., None]) @ R
+        if config.resolution_rad > 0:
+            R = rotvec_to_matrix(_quantise(matrix_to_rotvec(R), config.resolution_rad))
+        q = matrix_to_quat(R)
+    p = _quantise(p / config.unit_scale, config.resolution_m / config.unit_scale)
+    if config.dropout_rate > 0:
+        valid &= rng.random((f, n)) >= config.dropout_rate
+    p[~valid] = np.nan
+    q[~valid] = np.nan
+    return p, q, valid
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """Accelerometer, magnetometer and gyroscope imperfections (module docstring).
+
+    Attributes:
+        accel_noise_density: m/s^2/sqrt(Hz) (60-230 ug/sqrt(Hz) for MEMS parts, DESIGN.md).
+        accel_bias: std of each sensor's constant bias per axis, m/s^2.
+        accel_scale_error: std of each axis's relative scale error.
+        accel_misalignment_rad: std of each sensor's small axis misalignment (rotation), rad.
+        accel_range: saturation, m/s^2 (0 = none).
+        accel_resolution: quantisation step, m/s^2 (0 = none).
+        mag_noise: white noise std per axis, uT.
+        mag_hard_iron: std of each sensor's constant offset per axis, uT.
+        mag_soft_iron: std of each entry of the soft-iron matrix's departure from identity.
+        gyro_noise_density: rad/s/sqrt(Hz).
+        gyro_bias: std of each sensor's constant bias per axis, rad/s.
+        gyro_bias_walk: bias random walk, rad/s/sqrt(s).
+    """
+
+    accel_noise_density: float = 0.0
+    accel_bias: float = 0.0
+    accel_scale_error: float = 0.0
+    accel_misalignment_rad: float = 0.0
+    accel_range: float = 0.0
+    accel_resolution: float = 0.0
+    mag_noise: float = 0.0
+    mag_hard_iron: float = 0.0
+    mag_soft_iron: float = 0.0
+    gyro_noise_density: float = 0.0
+    gyro_bias: float = 0.0
+    gyro_bias_walk: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check_non_negative(self)
+
+
+def apply_imu(
+    rate_hz: float,
+    acc: np.ndarray,
+    gyro: np.ndarray,
+    mag: np.ndarray,
+    config: ImuConfig,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What inertial/magnetic sensors report for exact readings.
+
+    Args:
+        rate_hz: sample rate, Hz.
+        acc: ``(F, N, 3)`` true specific force in the sensor frames, m/s^2.
+        gyro: ``(F, N, 3)`` true angular velocity, rad/s.
+        mag: ``(F, N, 3)`` true magnetic field, uT.
+        config: the sensors.
+        rng: the only source of randomness.
+
+    Returns:
+        ``(acc, gyro, mag)`` as reported, same shapes and units.
+    """
+    if not rate_hz > 0:
+        raise InputError(f"rate must be > 0 Hz, got {rate_hz}")
+    f, n = acc.shape[:2]
+    a = np.array(acc, dtype=float)
+    if config.accel_scale_error > 0 or config.accel_misalignment_rad > 0:
+        scale = 1.0 + config.accel_scale_error * rng.normal(size=(n, 3))
+        mis = rotvec_to_matrix(config.accel_misalignment_rad * rng.normal(size=(n, 3)))
+        a = np.einsum("nij,fnj->fni", mis * scale[:, :, None], a)
+    if config.accel_bias > 0:
+        a = a + config.accel_bias * rng.normal(size=(1, n, 3))
+    if config.accel_noise_density > 0:
+        a = a + config.accel_noise_density * np.sqrt(rate_hz) * rng.normal(size=a.shape)
+    if config.accel_range > 0:
+        a = np.clip(a, -config.accel_range, config.accel_range)
+    a = _quantise(a, config.accel_resolution)
+    m = np.array(mag, dtype=float)
+    if config.mag_soft_iron > 0:
+        soft = np.eye(3) + config.mag_soft_iron * rng.normal(size=(n, 3, 3))
+        m = np.einsum("nij,fnj->fni", soft, m)
+    if config.mag_hard_iron > 0:
+        m = m + config.mag_hard_iron * rng.normal(size=(1, n, 3))
+    if config.mag_noise > 0:
+        m = m + config.mag_noise * rng.normal(size=m.shape)
+    g = np.array(gyro, dtype=float)
+    if config.gyro_bias > 0:
+        g = g + config.gyro_bias * rng.normal(size=(1, n, 3))
+    if config.gyro_bias_walk > 0:
+        steps = config.gyro_bias_walk / np.sqrt(rate_hz) * rng.normal(size=(f, n, 3))
+        g = g + np.cumsum(steps, axis=0)
+    if config.gyro_noise_density > 0:
+        g = g + config.gyro_noise_density * np.sqrt(rate_hz) * rng.normal(size=g.shape)
+    return a, g, m
