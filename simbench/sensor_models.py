@@ -8,9 +8,17 @@ whose every parameter is zero returns the truth unchanged (bit for bit).
 of Birds or a Polhemus Liberty/Fastrak reports poses:
 
 - white position and orientation noise whose standard deviation grows with the distance ``r``
-  from the transmitter: ``sigma(r) = sigma_ref (r / r_ref)^n``. A dipole field falls as
+  from the transmitter: ``sigma = sigma_ref (r / r_ref)^n a(theta)``. A dipole field falls as
   ``r^-3``, so at fixed signal noise the position error grows about as ``r^4`` (``n = 4``,
-  DESIGN.md, after Day et al. 2000) and the orientation error as ``r^3``;
+  DESIGN.md, after Day et al. 2000) and the orientation error as ``r^3``. The dipole's field is
+  twice as strong along its axis (the transmitter's z axis) as across it,
+  ``|B| ~ sqrt(1 + 3 cos^2 theta)``, so ``a(theta) = (2 / sqrt(1 + 3 cos^2 theta))^(n/3)``: 1 on
+  the axis, ``2^(n/3)`` in the transmitter's equatorial plane -- hence the transmitter's pose;
+- static field distortion near metal (:class:`Distortion`): a smooth warp of positions (radial,
+  away from the object) and orientations (about a fixed axis), Gaussian in the distance to the
+  object: ``gain exp(-|p - c|^2 / (2 rho^2))``, negligible a few ``rho`` away;
+- the tracker's own sample rate: when polled faster than it measures, it repeats the last
+  measurement (zero-order hold);
 - the unit scale factor: positions are reported in the system's units, ``true / scale``
   (O'Brien et al. measured a factor 0.94 between Flock units and centimetres);
 - resolution: positions quantised to ``resolution_m``, orientations' rotation vectors to
@@ -25,9 +33,10 @@ white noise from the noise density and the sample rate (``sigma = density sqrt(r
 saturation at the range; quantisation. Magnetometer: white noise, hard-iron offset, soft-iron
 matrix. Gyroscope: white noise, constant bias, bias random walk.
 
-Not here yet (issue 4's remaining parts): field distortion near metal, local magnetic
-disturbances, skin slip and soft-tissue artefact, joint laxity, TOML configuration files and the
-named presets.
+**The magnetic field** (:func:`earth_field`, :func:`dipole_field`): the Earth field from its
+strength and inclination (world ENU: x east, y north, z up) plus local disturbances from
+ferromagnetic objects modelled as magnetic dipoles, ``B = mu0/(4 pi) (3 (m . u) u - m) / d^3``,
+strong near the object and falling as ``d^-3``.
 """
 
 from __future__ import annotations
@@ -43,10 +52,54 @@ from simbench.errors import InputError
 def _check_non_negative(obj: object) -> None:
     for f in fields(obj):  # type: ignore[arg-type]
         value = getattr(obj, f.name)
-        if isinstance(value, tuple):
+        if isinstance(value, tuple | dict):
             continue
         if not np.isfinite(value) or value < 0:
             raise InputError(f"{type(obj).__name__}.{f.name} must be a finite number >= 0, got {value!r}")
+
+
+MU0_OVER_4PI = 1e-7  # T m / A
+
+
+@dataclass(frozen=True)
+class Distortion:
+    """Static distortion of a magnetic tracker's field near a metal object.
+
+    Attributes:
+        center: ``(3,)`` the object's position in world, m.
+        radius_m: ``rho``, the distortion's reach, m (> 0).
+        position_gain_m: radial position error at the object, m.
+        orientation_gain_rad: orientation error at the object, rad, about ``axis``.
+        axis: ``(3,)`` the orientation error's rotation axis in world (normalised).
+    """
+
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius_m: float = 0.3
+    position_gain_m: float = 0.0
+    orientation_gain_rad: float = 0.0
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.radius_m) and self.radius_m > 0):
+            raise InputError(f"distortion.radius_m must be > 0, got {self.radius_m}")
+        for name in ("center", "axis"):
+            v = getattr(self, name)
+            if len(v) != 3 or not np.all(np.isfinite(v)):
+                raise InputError(f"distortion.{name} must be 3 finite numbers, got {v}")
+        if np.linalg.norm(self.axis) == 0:
+            raise InputError("distortion.axis must not be zero")
+        for name in ("position_gain_m", "orientation_gain_rad"):
+            if not np.isfinite(getattr(self, name)):
+                raise InputError(f"distortion.{name} must be finite")
+
+    def warp(self, p_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Position offsets ``(..., 3)`` m and rotation vectors ``(..., 3)`` rad at ``p_w``."""
+        rel = p_w - np.asarray(self.center)
+        dist = np.linalg.norm(rel, axis=-1, keepdims=True)
+        weight = np.exp(-(dist**2) / (2 * self.radius_m**2))
+        radial = np.divide(rel, dist, out=np.zeros_like(rel), where=dist > 0)
+        axis = np.asarray(self.axis) / np.linalg.norm(self.axis)
+        return self.position_gain_m * weight * radial, self.orientation_gain_rad * weight * axis
 
 
 @dataclass(frozen=True)
@@ -60,12 +113,15 @@ class TrackerConfig:
         position_exponent: ``n`` of the position noise's distance law (4 for a dipole field).
         orientation_exponent: ``n`` of the orientation noise's distance law (3).
         transmitter_pos: ``(3,)`` transmitter position in world, m.
+        transmitter_axis: ``(3,)`` the transmitter dipole's axis in world (normalised).
         unit_scale: reported positions are ``true / unit_scale`` (1 = metres, 0.94 = O'Brien's
             Flock); 0 is not allowed.
         resolution_m: position quantisation step, m (0 = none).
         resolution_rad: orientation quantisation step of the rotation vector, rad (0 = none).
         latency_s: report delay, s.
+        sample_rate_hz: the tracker's own measurement rate, Hz (0 = every capture frame).
         dropout_rate: probability that a sample is lost, in [0, 1).
+        distortion: static distortions near metal objects.
     """
 
     position_noise_m: float = 0.0
@@ -74,11 +130,14 @@ class TrackerConfig:
     position_exponent: float = 4.0
     orientation_exponent: float = 3.0
     transmitter_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    transmitter_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     unit_scale: float = 1.0
     resolution_m: float = 0.0
     resolution_rad: float = 0.0
     latency_s: float = 0.0
+    sample_rate_hz: float = 0.0
     dropout_rate: float = 0.0
+    distortion: tuple[Distortion, ...] = ()
 
     def __post_init__(self) -> None:
         _check_non_negative(self)
@@ -125,22 +184,38 @@ def apply_tracker(
     p = np.array(p_w_s, dtype=float)
     q = np.array(q_w_s, dtype=float)
     valid = np.ones((f, n), dtype=bool)
-    if config.latency_s > 0:
-        shifted = time_s - config.latency_s
+    measured_at = np.array(time_s, dtype=float)
+    if config.sample_rate_hz > 0:  # zero-order hold of the tracker's own measurements
+        measured_at = np.floor(measured_at * config.sample_rate_hz + 1e-9) / config.sample_rate_hz
+    measured_at = measured_at - config.latency_s
+    if config.sample_rate_hz > 0 or config.latency_s > 0:
         for k in range(n):
             for a in range(3):
-                p[:, k, a] = np.interp(shifted, time_s, p_w_s[:, k, a])
-        nearest = np.clip(np.searchsorted(time_s, shifted), 0, f - 1)
+                p[:, k, a] = np.interp(measured_at, time_s, p_w_s[:, k, a])
+        nearest = np.clip(np.searchsorted(time_s, measured_at - 1e-9), 0, f - 1)
         q = q[nearest]
-        valid &= (shifted >= time_s[0])[:, None]
-    r = np.linalg.norm(p - np.asarray(config.transmitter_pos), axis=2) / config.reference_distance_m
+        valid &= (measured_at >= time_s[0] - 1e-9)[:, None]
+    R = None
+    for dist in config.distortion:
+        dp, rv = dist.warp(p)
+        R = quat_to_matrix(q) if R is None else R
+        R = rotvec_to_matrix(rv) @ R
+        p = p + dp
+    rel = p - np.asarray(config.transmitter_pos)
+    r = np.linalg.norm(rel, axis=2)
+    axis = np.asarray(config.transmitter_axis) / np.linalg.norm(config.transmitter_axis)
+    cos = np.divide(rel @ axis, r, out=np.ones_like(r), where=r > 0)
+    weak = 2.0 / np.sqrt(1.0 + 3.0 * cos**2)  # field strength on the axis over here
+    r = r / config.reference_distance_m
     if config.position_noise_m > 0:
-        sigma = config.position_noise_m * r**config.position_exponent
+        n_p = config.position_exponent
+        sigma = config.position_noise_m * r**n_p * weak ** (n_p / 3.0)
         p = p + rng.normal(size=p.shape) * sigma[..., None]
-    if config.orientation_noise_rad > 0 or config.resolution_rad > 0:
-        R = quat_to_matrix(q)
+    if config.orientation_noise_rad > 0 or config.resolution_rad > 0 or R is not None:
+        R = quat_to_matrix(q) if R is None else R
         if config.orientation_noise_rad > 0:
-            sigma = config.orientation_noise_rad * r**config.orientation_exponent
+            n_o = config.orientation_exponent
+            sigma = config.orientation_noise_rad * r**n_o * weak ** (n_o / 3.0)
             R = rotvec_to_matrix(rng.normal(size=(f, n, 3)) * sigma[..., None]) @ R
         if config.resolution_rad > 0:
             R = rotvec_to_matrix(_quantise(matrix_to_rotvec(R), config.resolution_rad))
@@ -242,3 +317,29 @@ def apply_imu(
     if config.gyro_noise_density > 0:
         g = g + config.gyro_noise_density * np.sqrt(rate_hz) * rng.normal(size=g.shape)
     return a, g, m
+
+
+def earth_field(strength_ut: float, inclination_deg: float) -> np.ndarray:
+    """The Earth field in world ENU (x east, y north, z up), uT: ``(3,)``.
+
+    Args:
+        strength_ut: total intensity, uT (25-65 on Earth).
+        inclination_deg: dip below the horizontal, degrees (positive: field points down, as in
+            the northern hemisphere).
+    """
+    inc = np.deg2rad(inclination_deg)
+    return strength_ut * np.array([0.0, np.cos(inc), -np.sin(inc)])
+
+
+def dipole_field(p_w: np.ndarray, position: np.ndarray, moment_am2: np.ndarray) -> np.ndarray:
+    """Field of a magnetic dipole at points ``p_w`` ``(..., 3)`` m, in uT, world frame.
+
+    ``B = mu0/(4 pi) (3 (m . u) u - m) / d^3`` with ``u`` the unit vector from the dipole to
+    the point and ``d`` the distance; moment in A m^2.
+    """
+    rel = p_w - np.asarray(position)
+    d = np.linalg.norm(rel, axis=-1, keepdims=True)
+    u = rel / d
+    m = np.asarray(moment_am2)
+    b_tesla = MU0_OVER_4PI * (3 * np.sum(u * m, axis=-1, keepdims=True) * u - m) / d**3
+    return b_tesla * 1e6

@@ -17,9 +17,9 @@ F, N = 20_000, 4
 def poses():
     rng = np.random.default_rng(0)
     t = np.arange(F) / 100.0
-    # sensors at 0.5, 1.0, 1.0, 1.5 m from the transmitter at the origin, slowly turning
+    # sensors on the transmitter's axis (z) at 0.5, 1.0, 1.0, 1.5 m, randomly turned
     p = np.zeros((F, N, 3))
-    p[:, :, 0] = [0.5, 1.0, 1.0, 1.5]
+    p[:, :, 2] = [0.5, 1.0, 1.0, 1.5]
     q = matrix_to_quat(rotvec_to_matrix(rng.normal(size=(F, N, 3))))
     return t, p, q
 
@@ -46,10 +46,54 @@ def test_position_noise_grows_as_r4(poses):
     assert abs((p2 - p).mean()) < 3 * 0.002 * 1.5**4 / np.sqrt(F)
 
 
+def test_noise_is_larger_across_the_dipole_axis(poses):
+    t, _, q = poses
+    p = np.zeros((F, N, 3))
+    p[:, 0, 2] = 1.0  # on the axis
+    p[:, 1, 0] = 1.0  # in the equatorial plane, same distance
+    p[:, 2, :] = [0.0, np.sqrt(0.5), np.sqrt(0.5)]  # 45 degrees
+    p[:, 3, 2] = -1.0  # on the axis, other side
+    cfg = TrackerConfig(position_noise_m=0.002, orientation_noise_rad=0.01)
+    p2, _, _ = apply_tracker(t, p, q, cfg, np.random.default_rng(13))
+    std = (p2 - p).std(axis=0).mean(axis=1)
+    # dipole: |B| ~ sqrt(1 + 3 cos^2): twice as strong on the axis; sigma ~ |B|^(-4/3)
+    assert std[1] / std[0] == pytest.approx(2 ** (4 / 3), rel=0.03)
+    assert std[2] / std[0] == pytest.approx((2 / np.sqrt(2.5)) ** (4 / 3), rel=0.03)
+    assert std[3] / std[0] == pytest.approx(1.0, rel=0.03)
+
+
+def test_distortion_is_local(poses):
+    from simbench.sensor_models import Distortion
+
+    t, _, q = poses
+    p = np.zeros((F, N, 3))
+    p[:, :, 0] = [0.1, 0.3, 0.9, 2.0]  # distances from a metal object at the origin
+    metal = Distortion(center=(0.0, 0.0, 0.0), radius_m=0.3, position_gain_m=0.05, orientation_gain_rad=0.1)
+    p2, q2, _ = apply_tracker(t, p, q, TrackerConfig(distortion=(metal,)), np.random.default_rng(14))
+    shift = np.linalg.norm(p2 - p, axis=2)[0]
+    assert_allclose(shift, 0.05 * np.exp(-(np.array([0.1, 0.3, 0.9, 2.0]) ** 2) / (2 * 0.09)), rtol=1e-9)
+    assert shift[0] > 0.04 and shift[3] < 1e-10  # large near it, nothing far away
+    turn = np.linalg.norm(
+        matrix_to_rotvec(quat_to_matrix(q2) @ np.swapaxes(quat_to_matrix(q), -1, -2)), axis=2
+    )[0]
+    assert turn[0] > 0.09 and turn[3] < 1e-9
+
+
+def test_sample_rate_holds_last_measurement(poses):
+    t, p, q = poses
+    moving = p.copy()
+    moving[:, :, 1] = t[:, None]
+    p2, _, valid = apply_tracker(t, moving, q, TrackerConfig(sample_rate_hz=25.0), np.random.default_rng(15))
+    assert valid.all()
+    # 100 Hz capture of a 25 Hz tracker: every value repeated four times
+    assert np.array_equal(p2[0::4, :, 1], p2[1::4, :, 1]) and np.array_equal(p2[0::4], p2[3::4])
+    assert_allclose(p2[::4, 0, 1], t[::4], atol=1e-12)
+
+
 def test_orientation_noise(poses):
     t, p, q = poses
     cfg = TrackerConfig(orientation_noise_rad=0.01)
-    _, q2, _ = apply_tracker(t, p, q, cfg, np.random.default_rng(5))
+    _, q2, _ = apply_tracker(t, p, q, cfg, np.random.default_rng(5))  # sensors on the axis
     err = matrix_to_rotvec(quat_to_matrix(q2) @ np.swapaxes(quat_to_matrix(q), -1, -2))
     assert err[:, 1].std() == pytest.approx(0.01, rel=0.02)
     assert err[:, 3].std() == pytest.approx(0.01 * 1.5**3, rel=0.02)
@@ -70,6 +114,19 @@ def test_scale_resolution_dropout_latency(poses):
     p5, _, valid = apply_tracker(t, moving, q, TrackerConfig(latency_s=0.05), np.random.default_rng(8))
     assert not valid[:5].any() and valid[5:].all()
     assert_allclose(p5[5:, :, 1], moving[:-5, :, 1], atol=1e-12)
+
+
+def test_field_models():
+    from simbench.sensor_models import dipole_field, earth_field
+
+    b = earth_field(50.0, 60.0)
+    assert np.linalg.norm(b) == pytest.approx(50.0) and b[0] == 0 and b[2] < 0
+    assert np.degrees(np.arctan2(-b[2], b[1])) == pytest.approx(60.0)
+    # a 1 A m^2 dipole along z: on its axis at 0.1 m the field is 2 mu0/(4 pi) m / d^3 = 200 uT
+    on_axis = dipole_field(np.array([0.0, 0.0, 0.1]), np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    assert_allclose(on_axis, [0.0, 0.0, 200.0], rtol=1e-12)
+    far = dipole_field(np.array([0.0, 0.0, 2.0]), np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    assert far[2] == pytest.approx(200.0 / 20**3)  # falls as d^-3: local
 
 
 def test_imu_terms():
