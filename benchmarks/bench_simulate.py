@@ -22,8 +22,8 @@ import numpy as np
 from mujoco import rollout
 
 from simbench.models import load_capture_model
-from simbench.programs import builtin_program, joint_targets, root_pose
-from simbench.simulate import SessionConfig, _initial_state, run_session
+from simbench.programs import joint_targets, root_pose
+from simbench.simulate import SessionConfig, _initial_state, plan_session, run_session
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -40,9 +40,8 @@ def main() -> None:
     m = cm.model
     n_steps = round(config.duration_s / m.opt.timestep)
     # the same controls, computed outside the timed bare rollout
-    rng = np.random.default_rng(config.seed)
-    program = builtin_program(config.motion, cm, config.duration_s, rng)
-    phases = rng.uniform(0, 2 * np.pi, 12)
+    plan = plan_session(config, cm)
+    program, phases = plan.program, plan.root_phases
     t = np.arange(n_steps) * m.opt.timestep
     d = _initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
     pos, quat = root_pose(program, d.mocap_pos[0].copy(), d.mocap_quat[0].copy(), t, phases)

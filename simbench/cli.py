@@ -218,10 +218,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         rate_hz=args.rate,
         seed=args.seed,
         sensor_bodies=bodies,
+        sensors=args.sensors,
     )
     ds = run_session(config)
     meta = ds.meta
-    print(f"simbench simulate: model {args.model}, motion {meta['program']}, seed {args.seed}")
+    print(
+        f"simbench simulate: model {args.model}, motion {meta['program']}, sensors {meta['sensor_model']}, "
+        f"seed {args.seed}"
+    )
     print(
         f"  sensors: {len(ds.sensors)}   samples: {meta['n_samples']} at {args.rate:g} Hz   physics: "
         f"{1 / meta['physics_timestep_s']:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
@@ -305,6 +309,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.add_argument("--rate", type=float, default=120.0, metavar="HZ", help="capture rate (default 120)")
     sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sim.add_argument(
+        "--sensors",
+        default="ideal",
+        metavar="PRESET|FILE.toml",
+        help="sensor preset (ideal, ascension-flock, polhemus-liberty, mems-consumer, mems-industrial, "
+        "skin-paper-human) or a configuration TOML (default ideal)",
+    )
     sim.add_argument(
         "--sensors-on", metavar="BODY,BODY,...", help="bodies that carry a sensor (default: the model's)"
     )

@@ -14,7 +14,10 @@ z)``; SI units (m, s, rad, m/s^2, rad/s) and microtesla for magnetic field::
     /measured/acc          (F, N, 3)   accelerometer: specific force in the sensor frame, m/s^2
     /measured/gyro         (F, N, 3)   angular velocity in the sensor frame, rad/s
     /measured/mag          (F, N, 3)   magnetic field in the sensor frame, uT
-    /truth/...             the same six names, exact (bone-rigid) values, plus:
+    /truth/...             the same six names, exact bone-rigid values (sensor fixed to the bone)
+    /truth/actual/...      the same six names, exact values where the sensor actually is (on the
+                           skin: soft-tissue mount, artefact, slip); = bone-rigid for ideal skin
+    /truth/...             plus:
     /truth/p_w_b, q_w_b    (F, N, 3/4) pose of each sensor's body (segment) frame
     /truth/joint_w         (F, J, 3)   world position of each joint centre, m
     /truth/parent, child   (J,)        sensor names of each joint
@@ -82,6 +85,7 @@ class Truth:
     """Exact ground truth of a simulated session (module docstring for the fields)."""
 
     sensors: SensorData
+    actual: SensorData
     p_w_b: np.ndarray
     q_w_b: np.ndarray
     joint_w: np.ndarray
@@ -158,8 +162,9 @@ def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
         if ds.truth is not None:
             g = fh.create_group("truth")
             _write_group(g, ds.truth.sensors)
+            _write_group(g.create_group("actual"), ds.truth.actual)
             for x in fields(ds.truth):
-                if x.name == "sensors":
+                if x.name in ("sensors", "actual"):
                     continue
                 value = getattr(ds.truth, x.name)
                 if isinstance(value, tuple):
@@ -204,8 +209,9 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
         if "truth" in fh:
             g = fh["truth"]
             values: dict[str, Any] = {"sensors": _read_sensor_data(g, path)}
+            values["actual"] = _read_sensor_data(g["actual"], path) if "actual" in g else values["sensors"]
             for x in fields(Truth):
-                if x.name == "sensors":
+                if x.name in ("sensors", "actual"):
                     continue
                 if x.name not in g:
                     raise InputError(f"{path}: missing dataset /truth/{x.name}")

@@ -87,10 +87,13 @@ class CaptureModel:
         sensors: sensor names (= the names of the bodies they sit on), parents before children.
         parent_of: ``{child sensor: parent sensor}``; the first sensor is the root.
         articulations: the joint(s) of each non-root sensor, in ``sensors[1:]`` order.
-        site_ids: ``(N,)`` site id of each sensor.
+        site_ids: ``(N,)`` site id of each sensor's bone placement.
         body_ids: ``(N,)`` body id of each sensor body.
         mocap_id: mocap index driving the root, or -1 when the root is fixed or not free.
-        adr: sensordata address of each of our sensor kinds: ``{"site_pos": (N,), ...}``.
+        mount: the soft-tissue mount the sensors sit on, or ``None`` (rigid on the bone).
+        adr: sensordata address of each of our sensor kinds: ``{"site_pos": (N,), ...}``;
+            ``site_*``, ``acc``, ``gyro``, ``mag`` are the worn sensor (on its mount, if any),
+            ``bone_*`` its bone placement, ``body_*`` the segment frame.
         clock_adr: sensordata address of the clock.
     """
 
@@ -102,6 +105,7 @@ class CaptureModel:
     site_ids: np.ndarray
     body_ids: np.ndarray
     mocap_id: int
+    mount: Mount | None
     adr: dict[str, np.ndarray]
     clock_adr: int
 
@@ -182,13 +186,63 @@ def _site_frame(rng_seed: int) -> tuple[np.ndarray, np.ndarray]:
     return offset, matrix_to_quat(rotvec_to_matrix(rotvec))
 
 
-def load_capture_model(source: str, *, sensor_bodies: Sequence[str] | None = None) -> CaptureModel:
+@dataclass(frozen=True)
+class Mount:
+    """A soft-tissue mount: the sensor on its own small body, held by springs to its segment.
+
+    Attributes:
+        stiffness_n_per_m: translational spring per axis, N/m (> 0).
+        rot_stiffness_nm_per_rad: rotational spring, N m/rad (0: no rotation on the mount).
+        damping_ratio: of each spring with the mount's mass or inertia.
+        mass_kg: sensor and moving tissue, kg; inertia that of a 2 cm-radius sphere.
+    """
+
+    stiffness_n_per_m: float
+    rot_stiffness_nm_per_rad: float = 0.0
+    damping_ratio: float = 0.3
+    mass_kg: float = 0.03
+
+
+def _add_mount(spec: mujoco.MjSpec, body: str, pos: np.ndarray, quat: np.ndarray, mount: Mount) -> str:
+    """Add a sprung mount body at a sensor's placement; returns the name of its sensor site."""
+    inertia = 0.4 * mount.mass_kg * 0.02**2
+    child = spec.body(body).add_body(name=f"simbench_mount_{body}", pos=pos, quat=quat)
+    child.explicitinertial = True
+    child.mass = mount.mass_kg
+    child.inertia = np.full(3, inertia)
+    damping = 2 * mount.damping_ratio * np.sqrt(mount.stiffness_n_per_m * mount.mass_kg)
+    for axis, label in zip(np.eye(3), "xyz", strict=True):
+        child.add_joint(
+            name=f"{body}:mount_{label}",
+            type=mujoco.mjtJoint.mjJNT_SLIDE,
+            axis=axis,
+            stiffness=np.array([mount.stiffness_n_per_m, 0.0, 0.0]),
+            damping=np.array([damping, 0.0, 0.0]),
+        )
+    if mount.rot_stiffness_nm_per_rad > 0:
+        rot_damping = 2 * mount.damping_ratio * np.sqrt(mount.rot_stiffness_nm_per_rad * inertia)
+        child.add_joint(
+            name=f"{body}:mount_rot",
+            type=mujoco.mjtJoint.mjJNT_BALL,
+            stiffness=np.array([mount.rot_stiffness_nm_per_rad, 0.0, 0.0]),
+            damping=np.array([rot_damping, 0.0, 0.0]),
+        )
+    site = f"sensor_{body}:mount"
+    child.add_site(name=site)
+    return site
+
+
+def load_capture_model(
+    source: str, *, sensor_bodies: Sequence[str] | None = None, mount: Mount | None = None
+) -> CaptureModel:
     """Load a model and equip it for capture sessions (see the module docstring).
 
     Args:
         source: ``linkage``, ``humanoid``, ``dm_control:NAME`` or a path to an MJCF file.
         sensor_bodies: bodies that carry a sensor; default: bodies with a ``sensor_<body>``
             site, else every body with joints and the free root.
+        mount: put every sensor on a sprung soft-tissue mount (``None``: rigid on the bone).
+            The bone placement is still recorded (``bone_pos``/``bone_quat``).
 
     Raises:
         InputError: unknown model or body names, bodies not joined by single joints.
@@ -260,23 +314,39 @@ def load_capture_model(source: str, *, sensor_bodies: Sequence[str] | None = Non
         spec.delete(a)
     for s in list(spec.sensors):
         spec.delete(s)
-    site_names = []
+    site_names = []  # the bone placement of each sensor
+    worn_names = []  # where the sensor actually is: the same site, or its mount's
     for k, b in enumerate(order):
         name = bname(b)
         site = f"sensor_{name}"
-        if mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SITE, site) < 0:
-            offset, quat = _site_frame(k)
-            spec.body(name).add_site(name=site, pos=base.body_ipos[b] + offset, quat=quat)
+        sid_base = mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SITE, site)
+        if sid_base < 0:
+            pos, quat = _site_frame(k)
+            pos = base.body_ipos[b] + pos
+            spec.body(name).add_site(name=site, pos=pos, quat=quat)
+        else:
+            pos, quat = base.site_pos[sid_base].copy(), base.site_quat[sid_base].copy()
         site_names.append(site)
+        worn_names.append(site if mount is None else _add_mount(spec, name, pos, quat, mount))
     st = mujoco.mjtSensor
     obj = mujoco.mjtObj
-    for name, site in zip(map(bname, order), site_names, strict=True):
+    for name, bone, site in zip(map(bname, order), site_names, worn_names, strict=True):
         spec.add_sensor(
             name=f"{name}:site_pos", type=st.mjSENS_FRAMEPOS, objtype=obj.mjOBJ_SITE, objname=site
         )
         spec.add_sensor(
             name=f"{name}:site_quat", type=st.mjSENS_FRAMEQUAT, objtype=obj.mjOBJ_SITE, objname=site
         )
+        spec.add_sensor(
+            name=f"{name}:bone_pos", type=st.mjSENS_FRAMEPOS, objtype=obj.mjOBJ_SITE, objname=bone
+        )
+        spec.add_sensor(
+            name=f"{name}:bone_quat", type=st.mjSENS_FRAMEQUAT, objtype=obj.mjOBJ_SITE, objname=bone
+        )
+        spec.add_sensor(
+            name=f"{name}:bone_acc", type=st.mjSENS_ACCELEROMETER, objtype=obj.mjOBJ_SITE, objname=bone
+        )
+        spec.add_sensor(name=f"{name}:bone_gyro", type=st.mjSENS_GYRO, objtype=obj.mjOBJ_SITE, objname=bone)
         spec.add_sensor(
             name=f"{name}:acc", type=st.mjSENS_ACCELEROMETER, objtype=obj.mjOBJ_SITE, objname=site
         )
@@ -339,7 +409,19 @@ def load_capture_model(source: str, *, sensor_bodies: Sequence[str] | None = Non
     sensor_names = tuple(bname(b) for b in order)
     adr = {
         kind: np.array([sid(kind, n) for n in sensor_names])
-        for kind in ("site_pos", "site_quat", "acc", "gyro", "mag", "body_pos", "body_quat")
+        for kind in (
+            "site_pos",
+            "site_quat",
+            "bone_pos",
+            "bone_quat",
+            "bone_acc",
+            "bone_gyro",
+            "acc",
+            "gyro",
+            "mag",
+            "body_pos",
+            "body_quat",
+        )
     }
     articulations = []
     for b in order[1:]:
@@ -385,6 +467,7 @@ def load_capture_model(source: str, *, sensor_bodies: Sequence[str] | None = Non
         site_ids=np.array([mujoco.mj_name2id(model, obj.mjOBJ_SITE, s) for s in site_names]),
         body_ids=np.array([mujoco.mj_name2id(model, obj.mjOBJ_BODY, bname(b)) for b in order]),
         mocap_id=mocap_id,
+        mount=mount,
         adr=adr,
         clock_adr=int(model.sensor_adr[mujoco.mj_name2id(model, obj.mjOBJ_SENSOR, "clock")]),
     )

@@ -12,8 +12,10 @@ of Birds or a Polhemus Liberty/Fastrak reports poses:
   ``r^-3``, so at fixed signal noise the position error grows about as ``r^4`` (``n = 4``,
   DESIGN.md, after Day et al. 2000) and the orientation error as ``r^3``. The dipole's field is
   twice as strong along its axis (the transmitter's z axis) as across it,
-  ``|B| ~ sqrt(1 + 3 cos^2 theta)``, so ``a(theta) = (2 / sqrt(1 + 3 cos^2 theta))^(n/3)``: 1 on
-  the axis, ``2^(n/3)`` in the transmitter's equatorial plane -- hence the transmitter's pose;
+  ``|B| ~ sqrt(1 + 3 cos^2 theta)``, so ``a(theta) ~ (1 + 3 cos^2 theta)^(-n/6)``, normalised to a
+  mean of 1 over all directions: ``sigma_ref`` is the direction-averaged noise at ``r_ref`` (as
+  vendors quote one figure), 0.57 of it on the axis and 1.43 times it across (``n = 4``) --
+  hence the transmitter's pose;
 - static field distortion near metal (:class:`Distortion`): a smooth warp of positions (radial,
   away from the object) and orientations (about a fixed axis), Gaussian in the distance to the
   object: ``gain exp(-|p - c|^2 / (2 rho^2))``, negligible a few ``rho`` away;
@@ -155,6 +157,21 @@ class TrackerConfig:
             )
 
 
+def dipole_anisotropy(cos_theta: np.ndarray, exponent: float) -> np.ndarray:
+    """Noise factor ``(1 + 3 cos^2)^(-n/6)`` normalised to mean 1 over the sphere.
+
+    Args:
+        cos_theta: cosine of the angle between the transmitter axis and the direction to the
+            sensor.
+        exponent: ``n`` of the noise's distance law (the field falls as ``r^-3``, its strength
+            goes as ``sqrt(1 + 3 cos^2)``, so noise at fixed signal noise goes as
+            ``|B|^(-n/3)``).
+    """
+    nodes, weights = np.polynomial.legendre.leggauss(64)  # mean over cos uniform in [-1, 1]
+    mean = 0.5 * np.sum(weights * (1 + 3 * nodes**2) ** (-exponent / 6))
+    return (1 + 3 * np.asarray(cos_theta) ** 2) ** (-exponent / 6) / mean
+
+
 def _quantise(x: np.ndarray, step: float) -> np.ndarray:
     return x if step == 0 else np.round(x / step) * step
 
@@ -205,17 +222,16 @@ def apply_tracker(
     r = np.linalg.norm(rel, axis=2)
     axis = np.asarray(config.transmitter_axis) / np.linalg.norm(config.transmitter_axis)
     cos = np.divide(rel @ axis, r, out=np.ones_like(r), where=r > 0)
-    weak = 2.0 / np.sqrt(1.0 + 3.0 * cos**2)  # field strength on the axis over here
     r = r / config.reference_distance_m
     if config.position_noise_m > 0:
         n_p = config.position_exponent
-        sigma = config.position_noise_m * r**n_p * weak ** (n_p / 3.0)
+        sigma = config.position_noise_m * r**n_p * dipole_anisotropy(cos, n_p)
         p = p + rng.normal(size=p.shape) * sigma[..., None]
     if config.orientation_noise_rad > 0 or config.resolution_rad > 0 or R is not None:
         R = quat_to_matrix(q) if R is None else R
         if config.orientation_noise_rad > 0:
             n_o = config.orientation_exponent
-            sigma = config.orientation_noise_rad * r**n_o * weak ** (n_o / 3.0)
+            sigma = config.orientation_noise_rad * r**n_o * dipole_anisotropy(cos, n_o)
             R = rotvec_to_matrix(rng.normal(size=(f, n, 3)) * sigma[..., None]) @ R
         if config.resolution_rad > 0:
             R = rotvec_to_matrix(_quantise(matrix_to_rotvec(R), config.resolution_rad))

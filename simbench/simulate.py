@@ -1,4 +1,4 @@
-"""Capture sessions moved by MuJoCo physics, with exact ground truth.
+"""Capture sessions moved by MuJoCo physics, with exact ground truth and modelled sensors.
 
 The motion program gives actuator set-points and the root driver's pose at every physics
 step; ``mujoco.rollout`` runs the dynamics natively in chunks of steps (gravity, position
@@ -9,7 +9,14 @@ or slightly finer so that the capture period is a whole number ``k`` of steps.
 
 Truth constants (joint centres in both sensor frames, hinge axes, sensor placement) are read off
 the model at its reference pose; the joints of a MuJoCo model are exact, so they hold at every
-frame to rounding.
+frame to rounding (unless joint laxity is switched on).
+
+Then the sensor configuration (:mod:`simbench.sensor_config`) turns truth into measurements:
+joint laxity moves joint centres (and everything below them), soft-tissue artefact and slip
+events move the worn sensors off their bone placement (on top of the physics of a sprung
+soft-tissue mount, if any), the magnetic field is the Earth's plus dipole disturbances at each
+sensor's place, and the tracker and IMU models add their imperfections. Every random draw comes
+from a stream spawned from the session seed.
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ import simbench
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from simbench.dataset import Dataset, SensorData, Truth
 from simbench.errors import InputError
-from simbench.models import CaptureModel, load_capture_model
+from simbench.models import CaptureModel, Mount, load_capture_model
 from simbench.programs import (
     BUILTIN_PROGRAMS,
     Program,
@@ -34,6 +41,17 @@ from simbench.programs import (
     joint_targets,
     load_program,
     root_pose,
+)
+from simbench.sensor_config import SensorConfig, load_sensor_config
+from simbench.sensor_models import apply_imu, apply_tracker, dipole_field, earth_field
+from simbench.skin import (
+    laxity_offsets,
+    per_sensor,
+    relative_rotvecs,
+    second_derivative,
+    slip_offsets,
+    soft_tissue_offsets,
+    subtree_masks,
 )
 
 #: Physics steps per rollout call (bounds memory: states and sensor rows of one chunk).
@@ -51,6 +69,7 @@ class SessionConfig:
         rate_hz: capture rate, Hz (> 0, at most the model's physics rate).
         seed: seed of the session's ``numpy.random.Generator``.
         sensor_bodies: bodies carrying a sensor, or ``None`` for the model's default.
+        sensors: sensor preset name or configuration TOML path (:mod:`simbench.sensor_config`).
     """
 
     model: str = "linkage"
@@ -59,6 +78,7 @@ class SessionConfig:
     rate_hz: float = 120.0
     seed: int = 0
     sensor_bodies: tuple[str, ...] | None = None
+    sensors: str = "ideal"
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration_s) and self.duration_s > 0):
@@ -75,6 +95,7 @@ class SessionConfig:
             "rate_hz": self.rate_hz,
             "seed": self.seed,
             "sensor_bodies": None if self.sensor_bodies is None else list(self.sensor_bodies),
+            "sensors": self.sensors,
         }
 
 
@@ -158,86 +179,217 @@ def truth_constants(cm: CaptureModel) -> dict[str, np.ndarray]:
     return out
 
 
-def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Dataset:
-    """Simulate one capture session and return its dataset (measured = ideal = truth).
+@dataclass(frozen=True)
+class SessionPlan:
+    """What a session will do, fixed before any physics runs.
 
-    Args:
-        config: the session.
-        cm: an already loaded model for ``config.model`` (loaded when ``None``).
-
-    Raises:
-        InputError: bad model, body or program names, rates, durations.
+    Attributes:
+        program: the motion program.
+        root_phases: ``(12,)`` phases of the root's motion, rad.
+        steps_per_sample: physics steps per capture sample ``k``.
+        timestep: physics timestep, s.
+        n_samples: samples to record.
+        sensors: the sensor configuration.
+        streams: independent random generators for the ``skin``, ``tracker`` and ``imu`` models
+            (so that switching one imperfection on does not change another's draws).
     """
-    if cm is None:
-        cm = load_capture_model(config.model, sensor_bodies=config.sensor_bodies)
-    m = cm.model
-    model_dt = float(m.opt.timestep)
-    k, dt = steps_per_sample(model_dt, config.rate_hz)
-    m.opt.timestep = dt
-    rng = np.random.default_rng(config.seed)
-    program = _program(config, cm, rng)
-    root_phases = rng.uniform(0, 2 * np.pi, 12)
+
+    program: Program
+    root_phases: np.ndarray
+    steps_per_sample: int
+    timestep: float
+    n_samples: int
+    sensors: SensorConfig
+    streams: dict[str, np.random.Generator]
+
+
+def _mount_of(sensors: SensorConfig) -> Mount | None:
+    skin = sensors.skin
+    if not skin.has_mount:
+        return None
+    return Mount(
+        stiffness_n_per_m=skin.mount_stiffness_n_per_m,
+        rot_stiffness_nm_per_rad=skin.mount_rot_stiffness_nm_per_rad,
+        damping_ratio=skin.mount_damping_ratio,
+        mass_kg=skin.mount_mass_kg,
+    )
+
+
+def load_session_model(config: SessionConfig) -> CaptureModel:
+    """The capture model a session needs (with the soft-tissue mount its sensors ask for)."""
+    sensors = load_sensor_config(config.sensors)
+    return load_capture_model(config.model, sensor_bodies=config.sensor_bodies, mount=_mount_of(sensors))
+
+
+def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
+    """Draw everything random about a session from its seed, and check it against the model."""
+    sensors = load_sensor_config(config.sensors)
+    if _mount_of(sensors) != cm.mount:
+        raise InputError(
+            f"sensors {config.sensors!r} need mount {_mount_of(sensors)}; the model was loaded with "
+            f"{cm.mount} (load it with load_session_model)"
+        )
+    k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
     n_samples = math.floor(config.duration_s * config.rate_hz + 1e-9)
     if n_samples < 2:
         raise InputError(f"duration {config.duration_s} s at {config.rate_hz} Hz gives fewer than 2 samples")
-    n_steps = n_samples * k
-    d = _initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
-    mocap = cm.mocap_id
-    p0 = d.mocap_pos[mocap].copy() if mocap >= 0 else np.zeros(3)
-    q0 = d.mocap_quat[mocap].copy() if mocap >= 0 else np.array([1.0, 0.0, 0.0, 0.0])
-    mocap_pos0, mocap_quat0 = d.mocap_pos.copy(), d.mocap_quat.copy()
-    spec_state = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    spec_ctrl = int(mujoco.mjtState.mjSTATE_CTRL)
-    if mocap >= 0:
-        spec_ctrl |= int(mujoco.mjtState.mjSTATE_MOCAP_POS) | int(mujoco.mjtState.mjSTATE_MOCAP_QUAT)
-    state = np.zeros(mujoco.mj_stateSize(m, spec_state))
-    mujoco.mj_getState(m, d, state, spec_state)
-    rows = []
-    chunk = max(k, (CHUNK_STEPS // k) * k)
-    for start in range(0, n_steps, chunk):
-        n = min(chunk, n_steps - start)
-        t = (start + np.arange(n)) * dt
-        control = [joint_targets(program, cm, t)]
+    seeds = np.random.SeedSequence(config.seed).spawn(5)
+    motion_rng = np.random.default_rng(seeds[0])
+    program = _program(config, cm, motion_rng)
+    root_phases = np.random.default_rng(seeds[1]).uniform(0, 2 * np.pi, 12)
+    streams = {
+        name: np.random.default_rng(s) for name, s in zip(("skin", "tracker", "imu"), seeds[2:], strict=True)
+    }
+    return SessionPlan(program, root_phases, k, dt, n_samples, sensors, streams)
+
+
+def _physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[str, int]]:
+    """Run the dynamics; returns the sensordata rows at the samples and MuJoCo's warnings."""
+    m = cm.model
+    model_dt = float(m.opt.timestep)
+    k, dt = plan.steps_per_sample, plan.timestep
+    program = plan.program
+    m.opt.timestep = dt
+    try:
+        n_steps = plan.n_samples * k
+        d = _initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
+        mocap = cm.mocap_id
+        p0 = d.mocap_pos[mocap].copy() if mocap >= 0 else np.zeros(3)
+        q0 = d.mocap_quat[mocap].copy() if mocap >= 0 else np.array([1.0, 0.0, 0.0, 0.0])
+        mocap_pos0, mocap_quat0 = d.mocap_pos.copy(), d.mocap_quat.copy()
+        spec_state = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        spec_ctrl = int(mujoco.mjtState.mjSTATE_CTRL)
         if mocap >= 0:
-            pos, quat = root_pose(program, p0, q0, t, root_phases)
-            all_pos = np.tile(mocap_pos0, (n, 1, 1))  # the model's other mocap bodies stay put
-            all_quat = np.tile(mocap_quat0, (n, 1, 1))
-            all_pos[:, mocap] = pos
-            all_quat[:, mocap] = quat
-            control += [all_pos.reshape(n, -1), all_quat.reshape(n, -1)]
-        states, sensordata = rollout.rollout(
-            m, d, state[None], np.concatenate(control, axis=1)[None], control_spec=spec_ctrl
-        )
-        rows.append(sensordata[0, ::k].copy())
-        state = states[0, -1].copy()
-    m.opt.timestep = model_dt
+            spec_ctrl |= int(mujoco.mjtState.mjSTATE_MOCAP_POS) | int(mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+        state = np.zeros(mujoco.mj_stateSize(m, spec_state))
+        mujoco.mj_getState(m, d, state, spec_state)
+        rows = []
+        chunk = max(k, (CHUNK_STEPS // k) * k)
+        for start in range(0, n_steps, chunk):
+            n = min(chunk, n_steps - start)
+            t = (start + np.arange(n)) * dt
+            control = [joint_targets(program, cm, t)]
+            if mocap >= 0:
+                pos, quat = root_pose(program, p0, q0, t, plan.root_phases)
+                all_pos = np.tile(mocap_pos0, (n, 1, 1))  # the model's other mocap bodies stay put
+                all_quat = np.tile(mocap_quat0, (n, 1, 1))
+                all_pos[:, mocap] = pos
+                all_quat[:, mocap] = quat
+                control += [all_pos.reshape(n, -1), all_quat.reshape(n, -1)]
+            states, sensordata = rollout.rollout(
+                m, d, state[None], np.concatenate(control, axis=1)[None], control_spec=spec_ctrl
+            )
+            rows.append(sensordata[0, ::k].copy())
+            state = states[0, -1].copy()
+    finally:
+        m.opt.timestep = model_dt
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(d.warning) if w.number > 0}
-    sd = np.concatenate(rows, axis=0)[:n_samples]
+    return np.concatenate(rows, axis=0)[: plan.n_samples], warnings
+
+
+def _field(sensors: SensorConfig, p_w: np.ndarray, R_w_s: np.ndarray) -> np.ndarray:
+    """Magnetic field in the sensor frames at ``p_w`` ``(F, N, 3)``, uT."""
+    b_w = np.broadcast_to(
+        earth_field(sensors.magnetic.strength_ut, sensors.magnetic.inclination_deg), p_w.shape
+    )
+    for dist in sensors.magnetic.disturbance:
+        b_w = b_w + dipole_field(p_w, np.asarray(dist.position), np.asarray(dist.moment_am2))
+    return np.einsum("fsji,fsj->fsi", R_w_s, b_w)
+
+
+def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Dataset:
+    """Simulate one capture session and return its dataset.
+
+    Truth keeps both the bone-rigid sensor data (``truth.sensors``) and the actual ones where the
+    sensor sits on the skin (``truth.actual``: soft-tissue mount, artefact, slip events);
+    ``measured`` is what the configured instruments report of the actual ones.
+
+    Args:
+        config: the session.
+        cm: an already loaded model (:func:`load_session_model`; loaded when ``None``).
+
+    Raises:
+        InputError: bad model, body, program or sensor-configuration names, rates, durations.
+    """
+    if cm is None:
+        cm = load_session_model(config)
+    plan = plan_session(config, cm)
+    sd, warnings = _physics(cm, plan)
+    sensors = plan.sensors
     a = cm.adr
 
     def take(kind: str, width: int) -> np.ndarray:
         cols = a[kind][:, None] + np.arange(width)[None, :]
         return sd[:, cols]
 
+    time_s = sd[:, cm.clock_adr]
     const = truth_constants(cm)
-    n_sensors = len(cm.sensors)
-    valid = np.ones((n_samples, n_sensors), dtype=bool)
-    ideal = SensorData(
-        p_w_s=take("site_pos", 3),
-        q_w_s=take("site_quat", 4),
-        valid=valid,
-        acc=take("acc", 3),
-        gyro=take("gyro", 3),
-        mag=take("mag", 3),
-    )
     index = {name: i for i, name in enumerate(cm.sensors)}
+    parent_idx = [index[cm.parent_of[art.sensor]] for art in cm.articulations]
     child_idx = [index[art.sensor] for art in cm.articulations]
-    R_c = quat_to_matrix(ideal.q_w_s[:, child_idx])
-    joint_w = np.einsum("fjab,jb->fja", R_c, const["joint_in_child"]) + ideal.p_w_s[:, child_idx]
+    n_samples, n_sensors = time_s.size, len(cm.sensors)
+    bone_p, bone_q = take("bone_pos", 3), take("bone_quat", 4)
+    bone_acc, bone_gyro = take("bone_acc", 3), take("bone_gyro", 3)
+    worn_p, worn_q = take("site_pos", 3), take("site_quat", 4)
+    worn_acc, worn_gyro = take("acc", 3), take("gyro", 3)
+    body_p, body_q = take("body_pos", 3), take("body_quat", 4)
+    R_b = quat_to_matrix(body_q)
+    skin = sensors.skin
+    rng = plan.streams["skin"]
+    phi = relative_rotvecs(body_q, parent_idx, child_idx)
+    # joint laxity: a joint centre moves in its parent's frame; the child's subtree moves with it
+    laxity = per_sensor(skin.laxity_by_joint, cm.sensors, 0.0, "skin.laxity_by_joint")[child_idx]
+    lax = laxity_offsets(phi, laxity, rng)
+    lax_w = np.einsum("fjab,fjb->fja", R_b[:, parent_idx], lax)
+    shift_w = np.einsum("fja,js->fsa", lax_w, subtree_masks(n_sensors, parent_idx, child_idx).astype(float))
+    # skin: soft-tissue artefact and slip events, in each segment's frame
+    sta = per_sensor(skin.sta_by_sensor, cm.sensors, skin.sta_amplitude_m, "skin.sta_by_sensor")
+    offsets = soft_tissue_offsets(phi, parent_idx, child_idx, sta, rng)
+    offsets += slip_offsets(time_s, cm.sensors, skin.slip)
+    skin_w = np.einsum("fsab,fsb->fsa", R_b, offsets)
+    if np.any(shift_w) or np.any(skin_w):
+        body_p = body_p + shift_w
+        bone_p = bone_p + shift_w
+        bone_acc = bone_acc + np.einsum(
+            "fsji,fsj->fsi", quat_to_matrix(bone_q), second_derivative(shift_w, time_s)
+        )
+        worn_p = worn_p + shift_w + skin_w
+        worn_acc = worn_acc + np.einsum(
+            "fsji,fsj->fsi", quat_to_matrix(worn_q), second_derivative(shift_w + skin_w, time_s)
+        )
+    valid = np.ones((n_samples, n_sensors), dtype=bool)
+    bone = SensorData(
+        p_w_s=bone_p,
+        q_w_s=bone_q,
+        valid=valid,
+        acc=bone_acc,
+        gyro=bone_gyro,
+        mag=_field(sensors, bone_p, quat_to_matrix(bone_q)),
+    )
+    actual = SensorData(
+        p_w_s=worn_p,
+        q_w_s=worn_q,
+        valid=valid,
+        acc=worn_acc,
+        gyro=worn_gyro,
+        mag=_field(sensors, worn_p, quat_to_matrix(worn_q)),
+    )
+    p_meas, q_meas, valid_meas = apply_tracker(
+        time_s, actual.p_w_s, actual.q_w_s, sensors.tracker, plan.streams["tracker"]
+    )
+    acc_meas, gyro_meas, mag_meas = apply_imu(
+        config.rate_hz, actual.acc, actual.gyro, actual.mag, sensors.imu, plan.streams["imu"]
+    )
+    measured = SensorData(
+        p_w_s=p_meas, q_w_s=q_meas, valid=valid_meas, acc=acc_meas, gyro=gyro_meas, mag=mag_meas
+    )
+    R_c = quat_to_matrix(bone.q_w_s[:, child_idx])
+    joint_w = np.einsum("fjab,jb->fja", R_c, const["joint_in_child"]) + bone.p_w_s[:, child_idx]
     truth = Truth(
-        sensors=ideal,
-        p_w_b=take("body_pos", 3),
-        q_w_b=take("body_quat", 4),
+        sensors=bone,
+        actual=actual,
+        p_w_b=body_p,
+        q_w_b=body_q,
         joint_w=joint_w,
         parent=tuple(cm.parent_of[art.sensor] for art in cm.articulations),
         child=tuple(art.sensor for art in cm.articulations),
@@ -251,15 +403,17 @@ def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Datase
     )
     meta = {
         "model": config.model,
-        "program": program.name,
+        "program": plan.program.name,
         "seed": config.seed,
         "rate_hz": config.rate_hz,
         "duration_s": config.duration_s,
         "n_samples": n_samples,
-        "physics_timestep_s": dt,
-        "model_timestep_s": model_dt,
-        "steps_per_sample": k,
-        "sensor_model": "ideal",
+        "physics_timestep_s": plan.timestep,
+        "model_timestep_s": float(cm.model.opt.timestep),
+        "steps_per_sample": plan.steps_per_sample,
+        "sensor_model": sensors.name,
+        "sensor_config": sensors.as_dict(),
+        "position_unit_scale": sensors.tracker.unit_scale,
         "mujoco_warnings": warnings,
         "config": config.as_dict(),
         "versions": {
@@ -269,4 +423,4 @@ def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Datase
             "python": platform.python_version(),
         },
     }
-    return Dataset(time_s=sd[:, cm.clock_adr], sensors=cm.sensors, measured=ideal, truth=truth, meta=meta)
+    return Dataset(time_s=time_s, sensors=cm.sensors, measured=measured, truth=truth, meta=meta)

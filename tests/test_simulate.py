@@ -52,15 +52,14 @@ def test_same_seed_same_dataset_other_seed_differs(capture_models):
 
 def test_readings_are_mujocos_sensors_at_the_sample_times(capture_models):
     """Replay the same controls with a plain mj_step loop: every sample equals MuJoCo's data."""
-    from simbench.programs import builtin_program, joint_targets, root_pose
-    from simbench.simulate import _initial_state
+    from simbench.programs import joint_targets, root_pose
+    from simbench.simulate import _initial_state, plan_session
 
     cm = load_capture_model("linkage")
     config = SessionConfig(motion="exercise", duration_s=0.25, seed=2)
     ds = run_session(config, cm)
-    rng = np.random.default_rng(config.seed)
-    program = builtin_program("exercise", cm, config.duration_s, rng)
-    phases = rng.uniform(0, 2 * np.pi, 12)
+    plan = plan_session(config, cm)
+    program, phases = plan.program, plan.root_phases
     m = cm.model
     d = _initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
     p0, q0 = d.mocap_pos[0].copy(), d.mocap_quat[0].copy()

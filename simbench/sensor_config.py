@@ -1,0 +1,227 @@
+"""Sensor configurations: TOML files and named presets, into frozen dataclasses.
+
+A configuration has up to five tables; every key is optional (default: ideal) and every
+unknown key or out-of-range value is an error naming the file and key::
+
+    name = "my-rig"
+    [tracker]                       # simbench.sensor_models.TrackerConfig fields
+    position_noise_m = 0.004
+    unit_scale = 0.94
+    [[tracker.distortion]]          # simbench.sensor_models.Distortion fields
+    center = [1.0, 0.5, 0.0]
+    radius_m = 0.3
+    position_gain_m = 0.02
+    [imu]                           # simbench.sensor_models.ImuConfig fields
+    accel_noise_density = 0.0006
+    [magnetic]
+    strength_ut = 50.0              # Earth field, uT
+    inclination_deg = 60.0
+    [[magnetic.disturbance]]        # ferromagnetic objects as magnetic dipoles
+    position = [0.5, 0.0, 1.0]
+    moment_am2 = [0.0, 0.0, 2.0]
+    [skin]                          # SkinConfig fields
+    sta_amplitude_m = 0.005
+    sta_by_sensor = { thigh_l = 0.03 }
+    laxity_by_joint = { shank_l = 0.007 }   # keyed by the joint's child sensor
+    mount_stiffness_n_per_m = 2000.0
+    [[skin.slip]]
+    sensor = "forearm_l"
+    time_s = 10.0
+    offset_m = [0.0, 0.03, 0.0]
+
+Presets ship in ``simbench/presets/<name>.toml`` (``ideal``, ``ascension-flock``,
+``polhemus-liberty``, ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``); each file
+says where its numbers come from.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simbench.errors import InputError
+from simbench.sensor_models import Distortion, ImuConfig, TrackerConfig
+from simbench.skin import SlipEvent
+
+PRESETS_DIR = Path(__file__).resolve().parent / "presets"
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """A ferromagnetic object as a magnetic dipole at ``position`` (m) with ``moment_am2``."""
+
+    position: tuple[float, float, float]
+    moment_am2: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        for name in ("position", "moment_am2"):
+            v = getattr(self, name)
+            if len(v) != 3 or not np.all(np.isfinite(v)):
+                raise InputError(f"disturbance.{name} must be 3 finite numbers, got {v}")
+
+
+@dataclass(frozen=True)
+class FieldConfig:
+    """The magnetic field in the room: the Earth's, plus disturbances."""
+
+    strength_ut: float = 50.0
+    inclination_deg: float = 60.0
+    disturbance: tuple[Disturbance, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.strength_ut) and self.strength_ut >= 0):
+            raise InputError(f"field.strength_ut must be >= 0, got {self.strength_ut}")
+        if not (np.isfinite(self.inclination_deg) and -90 <= self.inclination_deg <= 90):
+            raise InputError(f"field.inclination_deg must be in [-90, 90], got {self.inclination_deg}")
+
+
+@dataclass(frozen=True)
+class SkinConfig:
+    """Skin slip and non-ideal joints (see :mod:`simbench.skin` and :mod:`simbench.models`).
+
+    Attributes:
+        sta_amplitude_m: soft-tissue artefact amplitude of every sensor, m.
+        sta_by_sensor: per-sensor amplitudes overriding it, m.
+        laxity_by_joint: joint-centre laxity amplitude by the joint's child sensor, m.
+        slip: slip events.
+        mount_stiffness_n_per_m: translational stiffness of the soft-tissue mount (0: the
+            sensor is rigid on the bone, no mount).
+        mount_rot_stiffness_nm_per_rad: rotational stiffness of the mount (0: rigid in rotation
+            when the mount is on).
+        mount_damping_ratio: damping ratio of the mount's springs.
+        mount_mass_kg: mass of sensor and moving tissue on the mount, kg.
+    """
+
+    sta_amplitude_m: float = 0.0
+    sta_by_sensor: dict[str, float] = field(default_factory=dict)
+    laxity_by_joint: dict[str, float] = field(default_factory=dict)
+    slip: tuple[SlipEvent, ...] = ()
+    mount_stiffness_n_per_m: float = 0.0
+    mount_rot_stiffness_nm_per_rad: float = 0.0
+    mount_damping_ratio: float = 0.3
+    mount_mass_kg: float = 0.03
+
+    def __post_init__(self) -> None:
+        for name in (
+            "sta_amplitude_m",
+            "mount_stiffness_n_per_m",
+            "mount_rot_stiffness_nm_per_rad",
+            "mount_damping_ratio",
+        ):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise InputError(f"skin.{name} must be a finite number >= 0, got {v!r}")
+        if not (np.isfinite(self.mount_mass_kg) and self.mount_mass_kg > 0):
+            raise InputError(f"skin.mount_mass_kg must be > 0, got {self.mount_mass_kg!r}")
+        for table in ("sta_by_sensor", "laxity_by_joint"):
+            for key, v in getattr(self, table).items():
+                if not isinstance(v, int | float) or not np.isfinite(v) or v < 0:
+                    raise InputError(f"skin.{table}.{key} must be a number >= 0, got {v!r}")
+
+    @property
+    def has_mount(self) -> bool:
+        """A soft-tissue mount is modelled in the physics."""
+        return self.mount_stiffness_n_per_m > 0
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """All sensor imperfections of a session."""
+
+    name: str = "ideal"
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    magnetic: FieldConfig = field(default_factory=FieldConfig)
+    skin: SkinConfig = field(default_factory=SkinConfig)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready copy (tuples as lists)."""
+        return dataclasses.asdict(self)
+
+
+def _build(cls: type, table: Any, where: str) -> Any:
+    """A frozen dataclass from a TOML table, naming unknown keys and bad values by their path."""
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: expected a table, got {table!r}")
+    names = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(table) - set(names))
+    if unknown:
+        raise InputError(f"{where}: unknown keys {unknown}; expected some of {sorted(names)}")
+    kwargs: dict[str, Any] = {}
+    for key, value in table.items():
+        sub = {"distortion": Distortion, "disturbance": Disturbance, "slip": SlipEvent}.get(key)
+        if sub is not None:
+            if not isinstance(value, list):
+                raise InputError(f"{where}.{key}: expected an array of tables ([[{where}.{key}]])")
+            kwargs[key] = tuple(_build(sub, item, f"{where}.{key}[{k}]") for k, item in enumerate(value))
+        elif isinstance(value, list):
+            if not all(isinstance(v, int | float) for v in value):
+                raise InputError(f"{where}.{key}: expected numbers, got {value!r}")
+            kwargs[key] = tuple(float(v) for v in value)
+        elif isinstance(value, dict):
+            kwargs[key] = dict(value)
+        elif isinstance(value, bool):
+            raise InputError(f"{where}.{key}: expected a number, got {value!r}")
+        elif isinstance(value, int | float) and names[key].type == "float":
+            kwargs[key] = float(value)
+        elif names[key].type == "float":
+            raise InputError(f"{where}.{key}: expected a number, got {value!r}")
+        else:
+            kwargs[key] = value
+    try:
+        return cls(**kwargs)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    except TypeError as exc:
+        raise InputError(f"{where}: {exc}") from None
+
+
+def parse_sensor_config(doc: dict[str, Any], where: str) -> SensorConfig:
+    """A :class:`SensorConfig` from a parsed TOML document (``where`` names it in errors)."""
+    unknown = sorted(set(doc) - {"name", "description", "tracker", "imu", "magnetic", "skin"})
+    if unknown:
+        raise InputError(
+            f"{where}: unknown keys {unknown}; expected name, description, tracker, imu, magnetic, skin"
+        )
+    return SensorConfig(
+        name=str(doc.get("name", "custom")),
+        tracker=_build(TrackerConfig, doc.get("tracker", {}), f"{where}: tracker"),
+        imu=_build(ImuConfig, doc.get("imu", {}), f"{where}: imu"),
+        magnetic=_build(FieldConfig, doc.get("magnetic", {}), f"{where}: magnetic"),
+        skin=_build(SkinConfig, doc.get("skin", {}), f"{where}: skin"),
+    )
+
+
+def preset_names() -> list[str]:
+    """Names of the shipped presets."""
+    return sorted(p.stem for p in PRESETS_DIR.glob("*.toml"))
+
+
+def load_sensor_config(name_or_path: str) -> SensorConfig:
+    """A preset by name, or a configuration TOML file by path.
+
+    Raises:
+        InputError: unknown preset, unreadable file, invalid TOML, unknown keys, bad values.
+    """
+    path = Path(name_or_path)
+    if path.suffix.lower() != ".toml":
+        path = PRESETS_DIR / f"{name_or_path}.toml"
+        if not path.is_file():
+            raise InputError(
+                f"unknown sensor preset {name_or_path!r}: expected one of {', '.join(preset_names())} "
+                "or a .toml file"
+            )
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    return parse_sensor_config(doc, str(path))
