@@ -11,8 +11,9 @@ programmatically with :class:`mujoco.MjSpec`:
   ``framequat`` of its body frame; one ``clock`` sensor stamps the samples.
 - **actuators**: the model's own are removed; every degree of freedom of every joint between
   sensor bodies gets a ``position`` actuator (for a ball joint, three, whose lengths are the
-  components of the joint's rotation vector). The gains track at 4 Hz, critically damped:
-  ``kp = I (2 pi 4 Hz)^2`` with ``I`` the joint-space inertia at the reference pose.
+  components of the joint's rotation vector). The gains track at 2 Hz, damping ratio 2:
+  ``kp = I (2 pi 2 Hz)^2`` with ``I`` the joint-space inertia at the reference pose (see
+  :data:`TRACKING_HZ`).
 - **root**: if the root sensor body has a free joint it is welded (a stiff soft constraint) to
   a mocap body that the motion program moves -- the linkage carried by hand, a person's pelvis
   moving through the room -- so the root moves by physics, not by a kinematic replay.
@@ -37,8 +38,14 @@ from simbench.errors import InputError
 MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 BUILTIN = ("linkage", "humanoid")
 
-#: Tracking bandwidth of the position actuators, Hz.
-TRACKING_HZ = 4.0
+#: Natural frequency of the position actuators' tracking, Hz, and their damping ratio. A PD on
+#: a ball joint's rotation-vector components with damping on its angular velocity is not
+#: symmetric at large angles and can flutter; 2 Hz, twice critically damped, kept every model
+#: stable with human-like accelerations (99th percentile 25-50 m/s^2 on the humanoid; 4 Hz
+#: critically damped shook its legs at 200 g, and 4 Hz at damping ratio 2 diverged on the CMU
+#: humanoid).
+TRACKING_HZ = 2.0
+DAMPRATIO = 2.0
 
 #: Earth field used by the magnetometers, world frame ENU (x east, y north, z up), microtesla:
 #: 50 uT with 60 degrees inclination (mid-latitude Europe/North America).
@@ -399,7 +406,7 @@ def load_capture_model(
         )
         kp[a] = M[dof, dof] * (2 * np.pi * TRACKING_HZ) ** 2
     for a, act in enumerate(spec.actuators):
-        act.set_to_position(kp=float(kp[a]), dampratio=1.0)
+        act.set_to_position(kp=float(kp[a]), dampratio=DAMPRATIO)
     model = _compile(spec, source)
     model.opt.magnetic[:] = EARTH_FIELD_UT
 
@@ -426,7 +433,7 @@ def load_capture_model(
     articulations = []
     for b in order[1:]:
         jbody = joint_body[b]
-        jnames = tuple(mujoco.mj_id2name(model, obj.mjOBJ_JOINT, j) for j in jb[jbody])
+        jnames = tuple(mujoco.mj_id2name(base, obj.mjOBJ_JOINT, j) for j in jb[jbody])
         kinds = tuple("ball" if base.jnt_type[j] == _BALL else "hinge" for j in jb[jbody])
         acts = []
         for jn in jnames:

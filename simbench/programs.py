@@ -12,7 +12,7 @@ Built-in programs (seeded: the phases of the sines come from the ``numpy.random.
   O'Brien et al.'s subjects moved, while the root is carried (the linkage twisted through space
   by hand) or sways (a standing person).
 - ``walk``: O'Brien's "chicken walk": every joint at once while the root walks an ellipse through
-  the capture volume (2.4 m x 1.6 m, 0.5 m/s).
+  the capture volume (1.6 m x 1.0 m, 0.5 m/s: a magnetic tracker's working volume).
 - ``single-axis``: each joint in turn about one axis only (the degenerate case of section 3.2).
 - ``static``: the neutral pose, root still.
 
@@ -121,7 +121,8 @@ def _default_motion(cm: CaptureModel, art_index: int, joint: str) -> tuple[np.nd
         return np.array(amp), np.array(off), primary
     k = art.joints.index(joint)
     if art.kinds[k] == "ball":
-        a = min(1.0, 0.6 * art.cone) if art.cone > 0 else 0.8
+        # three sines of amplitude a reach sqrt(3) a together: keep that inside 70 % of the cone
+        a = min(0.8, 0.4 * art.cone) if art.cone > 0 else 0.8
         return np.full(3, a), np.zeros(3), 0
     h = sum(1 for kind in art.kinds[:k] if kind == "hinge")
     lo, hi = art.hinge_range[h]
@@ -161,7 +162,7 @@ def builtin_program(name: str, cm: CaptureModel, duration_s: float, rng: np.rand
     # exercise and single-axis: one slot per articulation, in sensor order
     n_slots = len(cm.articulations)
     slot = duration_s / max(n_slots, 1)
-    base_f = max(0.35, 2.5 / slot)
+    base_f = float(np.clip(2.5 / slot, 0.3, 0.6))  # about 2.5 cycles a slot, at human speeds
     for i in range(n_slots):
         joints = {}
         hinge_seen = 0
@@ -275,7 +276,8 @@ def joint_targets(program: Program, cm: CaptureModel, t: np.ndarray) -> np.ndarr
     """Actuator set-points at times ``t``: ``(len(t), nu)``, rad.
 
     Ball joints' three set-points are the rotation-vector components of the target rotation;
-    the total angle is kept inside 95 % of the joint's cone.
+    the total angle is kept inside 85 % of the joint's cone (tracking overshoot stays off the
+    limit, whose impacts would shake the sensors).
     """
     nu = cm.model.nu
     out = np.zeros((t.size, nu))
@@ -297,7 +299,7 @@ def joint_targets(program: Program, cm: CaptureModel, t: np.ndarray) -> np.ndarr
                 value = value + w * (motion.offset[None, :] + motion.amplitude[None, :] * np.sin(arg))
             if kind == "ball" and art.cone > 0:
                 angle = np.linalg.norm(value, axis=1, keepdims=True)
-                limit = 0.95 * art.cone
+                limit = 0.85 * art.cone
                 value = np.where(angle > limit, value * limit / np.maximum(angle, 1e-12), value)
             elif kind == "hinge":
                 h = sum(1 for k in art.kinds[: art.joints.index(joint)] if k == "hinge")
@@ -333,12 +335,10 @@ def root_pose(
         R = rotvec_to_matrix(rotvec) @ R0
         return p0 + shift, matrix_to_quat(R)
     # walk: an ellipse through the volume at 0.5 m/s, heading along the path, a little bob
-    a, b, speed = 1.2, 0.8, 0.5
+    a, b, speed = 0.8, 0.5, 0.5
     s = speed * t * fade[:, 0]
     theta = s / (0.5 * (a + b))
-    pos = p0 + np.stack(
-        [a * np.sin(theta), b * (1 - np.cos(theta)), 0.02 * np.sin(4 * theta + ph[6])], axis=1
-    )
+    pos = p0 + np.stack([a * np.sin(theta), b * (1 - np.cos(theta)), 0.02 * np.sin(4 * theta)], axis=1)
     heading = np.arctan2(b * np.sin(theta), a * np.cos(theta))
     yaw = np.zeros((n, 3))
     yaw[:, 2] = heading

@@ -9,8 +9,8 @@ arises from physics, is part of the MuJoCo model: :mod:`simbench.models`):
   ``d(t) = A tanh(W phi(t))`` in the segment frame, with ``phi`` the adjacent joints' rotation
   vectors (rad) and ``W`` a fixed random matrix per sensor (seeded): displacements of about the
   amplitude ``A`` (centimetres on the thigh, DESIGN.md) that follow the motion, as skin does;
-- **slip events**: a sensor shifts on its segment by a fixed offset (segment frame) from a given
-  time on, and stays there;
+- **slip events**: a sensor shifts on its segment by a fixed offset (segment frame), starting at
+  a given time and taking :data:`SLIP_DURATION_S` (a smooth step), and stays there;
 - **joint laxity**: a joint's centre moves relative to its parent segment by
   ``d(t) = L tanh(W phi(t))`` (parent segment frame), a few millimetres as real knees do
   (Lafortune et al. 1992 in O'Brien et al.: 7 mm compression, 14.3 mm front-back, 5.6 mm
@@ -29,6 +29,9 @@ import numpy as np
 
 from calibration.rotations import matrix_to_rotvec, quat_to_matrix
 from simbench.errors import InputError
+
+#: How long a slip event takes, s: a smooth (C1) step, so accelerations stay finite.
+SLIP_DURATION_S = 0.05
 
 
 @dataclass(frozen=True)
