@@ -188,3 +188,30 @@ def test_seeded(poses):
 def test_bad_configs_name_the_field(make, message):
     with pytest.raises(InputError, match=message):
         make()
+
+
+def test_imu_per_sensor_terms_have_their_spread():
+    """Constant per-sensor terms (bias, scale, misalignment, hard iron): the spread across many
+    sensors is the configured standard deviation; white noise is white."""
+    n_sensors, frames = 4000, 50
+    a_true = np.tile([9.81, 0.0, 0.0], (frames, n_sensors, 1))
+    zero = np.zeros((frames, n_sensors, 3))
+    rng = np.random.default_rng(21)
+    # 4,000 sensors: a sample std is within 5 % of sigma with probability > 0.999
+    acc, _, _ = apply_imu(100.0, zero, zero, zero, ImuConfig(accel_bias=0.05), rng)
+    assert acc[0].std() == pytest.approx(0.05, rel=0.05)
+    acc, _, _ = apply_imu(100.0, a_true, zero, zero, ImuConfig(accel_scale_error=0.02), rng)
+    assert (acc[0, :, 0] / 9.81 - 1).std() == pytest.approx(0.02, rel=0.05)
+    assert np.abs(acc[0, :, 1:]).max() == 0.0  # scale alone does not mix axes
+    acc, _, _ = apply_imu(100.0, a_true, zero, zero, ImuConfig(accel_misalignment_rad=0.01), rng)
+    # a small rotation theta about z or y moves a bit of x into y or z: 9.81 theta
+    assert (acc[0, :, 1] / 9.81).std() == pytest.approx(0.01, rel=0.05)
+    assert np.linalg.norm(acc[0], axis=1) == pytest.approx(9.81, rel=1e-12)  # a rotation keeps |a|
+    _, _, mag = apply_imu(100.0, zero, zero, zero, ImuConfig(mag_hard_iron=10.0, mag_noise=0.0), rng)
+    assert mag[0].std() == pytest.approx(10.0, rel=0.05) and np.ptp(mag, axis=0).max() == 0.0
+    _, gyro, _ = apply_imu(100.0, zero, zero, zero, ImuConfig(gyro_noise_density=0.001, gyro_bias=0.0), rng)
+    assert gyro.std() == pytest.approx(0.001 * 10.0, rel=0.02)
+    lag1 = np.mean(gyro[1:] * gyro[:-1]) / np.mean(gyro * gyro)
+    assert abs(lag1) < 0.02  # white: no correlation between neighbouring samples
+    acc, _, _ = apply_imu(100.0, a_true + 0.0123, zero, zero, ImuConfig(accel_resolution=0.01), rng)
+    assert_allclose(acc / 0.01, np.round(acc / 0.01), atol=1e-9)
