@@ -135,6 +135,16 @@ class Dataset:
         R = quat_to_matrix(np.where(m.valid[..., None], m.q_w_s, [1.0, 0.0, 0.0, 0.0]))
         R = np.where(m.valid[..., None, None], R, np.nan)
         p = np.where(m.valid[..., None], m.p_w_s, np.nan)
+        notes = []
+        scale = float(self.meta.get("position_unit_scale", 1.0))
+        if scale != 1.0:
+            notes.append(
+                f"positions are in the simulated tracker's units (metres / {scale:g}): lengths below are "
+                "in those units; `simbench scale` estimates the factor from two rigidly mounted sensors"
+            )
+        missing = int((~m.valid).sum())
+        if missing:
+            notes.append(f"{missing} sensor samples are missing (tracker dropouts or latency)")
         return PoseRecording(
             names=self.sensors,
             time_s=np.array(self.time_s),
@@ -142,6 +152,7 @@ class Dataset:
             p_w_s=p,
             valid=np.array(m.valid),
             source=str(self.meta.get("source", "dataset")),
+            notes=tuple(notes),
         )
 
 
