@@ -1,0 +1,146 @@
+"""Inertial/magnetic recordings for orientation estimation: BROAD files and simbench datasets.
+
+**BROAD** (Laidig et al. 2021, ``../shared/data/``): an HDF5 file with ``imu_acc`` (m/s^2),
+``imu_gyr`` (rad/s), ``imu_mag`` (uT), each ``(F, 3)``, the optical reference ``opt_quat``
+``(F, 4)`` (wxyz, IMU frame to ENU; NaN where the optical system lost the markers), the
+``movement`` mask of the samples to evaluate, and the attribute ``sampling_rate`` (Hz). One
+sensor, named ``imu``.
+
+**simbench datasets**: the measured ``acc``, ``gyro``, ``mag`` of every sensor, truth the actual
+sensor orientations (``truth/actual/q_w_s``; the simulated world is ENU: z up, the field's
+horizontal part along +y); samples at the accelerometer's configured range are marked saturated.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from simbench.dataset import FORMAT as DATASET_FORMAT
+from simbench.dataset import read_dataset
+from simbench.errors import InputError
+
+
+@dataclass(frozen=True)
+class ImuRecording:
+    """Accelerometer, gyroscope and magnetometer samples of ``N`` sensors.
+
+    Attributes:
+        names: ``(N,)`` sensor names.
+        time_s: ``(F,)`` s.
+        acc: ``(F, N, 3)`` m/s^2. gyro: ``(F, N, 3)`` rad/s. mag: ``(F, N, 3)`` uT.
+        valid: ``(F, N)`` False for samples known to be unusable (missing, saturated).
+        q_true: ``(F, N, 4)`` reference orientations (``R_w_s``, ENU), or ``None``.
+        evaluate: ``(F,)`` samples to score (BROAD's ``movement``), or ``None`` for all.
+        rate_hz: sample rate, Hz.
+        source: where it came from.
+        notes: what the reader noticed (saturated or missing samples).
+    """
+
+    names: tuple[str, ...]
+    time_s: np.ndarray
+    acc: np.ndarray
+    gyro: np.ndarray
+    mag: np.ndarray
+    valid: np.ndarray
+    q_true: np.ndarray | None
+    evaluate: np.ndarray | None
+    rate_hz: float
+    source: str
+    notes: tuple[str, ...] = ()
+
+
+def _field(fh: h5py.File, path: Path, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
+    if name not in fh:
+        raise InputError(f"{path}: not a BROAD file: missing dataset {name!r} (has {sorted(fh.keys())})")
+    x = fh[name][()]
+    if x.ndim != 1 + len(shape_tail) or x.shape[1:] != shape_tail:
+        raise InputError(
+            f"{path}: expected {name} of shape (frames, {', '.join(map(str, shape_tail))}), got {x.shape}"
+        )
+    return x
+
+
+def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
+    """Read a BROAD trial (module docstring)."""
+    path = Path(path)
+    try:
+        fh = h5py.File(path, "r")
+    except FileNotFoundError:
+        raise InputError(f"{path}: cannot read: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
+    with fh:
+        acc = _field(fh, path, "imu_acc", (3,))
+        gyro = _field(fh, path, "imu_gyr", (3,))
+        mag = _field(fh, path, "imu_mag", (3,))
+        n = acc.shape[0]
+        if gyro.shape[0] != n or mag.shape[0] != n:
+            raise InputError(f"{path}: imu_acc, imu_gyr and imu_mag have different lengths")
+        q = _field(fh, path, "opt_quat", (4,)) if "opt_quat" in fh else None
+        move = fh["movement"][()].astype(bool) if "movement" in fh else None
+        if "sampling_rate" not in fh.attrs:
+            raise InputError(f"{path}: missing attribute 'sampling_rate'")
+        rate = float(fh.attrs["sampling_rate"])
+    finite = np.isfinite(acc).all(axis=1) & np.isfinite(mag).all(axis=1)
+    notes = []
+    if not finite.all():
+        notes.append(f"{int((~finite).sum())} samples with NaN accelerometer or magnetometer values")
+    return ImuRecording(
+        names=("imu",),
+        time_s=np.arange(n) / rate,
+        acc=acc[:, None],
+        gyro=gyro[:, None],
+        mag=mag[:, None],
+        valid=finite[:, None],
+        q_true=None if q is None else q[:, None],
+        evaluate=move,
+        rate_hz=rate,
+        source=str(path),
+        notes=tuple(notes),
+    )
+
+
+def imu_from_dataset(path: str | os.PathLike[str]) -> ImuRecording:
+    """The measured inertial data of a simbench dataset, truth the actual orientations."""
+    ds = read_dataset(path)
+    m = ds.measured
+    valid = np.array(m.valid)
+    notes = []
+    rng = float(ds.meta.get("sensor_config", {}).get("imu", {}).get("accel_range", 0.0) or 0.0)
+    if rng > 0:
+        saturated = (np.abs(m.acc) >= rng * (1 - 1e-9)).any(axis=2)
+        if saturated.any():
+            notes.append(f"{int(saturated.sum())} samples with the accelerometer at its range (masked)")
+        valid &= ~saturated
+    rate = float(ds.meta.get("rate_hz", 1.0 / np.median(np.diff(ds.time_s))))
+    return ImuRecording(
+        names=ds.sensors,
+        time_s=np.array(ds.time_s),
+        acc=np.array(m.acc),
+        gyro=np.array(m.gyro),
+        mag=np.array(m.mag),
+        valid=valid,
+        q_true=None if ds.truth is None else np.array(ds.truth.actual.q_w_s),
+        evaluate=None,
+        rate_hz=rate,
+        source=str(path),
+        notes=tuple(notes),
+    )
+
+
+def read_imu(path: str | os.PathLike[str]) -> ImuRecording:
+    """A BROAD file or a simbench dataset, told apart by their contents."""
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as fh:
+            is_dataset = fh.attrs.get("format") == DATASET_FORMAT
+    except FileNotFoundError:
+        raise InputError(f"{path}: cannot read: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
+    return imu_from_dataset(path) if is_dataset else read_broad(path)
