@@ -35,7 +35,10 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
   so users can see how far gyro-free estimation is from an established fusion filter. It runs
   frame by frame (vectorised over sensors): a reference, not a hot path.
 - :func:`smooth_vectors`: optional temporal smoothing of the measured vectors by a zero-phase
-  (forward-backward) Butterworth low-pass: no lag behind a real rotation.
+  (forward-backward) Butterworth low-pass: no lag behind a real rotation. In :func:`fontaine`
+  (``temporal_hz``) the smoothing is weighted by the disturbance weights (normalised
+  convolution), which is where the weighting pays: a sample whose accelerometer sees the body's
+  acceleration takes "up" from its calmer neighbours.
 
 Samples that cannot be estimated -- NaN input, a zero or near-zero vector, accelerometer and
 magnetometer (nearly) parallel, or masked out -- come back as NaN, never dropped, so outputs stay
@@ -379,24 +382,47 @@ def fontaine(
     valid: np.ndarray | None = None,
     max_iter: int = 20,
     tol_rad: float = 1e-12,
+    rate_hz: float | None = None,
+    temporal_hz: float | None = None,
 ) -> Estimate:
     """Fontaine et al.'s iterative estimator (module docstring), Gauss-Newton on a rotation vector.
 
     Args:
-        acc, mag: ``(..., 3)`` measured vectors in the sensor frame (m/s^2, uT).
+        acc, mag: ``(..., 3)`` measured vectors in the sensor frame (m/s^2, uT); with
+            ``temporal_hz``, frames first.
         ref: reference vectors (default ENU, 50 uT, 60 degrees).
         weighting: disturbance weighting, or ``None`` for equal fixed weights.
         valid: optional ``(...)`` bool mask.
         max_iter: Gauss-Newton iterations at most.
         tol_rad: stop when every update is smaller than this, rad.
+        rate_hz: sample rate, Hz (needed with ``temporal_hz``).
+        temporal_hz: weighted zero-phase smoothing (:func:`weighted_smooth`) of the measured
+            directions with this cutoff before the fit: a sample whose accelerometer (or
+            magnetometer) is disturbed takes that direction from its undisturbed neighbours. With
+            two vectors per sample the weights alone only share the error between them; over
+            time they decide whose direction to trust. Zero phase: no lag.
     """
     ref = ref or reference()
-    start = triad(acc, mag, ref, valid=valid)
     acc, mag = _check_vectors(acc, mag)
+    w = weighting.weights(acc, mag, ref) if weighting is not None else np.ones((*acc.shape[:-1], 2))
+    if temporal_hz is not None:
+        if rate_hz is None:
+            raise CalibrationInputError("temporal_hz needs rate_hz")
+        usable = np.isfinite(acc).all(axis=-1) & np.isfinite(mag).all(axis=-1)
+        if valid is not None:
+            usable &= np.asarray(valid, dtype=bool)
+        wa = np.where(usable, np.nan_to_num(w[..., 0]), 0.0)
+        wm = np.where(usable, np.nan_to_num(w[..., 1]), 0.0)
+        a_dir, _ = _unit(acc, MIN_NORM_FRACTION * ref.gravity)
+        m_dir, _ = _unit(mag, MIN_NORM_FRACTION * np.linalg.norm(ref.field_w))
+        acc = ref.gravity * weighted_smooth(np.nan_to_num(a_dir), wa, rate_hz, temporal_hz)
+        mag = np.linalg.norm(ref.field_w) * weighted_smooth(np.nan_to_num(m_dir), wm, rate_hz, temporal_hz)
+        acc[~usable] = np.nan
+        mag[~usable] = np.nan
+    start = triad(acc, mag, ref, valid=valid)
     ok = start.ok
     a, _ = _unit(acc, MIN_NORM_FRACTION * ref.gravity)
     m, _ = _unit(mag, MIN_NORM_FRACTION * np.linalg.norm(ref.field_w))
-    w = weighting.weights(acc, mag, ref) if weighting is not None else np.ones((*a.shape[:-1], 2))
     w = np.where(ok[..., None], w, 0.0)
     R = quat_to_matrix(np.where(ok[..., None], start.q_w_s, [1.0, 0.0, 0.0, 0.0]))
     up = ref.up_w
@@ -505,6 +531,19 @@ def smooth_vectors(x: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarra
     out = filtfilt(b, a, flat, axis=0)
     out[bad] = np.nan
     return out.reshape(x.shape)
+
+
+def weighted_smooth(x: np.ndarray, w: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
+    """Normalised convolution: ``LP(w x) / LP(w)`` with :func:`smooth_vectors`' zero-phase
+    low-pass along axis 0; samples of low weight take their value from their neighbours.
+
+    Args:
+        x: ``(F, ..., 3)`` values. w: ``(F, ...)`` weights >= 0.
+    """
+    num = smooth_vectors(x * w[..., None], rate_hz, cutoff_hz)
+    den = smooth_vectors(w[..., None], rate_hz, cutoff_hz)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 1e-9, num / den, x)
 
 
 def orientation_errors(q_est: np.ndarray, q_true: np.ndarray, up_w: np.ndarray | None = None) -> np.ndarray:

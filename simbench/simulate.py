@@ -57,6 +57,10 @@ from simbench.skin import (
 #: Physics steps per rollout call (bounds memory: states and sensor rows of one chunk).
 CHUNK_STEPS = 12_000
 
+#: Seconds of physics before the recording starts, holding the first set-points, so that the
+#: body hangs at rest under gravity (not in free fall) when the capture begins.
+SETTLE_S = 1.0
+
 
 @dataclass(frozen=True)
 class SessionConfig:
@@ -263,6 +267,22 @@ def _physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[str,
             spec_ctrl |= int(mujoco.mjtState.mjSTATE_MOCAP_POS) | int(mujoco.mjtState.mjSTATE_MOCAP_QUAT)
         state = np.zeros(mujoco.mj_stateSize(m, spec_state))
         mujoco.mj_getState(m, d, state, spec_state)
+        # settle: hold the program's first set-points until the body hangs at rest under
+        # gravity, so that the recording does not start in free fall; then restart the clock
+        n_settle = round(SETTLE_S / dt)
+        if n_settle > 0:
+            hold = [joint_targets(program, cm, np.zeros(1))]
+            if mocap >= 0:
+                hold += [mocap_pos0.reshape(1, -1), mocap_quat0.reshape(1, -1)]
+            states, _ = rollout.rollout(
+                m,
+                d,
+                state[None],
+                np.tile(np.concatenate(hold, axis=1), (n_settle, 1))[None],
+                control_spec=spec_ctrl,
+            )
+            state = states[0, -1].copy()
+            state[0] = 0.0  # mjSTATE_TIME comes first in the full physics state
         rows = []
         chunk = max(k, (CHUNK_STEPS // k) * k)
         for start in range(0, n_steps, chunk):
