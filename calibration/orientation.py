@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.errors import CalibrationInputError
-from calibration.rotations import matrix_to_quat, quat_to_matrix
+from calibration.rotations import orthonormal_to_quat, quat_to_matrix
 
 #: Standard gravity, m/s^2 (MuJoCo's default is 9.81).
 GRAVITY = 9.81
@@ -160,7 +160,7 @@ def change_frame(q_w_s: np.ndarray, from_frame: str, to_frame: str) -> np.ndarra
     if from_frame == to_frame:
         return np.array(q_w_s, dtype=float)
     R = quat_to_matrix(q_w_s)
-    return matrix_to_quat(R_NED_ENU @ R)  # R_NED_ENU is its own inverse
+    return orthonormal_to_quat(R_NED_ENU @ R)  # R_NED_ENU is its own inverse
 
 
 def _check_vectors(acc: np.ndarray, mag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -244,7 +244,7 @@ def triad(
     W, _ = _frame_from(ref.up_w, ref.field_w / np.linalg.norm(ref.field_w))
     ok &= ok_s
     R = W @ np.swapaxes(S, -1, -2)
-    q = matrix_to_quat(np.where(ok[..., None, None], R, np.eye(3)))
+    q = orthonormal_to_quat(np.where(ok[..., None, None], R, np.eye(3)))
     q[~ok] = np.nan
     return Estimate(q, ok, ref.frame)
 
@@ -314,7 +314,7 @@ def wahba(
         R = _rotate_about(np.broadcast_to(n, a.shape), phi) @ R0
     else:
         raise CalibrationInputError(f"method must be 'closed' or 'svd', got {method!r}")
-    q = matrix_to_quat(np.where(ok[..., None, None], R, np.eye(3)))
+    q = orthonormal_to_quat(np.where(ok[..., None, None], R, np.eye(3)))
     q[~ok] = np.nan
     return Estimate(q, ok, ref.frame, weights=w)
 
@@ -448,7 +448,7 @@ def fontaine(
         R = R @ _rotate_about(axis, angle)
         if not np.any(angle > tol_rad):
             break
-    q = matrix_to_quat(R)
+    q = orthonormal_to_quat(R)
     q[~ok] = np.nan
     return Estimate(q, ok, ref.frame, weights=w, iterations=iterations)
 
@@ -504,7 +504,7 @@ def mahony(
             w, np.linalg.norm(w, axis=-1, keepdims=True), out=np.zeros_like(w), where=angle[..., None] > 0
         )
         R = R @ _rotate_about(axis, angle)
-        out[t] = np.where(ok[t, ..., None], matrix_to_quat(R), np.nan)
+        out[t] = np.where(ok[t, ..., None], orthonormal_to_quat(R), np.nan)
     return Estimate(out, ok, ref.frame)
 
 

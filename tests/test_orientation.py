@@ -227,3 +227,52 @@ def test_broad_trials_load_and_score():
     with_gyro = score(estimate(magnet, "mahony"), magnet)["imu"]
     # near a magnet the gyro-free heading fails; the gyro-aided reference keeps it
     assert gyro_free["heading_deg"] > 2 * with_gyro["heading_deg"]
+
+
+def test_orient_command_on_a_dataset(tmp_path, capsys):
+    from simbench.cli import main
+
+    h5 = tmp_path / "run.h5"
+    assert (
+        main(
+            [
+                "simulate",
+                "--motion",
+                "static",
+                "--duration",
+                "2",
+                "--sensors",
+                "mems-industrial",
+                "-o",
+                str(h5),
+            ]
+        )
+        == 0
+    )
+    out_csv = tmp_path / "q.csv"
+    capsys.readouterr()
+    assert main(["orient", str(h5), "--method", "fontaine", "--frame", "ned", "--csv", str(out_csv)]) == 0
+    out = capsys.readouterr().out
+    assert "error against the reference" in out and "chest" in out
+    rows = out_csv.read_text().splitlines()
+    assert rows[0] == "time,sensor,qw,qx,qy,qz"
+    assert len(rows) == 1 + 240 * 6  # one row per input sample and sensor
+    # at rest with an industrial IMU the error is a fraction of a degree
+    total = [
+        float(line.split()[1]) for line in out.splitlines() if line.strip().startswith(("chest", "head"))
+    ]
+    assert all(0 < e < 1.0 for e in total)
+
+
+def test_orient_bad_input(tmp_path, capsys):
+    import h5py
+
+    from simbench.cli import main
+
+    bad = tmp_path / "bad.hdf5"
+    with h5py.File(bad, "w") as fh:
+        fh["imu_acc"] = np.zeros((10, 3))
+    assert main(["orient", str(bad)]) == 2
+    assert "missing dataset 'imu_gyr'" in capsys.readouterr().err
+    assert main(["orient", str(tmp_path / "none.h5")]) == 2
+    assert "no such file" in capsys.readouterr().err

@@ -40,3 +40,16 @@ def test_bad_shapes_and_zero():
         quat_to_matrix(np.eye(3))
     with pytest.raises(CalibrationInputError, match="zero quaternion"):
         quat_to_matrix(np.zeros((2, 4)))
+
+
+def test_fast_conversion_matches_scipy():
+    from calibration.rotations import orthonormal_to_quat
+
+    rng = np.random.default_rng(5)
+    R = rotvec_to_matrix(rng.normal(size=(20_000, 3)) * 3.0)
+    # include every branch of Shepperd's method: angles near 0 and near pi about each axis
+    special = rotvec_to_matrix(
+        np.array([[0, 0, 0], [np.pi, 0, 0], [0, np.pi, 0], [0, 0, np.pi], [3.14, 0.01, 0]])
+    )
+    R = np.concatenate([R, special])
+    assert_allclose(orthonormal_to_quat(R), matrix_to_quat(R), atol=1e-12)

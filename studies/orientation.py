@@ -1,0 +1,135 @@
+"""Sourceless orientation under the testbed's conditions and on real BROAD trials (issue 5).
+
+    .venv/bin/python studies/orientation.py [--json studies/results/orientation.json]
+
+1. Simulation (humanoid, 30 s): orientation error of every estimator against the exact actual
+   orientations, for the ``mems-industrial`` and ``mems-consumer`` presets, at rest (``static``)
+   and in motion (``exercise``); with and without Fontaine's disturbance weighting (and weighted
+   smoothing at 1 Hz); near a ferromagnetic object (a 2 A m^2 dipole 40 cm in front of the
+   chest).
+2. Posture (Fontaine 3.2): the humanoid's hands and feet placed by forward kinematics from the
+   estimated orientations (exact joint offsets, true root position), against the truth.
+3. Real data: the two BROAD trials, every estimator, BROAD's error definitions. One setting for
+   all data: the reference field comes from each recording's medians, nothing is tuned per trial.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from calibration.hierarchy import hierarchy_from_parents
+from calibration.posture import joint_positions, sensor_positions
+from calibration.rotations import quat_to_matrix
+from simbench.dataset import write_dataset
+from simbench.imu_data import imu_from_dataset, read_broad
+from simbench.orient import estimate, score
+from simbench.simulate import SessionConfig, load_session_model, run_session
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+VARIANTS = {
+    "triad": dict(method="triad"),
+    "wahba": dict(method="wahba"),
+    "fontaine (no weighting)": dict(method="fontaine", weighting=False),
+    "fontaine (weighting)": dict(method="fontaine"),
+    "fontaine (weighting, 1 Hz)": dict(method="fontaine", smooth_hz=1.0),
+    "mahony (gyro)": dict(method="mahony"),
+}
+
+
+def mean_scores(scores: dict[str, dict[str, float]]) -> dict[str, float]:
+    """RMS over sensors of each sensor's RMSE."""
+    keys = ("total_deg", "heading_deg", "inclination_deg")
+    return {k: float(np.sqrt(np.mean([s[k] ** 2 for s in scores.values()]))) for k in keys}
+
+
+def simulated(tmp: Path, motion: str, sensors: str, toml: str | None = None):
+    if toml is not None:
+        path = tmp / f"{sensors}.toml"
+        path.write_text(toml)
+        sensors = str(path)
+    config = SessionConfig(model="humanoid", motion=motion, duration_s=30.0, seed=11, sensors=sensors)
+    ds = run_session(config, load_session_model(config))
+    h5 = tmp / f"{motion}-{Path(sensors).stem}.h5"
+    write_dataset(h5, ds)
+    return ds, imu_from_dataset(h5)
+
+
+def posture_error(ds, rec, method_kwargs) -> dict[str, float]:
+    run = estimate(rec, **method_kwargs)
+    tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
+    n = len(ds.sensors)
+    lp, lc = np.zeros((n, 3)), np.zeros((n, 3))
+    for k, c in enumerate(ds.truth.child):
+        lp[ds.sensors.index(c)] = ds.truth.joint_in_parent[k]
+        lc[ds.sensors.index(c)] = ds.truth.joint_in_child[k]
+    R = quat_to_matrix(np.where(np.isfinite(run.q_enu), run.q_enu, np.nan))
+    root = ds.truth.actual.p_w_s[:, 0]
+    J = joint_positions(R, tree, lp, lc, root_w=root)
+    P = sensor_positions(R, tree, J, lc)
+    out = {}
+    for name in ("hand_l", "hand_r", "foot_l", "foot_r"):
+        k = ds.sensors.index(name)
+        d = np.linalg.norm(P[:, k] - ds.truth.sensors.p_w_s[:, k], axis=1)
+        out[name] = float(np.sqrt(np.nanmean(d**2)) * 100)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", metavar="OUT")
+    args = parser.parse_args()
+    results: dict = {"simulation": {}, "disturbance": {}, "posture_cm": {}, "broad": {}}
+    with tempfile.TemporaryDirectory() as tmp_s:
+        tmp = Path(tmp_s)
+        for preset in ("mems-industrial", "mems-consumer"):
+            for motion in ("static", "exercise"):
+                ds, rec = simulated(tmp, motion, preset)
+                row = {v: mean_scores(score(estimate(rec, **kw), rec)) for v, kw in VARIANTS.items()}
+                results["simulation"][f"{preset} / {motion}"] = row
+                if preset == "mems-industrial" and motion == "exercise":
+                    results["posture_cm"] = {
+                        v: posture_error(ds, rec, VARIANTS[v])
+                        for v in ("triad", "fontaine (weighting, 1 Hz)", "mahony (gyro)")
+                    }
+        toml = (
+            "[imu]\naccel_noise_density = 0.000588\nmag_noise = 0.05\n"
+            "[[magnetic.disturbance]]\nposition = [0.4, 0.0, 1.4]\nmoment_am2 = [0.0, 0.0, 2.0]\n"
+        )
+        _, rec = simulated(tmp, "exercise", "magnet", toml)
+        results["disturbance"] = {
+            v: mean_scores(score(estimate(rec, **kw), rec)) for v, kw in VARIANTS.items()
+        }
+    for trial in ("broad_02_undisturbed_slow_rotation_B", "broad_30_disturbed_stationary_magnet_C"):
+        path = DATA / f"{trial}.hdf5"
+        if path.is_file():
+            rec = read_broad(path)
+            results["broad"][trial] = {
+                v: score(estimate(rec, **kw), rec)["imu"] for v, kw in VARIANTS.items()
+            }
+
+    def table(title: str, rows: dict[str, dict[str, float]]) -> None:
+        print(f"\n{title}")
+        print(f"  {'estimator':<30}{'total':>8}{'heading':>9}{'inclin.':>9}  (RMSE, degrees)")
+        for v, s in rows.items():
+            print(f"  {v:<30}{s['total_deg']:>8.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}")
+
+    for cond, rows in results["simulation"].items():
+        table(f"humanoid, {cond}", rows)
+    table("humanoid, exercise, a 2 A m^2 dipole 40 cm in front of the chest", results["disturbance"])
+    print("\nposture: hand and foot sensors placed from estimated orientations")
+    print("(mems-industrial, exercise), RMS error in cm")
+    for v, s in results["posture_cm"].items():
+        print(f"  {v:<30}" + "".join(f"{k} {x:6.2f}  " for k, x in s.items()))
+    for trial, rows in results["broad"].items():
+        table(f"BROAD {trial}", rows)
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
