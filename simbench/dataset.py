@@ -129,6 +129,19 @@ class Dataset:
                 f"Expected {f} times and {n} sensor names, got {self.time_s.shape[0]} and {len(self.sensors)}"
             )
 
+    def truth_joint_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """True ``(joint_in_parent, joint_in_child)``, each ``(N, 3)`` indexed by the child sensor
+        (the root's row zero): the layout of :func:`calibration.replay.remove_residual` and
+        :func:`calibration.posture.joint_positions`."""
+        if self.truth is None:
+            raise InputError("the dataset has no ground truth")
+        n = len(self.sensors)
+        lp, lc = np.zeros((n, 3)), np.zeros((n, 3))
+        for k, child in enumerate(self.truth.child):
+            lp[self.sensors.index(child)] = self.truth.joint_in_parent[k]
+            lc[self.sensors.index(child)] = self.truth.joint_in_child[k]
+        return lp, lc
+
     def poses(self) -> PoseRecording:
         """The measured poses as the calibration reads them."""
         m = self.measured
@@ -154,6 +167,16 @@ class Dataset:
             source=str(self.meta.get("source", "dataset")),
             notes=tuple(notes),
         )
+
+
+def open_hdf5(path: str | os.PathLike[str]) -> h5py.File:
+    """Open an HDF5 file for reading, with errors that say what is wrong with which file."""
+    try:
+        return h5py.File(path, "r")
+    except FileNotFoundError:
+        raise InputError(f"{path}: cannot read: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
 
 
 def _write_group(group: h5py.Group, data: SensorData) -> None:
@@ -197,13 +220,7 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
         InputError: not an HDF5 file, not a simbench dataset, a newer format, missing fields.
     """
     path = Path(path)
-    try:
-        fh = h5py.File(path, "r")
-    except FileNotFoundError:
-        raise InputError(f"{path}: cannot read: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
-    with fh:
+    with open_hdf5(path) as fh:
         if fh.attrs.get("format") != FORMAT:
             raise InputError(f"{path}: not a simbench dataset (format attribute {fh.attrs.get('format')!r})")
         version = int(fh.attrs.get("format_version", 0))

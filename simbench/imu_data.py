@@ -21,7 +21,7 @@ import h5py
 import numpy as np
 
 from simbench.dataset import FORMAT as DATASET_FORMAT
-from simbench.dataset import read_dataset
+from simbench.dataset import open_hdf5, read_dataset
 from simbench.errors import InputError
 
 
@@ -68,13 +68,7 @@ def _field(fh: h5py.File, path: Path, name: str, shape_tail: tuple[int, ...]) ->
 def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
     """Read a BROAD trial (module docstring)."""
     path = Path(path)
-    try:
-        fh = h5py.File(path, "r")
-    except FileNotFoundError:
-        raise InputError(f"{path}: cannot read: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
-    with fh:
+    with open_hdf5(path) as fh:
         acc = _field(fh, path, "imu_acc", (3,))
         gyro = _field(fh, path, "imu_gyr", (3,))
         mag = _field(fh, path, "imu_mag", (3,))
@@ -136,11 +130,6 @@ def imu_from_dataset(path: str | os.PathLike[str]) -> ImuRecording:
 def read_imu(path: str | os.PathLike[str]) -> ImuRecording:
     """A BROAD file or a simbench dataset, told apart by their contents."""
     path = Path(path)
-    try:
-        with h5py.File(path, "r") as fh:
-            is_dataset = fh.attrs.get("format") == DATASET_FORMAT
-    except FileNotFoundError:
-        raise InputError(f"{path}: cannot read: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
+    with open_hdf5(path) as fh:
+        is_dataset = fh.attrs.get("format") == DATASET_FORMAT
     return imu_from_dataset(path) if is_dataset else read_broad(path)

@@ -62,11 +62,7 @@ def simulated(tmp: Path, motion: str, sensors: str, toml: str | None = None):
 def posture_error(ds, rec, method_kwargs) -> dict[str, float]:
     run = estimate(rec, **method_kwargs)
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
-    n = len(ds.sensors)
-    lp, lc = np.zeros((n, 3)), np.zeros((n, 3))
-    for k, c in enumerate(ds.truth.child):
-        lp[ds.sensors.index(c)] = ds.truth.joint_in_parent[k]
-        lc[ds.sensors.index(c)] = ds.truth.joint_in_child[k]
+    lp, lc = ds.truth_joint_arrays()
     R = quat_to_matrix(np.where(np.isfinite(run.q_enu), run.q_enu, np.nan))
     root = ds.truth.actual.p_w_s[:, 0]
     J = joint_positions(R, tree, lp, lc, root_w=root)

@@ -194,11 +194,7 @@ def test_posture_from_exact_orientations():
 
     ds = run_session(SessionConfig(model="humanoid", motion="walk", duration_s=2.0, seed=6))
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
-    n = len(ds.sensors)
-    lp, lc = np.zeros((n, 3)), np.zeros((n, 3))
-    for k, c in enumerate(ds.truth.child):
-        lp[ds.sensors.index(c)] = ds.truth.joint_in_parent[k]
-        lc[ds.sensors.index(c)] = ds.truth.joint_in_child[k]
+    lp, lc = ds.truth_joint_arrays()
     R = quat_to_matrix(ds.truth.sensors.q_w_s)
     J = joint_positions(R, tree, lp, lc, root_w=ds.truth.sensors.p_w_s[:, 0])
     for k, c in enumerate(ds.truth.child):
