@@ -7,8 +7,11 @@ arises from physics, is part of the MuJoCo model: :mod:`simbench.models`):
 - **soft-tissue artefact** (STA): each sensor's offset from its bone placement is a smooth
   function of the rotations of the joints next to its segment,
   ``d(t) = A tanh(W phi(t))`` in the segment frame, with ``phi`` the adjacent joints' rotation
-  vectors (rad) and ``W`` a fixed random matrix per sensor (seeded): displacements of about the
-  amplitude ``A`` (centimetres on the thigh, DESIGN.md) that follow the motion, as skin does;
+  vectors (rad) and ``W`` a fixed random matrix per sensor (seeded, entries ``N(0, 1/k)`` for
+  ``k`` adjacent joints): displacements reaching about the amplitude ``A`` over a radian of joint
+  rotation (centimetres on the thigh over the knee's range, DESIGN.md), following the motion as
+  skin does. Being a function of the joint angles, STA biases the joint centre a calibration
+  finds, which is what makes it the dominant error on people;
 - **slip events**: a sensor shifts on its segment by a fixed offset (segment frame), starting at
   a given time and taking :data:`SLIP_DURATION_S` (a smooth step), and stays there;
 - **joint laxity**: a joint's centre moves relative to its parent segment by
@@ -87,7 +90,7 @@ def soft_tissue_offsets(
         parent, child: ``(J,)`` segment indices of each joint.
         amplitude_m: ``(N,)`` amplitude ``A`` per sensor, m (0: none).
         rng: draws each sensor's ``W`` (``3 x 3 k`` for ``k`` adjacent joints, entries
-            ``N(0, 2^2 / k)``, so that half a radian of joint rotation gives about ``A``).
+            ``N(0, 1 / k)``, so that a radian of joint rotation gives about ``A``).
 
     Returns:
         ``(F, N, 3)`` offsets, m.
@@ -96,7 +99,7 @@ def soft_tissue_offsets(
     n = amplitude_m.shape[0]
     out = np.zeros((f, n, 3))
     for s, joints in enumerate(_adjacent(n, parent, child)):
-        W = rng.normal(0.0, 2.0 / np.sqrt(max(len(joints), 1)), size=(3, 3 * len(joints)))
+        W = rng.normal(0.0, 1.0 / np.sqrt(max(len(joints), 1)), size=(3, 3 * len(joints)))
         if amplitude_m[s] == 0 or not joints:
             continue
         x = phi[:, joints].reshape(f, -1)
@@ -123,7 +126,7 @@ def laxity_offsets(phi: np.ndarray, laxity_m: np.ndarray, rng: np.random.Generat
     Args:
         phi: ``(F, J, 3)`` joint rotation vectors, rad.
         laxity_m: ``(J,)`` amplitude ``L`` per joint, m (0: an ideal joint).
-        rng: draws each joint's ``W`` (``3 x 3``, entries ``N(0, 2^2)``).
+        rng: draws each joint's ``W`` (``3 x 3``, entries ``N(0, 1)``: ``L`` over a radian).
 
     Returns:
         ``(F, J, 3)`` m.
@@ -131,7 +134,7 @@ def laxity_offsets(phi: np.ndarray, laxity_m: np.ndarray, rng: np.random.Generat
     f, n_j = phi.shape[:2]
     out = np.zeros((f, n_j, 3))
     for j in range(n_j):
-        W = rng.normal(0.0, 2.0, size=(3, 3))
+        W = rng.normal(0.0, 1.0, size=(3, 3))
         if laxity_m[j] > 0:
             out[:, j] = laxity_m[j] * np.tanh(phi[:, j] @ W.T)
     return out
