@@ -116,7 +116,7 @@ def test_joint_laxity_moves_the_joint_centre(tmp_path):
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, parent_of=ds.truth.parent_of)
     rms = {j.child: j.fit.rms_residual for j in cal.joints}
-    assert rms["forearm_l"] > 0.002  # the lax elbow's centre wanders by up to ~1.7 cm
+    assert rms["forearm_l"] > 5e-4  # the lax elbow's centre wanders (up to ~1 cm per radian)
     assert max(v for c, v in rms.items() if c != "forearm_l") < 1e-9  # ideal joints stay exact
 
 
