@@ -347,6 +347,34 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_baseline(args: argparse.Namespace) -> int:
+    """``simbench baseline``: check accuracy against the accepted figures, or update them."""
+    from simbench import baseline as bl
+
+    path = Path(args.file) if args.file else bl.BASELINE_FILE
+    current = bl.compute()
+    if args.update:
+        try:
+            old = bl.load_baseline(path)
+        except InputError:
+            old = {}
+        changes = bl.diff_lines(old, current)
+        bl.write_baseline(current, path)
+        print(f"simbench baseline --update: wrote {path}")
+        print("\n".join(f"  {line}" for line in changes) if changes else "  no change")
+        return 0
+    problems = bl.compare(current, bl.load_baseline(path), rel_tol=args.tolerance)
+    for name, figures in current.items():
+        print(f"  {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in figures.items()))
+    if problems:
+        print("simbench baseline: accuracy got worse:", file=sys.stderr)
+        for p in problems:
+            print(f"  {p}", file=sys.stderr)
+        return 1
+    print("simbench baseline: no regression")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``simbench`` command."""
     parser = argparse.ArgumentParser(
@@ -466,6 +494,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--out", default="report", metavar="DIR", help="report folder (default ./report)")
     rep.set_defaults(func=cmd_report)
+    bas = sub.add_parser(
+        "baseline", help="accuracy regression check against reports/baseline.json (or --update it)"
+    )
+    bas.add_argument(
+        "--update", action="store_true", help="recompute and rewrite the baseline, showing the diff"
+    )
+    bas.add_argument("--tolerance", type=float, default=0.10, help="relative tolerance (default 0.10)")
+    bas.add_argument("--file", metavar="PATH", help="baseline file (default reports/baseline.json)")
+    bas.set_defaults(func=cmd_baseline)
     return parser
 
 

@@ -2,9 +2,9 @@
 
 :func:`write_report` turns the figures of :func:`simbench.validate.run_validation` into
 ``index.md``, a self-contained ``index.html`` (images embedded), ``results.json`` and the PNG
-images beside them. Writes are atomic. Rendering uses MuJoCo's offscreen context: ``MUJOCO_GL``
-is set to ``egl`` unless the caller chose a backend (``osmesa`` works too); if no GL context can
-be made the pictures are skipped and the report says so.
+images beside them. Writes are atomic. Rendering uses MuJoCo's offscreen context (``simbench``
+sets ``MUJOCO_GL=egl`` when there is no display and the caller chose no backend); if no GL
+context can be made the pictures are skipped and the report says so.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import base64
 import html
 import io
 import json
-import os
 import platform
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,8 +22,6 @@ import numpy as np
 
 import simbench
 from simbench.atomic import atomic_open, atomic_write_text
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 def _savefig(fig, path: Path) -> None:

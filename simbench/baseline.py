@@ -1,0 +1,183 @@
+"""Accuracy regression: accepted figures for fixed seeded scenarios, and the check against them.
+
+``reports/baseline.json`` holds, for every scenario, the accuracy figures accepted last time
+(all "lower is better"). :func:`check` recomputes them and reports every figure that got worse
+than ``baseline * (1 + rel_tol) + abs_tol``; ``simbench baseline`` runs the check (exit 1 on a
+regression) and ``simbench baseline --update`` rewrites the file deliberately, printing the diff.
+
+**Adding a scenario or an estimator.** A scenario is a seeded session (:class:`SessionConfig`)
+plus the name of an estimator in :data:`ESTIMATORS`, a function ``dataset -> {metric: value}``
+(lower is better). Append a :class:`Scenario` to :data:`SCENARIOS` (or register a new estimator
+in :data:`ESTIMATORS` first), run ``simbench baseline --update`` and commit the new baseline.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from calibration import calibrate
+from calibration.orientation import orientation_errors
+from simbench.atomic import atomic_write_text
+from simbench.dataset import Dataset, write_dataset
+from simbench.errors import InputError
+from simbench.imu_data import imu_from_dataset
+from simbench.orient import estimate
+from simbench.simulate import SessionConfig, load_session_model, run_session
+from simbench.validate import _lengths, _lookup, _same_tree, _truth_lengths
+
+BASELINE_FILE = Path(__file__).resolve().parent.parent / "reports" / "baseline.json"
+REL_TOL = 0.10
+
+#: Absolute slack per metric unit suffix, added to the relative tolerance.
+ABS_TOL = {"_cm": 0.05, "_deg": 0.05, "_wrong": 0.0}
+
+
+def _calibration_metrics(ds: Dataset) -> dict[str, float]:
+    rec = ds.poses()
+    scale = float(ds.meta.get("position_unit_scale", 1.0))
+    inferred = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
+    given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
+    truth = _truth_lengths(ds)
+    got = _lengths(given)
+    errors = [abs(value - _lookup(got, key) * scale) * 100 for key, value in truth.items()]
+    return {
+        "max_length_error_cm": float(np.max(errors)),
+        "mean_length_error_cm": float(np.mean(errors)),
+        "hierarchy_wrong": float(not _same_tree(inferred.parent_of, ds.truth.parent_of)),
+    }
+
+
+def _orientation_metrics(method: str) -> Callable[[Dataset], dict[str, float]]:
+    def metrics(ds: Dataset) -> dict[str, float]:
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "ds.h5"
+            write_dataset(path, ds)
+            rec = imu_from_dataset(path)
+        run = estimate(rec, method)
+        err = np.rad2deg(orientation_errors(run.q_enu, rec.q_true))
+        return {
+            "total_rmse_deg": float(np.sqrt(np.nanmean(err[..., 0] ** 2))),
+            "heading_rmse_deg": float(np.sqrt(np.nanmean(err[..., 1] ** 2))),
+        }
+
+    return metrics
+
+
+#: Estimators by name: ``dataset -> {metric: value}``, lower is better.
+ESTIMATORS: dict[str, Callable[[Dataset], dict[str, float]]] = {
+    "calibration": _calibration_metrics,
+    "orientation:fontaine": _orientation_metrics("fontaine"),
+    "orientation:triad": _orientation_metrics("triad"),
+}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A seeded session and the estimator scored on it."""
+
+    name: str
+    estimator: str
+    config: SessionConfig = field(default_factory=SessionConfig)
+
+
+SCENARIOS: list[Scenario] = [
+    Scenario(
+        "linkage-flock-exercise",
+        "calibration",
+        SessionConfig(model="linkage", motion="exercise", duration_s=20.0, seed=1, sensors="ascension-flock"),
+    ),
+    Scenario(
+        "humanoid-skin-exercise",
+        "calibration",
+        SessionConfig(
+            model="humanoid", motion="exercise", duration_s=30.0, seed=101, sensors="skin-paper-human"
+        ),
+    ),
+    Scenario(
+        "humanoid-mems-static-fontaine",
+        "orientation:fontaine",
+        SessionConfig(model="humanoid", motion="static", duration_s=5.0, seed=5, sensors="mems-industrial"),
+    ),
+    Scenario(
+        "humanoid-mems-exercise-triad",
+        "orientation:triad",
+        SessionConfig(
+            model="humanoid", motion="exercise", duration_s=10.0, seed=6, sensors="mems-industrial"
+        ),
+    ),
+]
+
+
+def compute(scenarios: list[Scenario] | None = None) -> dict[str, dict[str, float]]:
+    """Every scenario's figures."""
+    out = {}
+    for sc in scenarios or SCENARIOS:
+        if sc.estimator not in ESTIMATORS:
+            raise InputError(
+                f"scenario {sc.name}: unknown estimator {sc.estimator!r}; known: {sorted(ESTIMATORS)}"
+            )
+        ds = run_session(sc.config, load_session_model(sc.config))
+        out[sc.name] = ESTIMATORS[sc.estimator](ds)
+    return out
+
+
+def _abs_tol(metric: str) -> float:
+    return next((v for suffix, v in ABS_TOL.items() if metric.endswith(suffix)), 0.0)
+
+
+def compare(
+    current: dict[str, dict[str, float]], baseline: dict[str, dict[str, float]], rel_tol: float = REL_TOL
+) -> list[str]:
+    """Regressions: figures worse than ``baseline (1 + rel_tol) + abs_tol``, and missing ones."""
+    problems = []
+    for name, figures in baseline.items():
+        if name not in current:
+            problems.append(f"{name}: scenario missing")
+            continue
+        for metric, accepted in figures.items():
+            value = current[name].get(metric)
+            if value is None or not np.isfinite(value):
+                problems.append(f"{name}.{metric}: missing or not finite (accepted {accepted:.4g})")
+            elif value > accepted * (1 + rel_tol) + _abs_tol(metric):
+                problems.append(f"{name}.{metric}: {value:.4g} is worse than the accepted {accepted:.4g}")
+    return problems
+
+
+def load_baseline(path: Path = BASELINE_FILE) -> dict[str, dict[str, float]]:
+    """The accepted figures."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: no baseline yet; run `simbench baseline --update`") from None
+    except ValueError as exc:
+        raise InputError(f"{path}: not valid JSON ({exc})") from None
+    return doc["scenarios"]
+
+
+def diff_lines(old: dict[str, dict[str, float]], new: dict[str, dict[str, float]]) -> list[str]:
+    """Human-readable changes between two baselines."""
+    lines = []
+    for name in sorted(set(old) | set(new)):
+        for metric in sorted(set(old.get(name, {})) | set(new.get(name, {}))):
+            a, b = old.get(name, {}).get(metric), new.get(name, {}).get(metric)
+            if a != b:
+                old_s = "-" if a is None else f"{a:.4g}"
+                new_s = "-" if b is None else f"{b:.4g}"
+                lines.append(f"{name}.{metric}: {old_s} -> {new_s}")
+    return lines
+
+
+def write_baseline(figures: dict[str, dict[str, float]], path: Path = BASELINE_FILE) -> None:
+    """Write the accepted figures atomically."""
+    doc = {
+        "about": "accepted accuracy figures (lower is better); `simbench baseline --update` rewrites this",
+        "rel_tol": REL_TOL,
+        "scenarios": figures,
+    }
+    atomic_write_text(path, json.dumps(doc, indent=2, sort_keys=True) + "\n")

@@ -1,0 +1,147 @@
+"""The validation run and its report, single-dataset reports, and accuracy regression (issue 6)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from simbench import baseline as bl
+from simbench.cli import main
+
+
+@pytest.fixture(scope="module")
+def quick_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    assert main(["validate", "--quick", "--out", str(out), "--no-progress"]) == 0
+    return out
+
+
+def test_quick_validate_writes_a_complete_report(quick_report):
+    md = (quick_report / "index.md").read_text()
+    for heading in (
+        "The paper and simbench side by side",
+        "Linkage (Table 1)",
+        "Human subject",
+        "Slip detection",
+        "Sourceless orientation",
+    ):
+        assert heading in md
+    for row in ("Neck - Left Shoulder", "Between Shoulders", "Right Lower Leg", "Left Upper Arm"):
+        assert row in md
+    results = json.loads((quick_report / "results.json").read_text())
+    s = results["summary"]
+    assert s["linkage_sets"] == 2 and 0 < s["linkage_max_error_cm"] < 5
+    assert s["slip_found"] is True
+    assert all(np.isfinite(v) and v > 0 for v in s["orientation_total_rmse_deg"].values())
+    assert set(results["versions"]) >= {"simbench", "numpy", "mujoco"} and results["run_time_s"] > 0
+    for table in results["linkage"]["sets"]:
+        assert len(table["rows"]) == 5 and all(np.isfinite(r["computed_cm"]) for r in table["rows"].values())
+
+
+def test_report_images_are_real_pictures(quick_report):
+    import matplotlib.image as mpimg
+
+    for name in (
+        "residual_histograms.png",
+        "limb_errors.png",
+        "slip.png",
+        "orientation.png",
+        "pictures_linkage.png",
+    ):
+        img = mpimg.imread(quick_report / name)
+        assert img.shape[0] >= 200 and img.shape[1] >= 400, name
+        assert img[..., :3].std() > 0.01, name  # not a blank image
+    html = (quick_report / "index.html").read_text()
+    assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 5  # self-contained
+
+
+def test_validation_is_deterministic(quick_report, tmp_path):
+    assert main(["validate", "--quick", "--out", str(tmp_path), "--no-progress"]) == 0
+    a = json.loads((quick_report / "results.json").read_text())
+    b = json.loads((tmp_path / "results.json").read_text())
+    for key in ("linkage", "humanoid", "slip", "orientation", "unit_scale"):
+        assert a[key] == b[key], key
+
+
+def _browser() -> str | None:
+    return next((b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
+
+
+@pytest.mark.skipif(
+    _browser() is None, reason="no Chromium on this machine (scripts/install-browser.sh installs one)"
+)
+def test_html_opens_in_headless_chromium(quick_report, tmp_path):
+    done = subprocess.run(
+        [
+            _browser(),
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-background-networking",
+            "--no-first-run",
+            f"--user-data-dir={tmp_path / 'profile'}",
+            "--dump-dom",
+            (quick_report / "index.html").as_uri(),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "simbench validation report" in done.stdout and done.stdout.count("<img") == 5
+
+
+def test_dataset_report(tmp_path, capsys):
+    h5 = tmp_path / "run.h5"
+    assert main(["simulate", "--duration", "8", "--sensors", "ascension-flock", "-o", str(h5)]) == 0
+    cal_json = tmp_path / "cal.json"
+    assert main(["calibrate", str(h5), "--json", str(cal_json), "--no-slip"]) == 0
+    for extra, label in (([], "calibrated here"), (["--calibration", str(cal_json)], "from")):
+        out = tmp_path / f"rep{len(extra)}"
+        assert main(["report", str(h5), "--out", str(out), *extra]) == 0
+        md = (out / "index.md").read_text()
+        assert label in md and "Hierarchy: correct" in md and "chest: chest-head / chest-upper_arm_l" in md
+        doc = json.loads((out / "results.json").read_text())
+        assert len(doc["joints"]) == 5 and len(doc["lengths_cm"]) == 5
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    capsys.readouterr()
+    assert main(["report", str(h5), "--calibration", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "not a calibration JSON" in capsys.readouterr().err
+
+
+def test_accuracy_has_not_regressed():
+    """Recompute the accepted figures of reports/baseline.json; fail on any that got worse."""
+    problems = bl.compare(bl.compute(), bl.load_baseline())
+    assert problems == [], problems
+
+
+def test_compare_flags_regressions_and_tolerates_noise():
+    base = {"s": {"max_length_error_cm": 1.0, "hierarchy_wrong": 0.0}}
+    assert (
+        bl.compare({"s": {"max_length_error_cm": 1.1, "hierarchy_wrong": 0.0}}, base) == []
+    )  # within 10 % + 0.05
+    worse = bl.compare({"s": {"max_length_error_cm": 1.3, "hierarchy_wrong": 1.0}}, base)
+    assert len(worse) == 2 and "worse than the accepted 1" in worse[0]
+    assert bl.compare({}, base) == ["s: scenario missing"]
+    assert bl.diff_lines(base, {"s": {"max_length_error_cm": 2.0, "hierarchy_wrong": 0.0}}) == [
+        "s.max_length_error_cm: 1 -> 2"
+    ]
+
+
+def test_baseline_update_shows_the_diff(tmp_path, capsys, monkeypatch):
+    path = tmp_path / "baseline.json"
+    bl.write_baseline({"linkage-flock-exercise": {"max_length_error_cm": 99.0}}, path)
+    monkeypatch.setattr(bl, "SCENARIOS", bl.SCENARIOS[:1])
+    assert main(["baseline", "--file", str(path)]) == 0  # 99 cm accepted: anything better passes
+    bl.write_baseline({"linkage-flock-exercise": {"max_length_error_cm": 1e-6}}, path)
+    assert main(["baseline", "--file", str(path)]) == 1
+    assert "accuracy got worse" in capsys.readouterr().err
+    assert main(["baseline", "--update", "--file", str(path)]) == 0
+    assert "max_length_error_cm: 1e-06 ->" in capsys.readouterr().out
+    assert json.loads(path.read_text())["scenarios"]["linkage-flock-exercise"]["max_length_error_cm"] < 1
