@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -375,6 +376,46 @@ def cmd_baseline(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """``simbench sweep``: a study of seeded trials, locally or on a Dask cluster."""
+    from tqdm import tqdm
+
+    from simbench import sweep as sw
+
+    study = sw.load_study(args.study)  # every problem of the file before any work
+    out = Path(args.out) if args.out else Path(args.study).with_suffix("")
+    if not out.parent.is_dir():
+        raise InputError(f"cannot write {out}: folder {out.parent} does not exist")
+    total = len(sw.trials(study))
+    bar = tqdm(total=total, desc=study.name, unit="trial", file=sys.stderr, disable=args.no_progress)
+    bar.update(len(sw.finished(out)))
+    executor = None
+    client = None
+    if args.scheduler:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("--scheduler needs dask distributed (pip install 'dask[distributed]')") from None
+        client = Client(args.scheduler)
+        executor = client.get_executor()
+    try:
+        table = sw.run_study(
+            study, out, executor=executor, workers=args.workers, progress=lambda d, t: bar.update(d - bar.n)
+        )
+    finally:
+        bar.close()
+        if client is not None:
+            client.close()
+    plots = sw.plot_study(study, table, out)
+    summary = sw.summary_markdown(study, table, plots)
+    from simbench.atomic import atomic_write_text
+
+    atomic_write_text(out / "summary.md", summary)
+    print(f"simbench sweep {study.name}: {table.num_rows} of {total} trials in {out}")
+    print(f"  wrote {out / 'results.parquet'}, {out / 'summary.md'} and {len(plots)} plot(s)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``simbench`` command."""
     parser = argparse.ArgumentParser(
@@ -503,6 +544,15 @@ def build_parser() -> argparse.ArgumentParser:
     bas.add_argument("--tolerance", type=float, default=0.10, help="relative tolerance (default 0.10)")
     bas.add_argument("--file", metavar="PATH", help="baseline file (default reports/baseline.json)")
     bas.set_defaults(func=cmd_baseline)
+    swp = sub.add_parser(
+        "sweep", help="a study of seeded trials (noise, slip, placement...), local or on Dask"
+    )
+    swp.add_argument("study", help="the study TOML (see studies/ and simbench/sweep.py)")
+    swp.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
+    swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
+    swp.add_argument("--out", metavar="DIR", help="output folder (default: the study file's name)")
+    swp.add_argument("--no-progress", action="store_true")
+    swp.set_defaults(func=cmd_sweep)
     return parser
 
 

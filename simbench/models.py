@@ -25,7 +25,7 @@ so that every sensor pair of the hierarchy is a rotary joint with a fixed centre
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -240,7 +240,11 @@ def _add_mount(spec: mujoco.MjSpec, body: str, pos: np.ndarray, quat: np.ndarray
 
 
 def load_capture_model(
-    source: str, *, sensor_bodies: Sequence[str] | None = None, mount: Mount | None = None
+    source: str,
+    *,
+    sensor_bodies: Sequence[str] | None = None,
+    mount: Mount | None = None,
+    placement: Mapping[str, Sequence[float]] | None = None,
 ) -> CaptureModel:
     """Load a model and equip it for capture sessions (see the module docstring).
 
@@ -250,6 +254,8 @@ def load_capture_model(
             site, else every body with joints and the free root.
         mount: put every sensor on a sprung soft-tissue mount (``None``: rigid on the bone).
             The bone placement is still recorded (``bone_pos``/``bone_quat``).
+        placement: ``{sensor body: (dx, dy, dz)}`` shifts of sensors from their default place,
+            in the body frame, m (placement studies).
 
     Raises:
         InputError: unknown model or body names, bodies not joined by single joints.
@@ -261,6 +267,9 @@ def load_capture_model(
         raise InputError(f"model {source}: MuJoCo could not read {path}: {exc}") from None
     base = _compile(spec, source)
     names = list(sensor_bodies) if sensor_bodies is not None else _default_sensor_bodies(base)
+    unknown = sorted(set(placement or {}) - set(names))
+    if unknown:
+        raise InputError(f"placement names {unknown}, which carry no sensor; sensors: {names}")
     ids = []
     for name in names:
         b = mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_BODY, name)
@@ -327,12 +336,15 @@ def load_capture_model(
         name = bname(b)
         site = f"sensor_{name}"
         sid_base = mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SITE, site)
+        shift = np.asarray((placement or {}).get(name, (0.0, 0.0, 0.0)), dtype=float)
         if sid_base < 0:
             pos, quat = _site_frame(k)
-            pos = base.body_ipos[b] + pos
+            pos = base.body_ipos[b] + pos + shift
             spec.body(name).add_site(name=site, pos=pos, quat=quat)
         else:
-            pos, quat = base.site_pos[sid_base].copy(), base.site_quat[sid_base].copy()
+            pos, quat = base.site_pos[sid_base].copy() + shift, base.site_quat[sid_base].copy()
+            if np.any(shift):
+                spec.site(site).pos = pos
         site_names.append(site)
         worn_names.append(site if mount is None else _add_mount(spec, name, pos, quat, mount))
     st = mujoco.mjtSensor

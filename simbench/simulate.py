@@ -73,7 +73,9 @@ class SessionConfig:
         rate_hz: capture rate, Hz (> 0, at most the model's physics rate).
         seed: seed of the session's ``numpy.random.Generator``.
         sensor_bodies: bodies carrying a sensor, or ``None`` for the model's default.
-        sensors: sensor preset name or configuration TOML path (:mod:`simbench.sensor_config`).
+        sensors: sensor preset name, configuration TOML path, or a :class:`SensorConfig`
+            (:mod:`simbench.sensor_config`).
+        placement: ``((sensor, (dx, dy, dz)), ...)`` sensor shifts in their body frames, m.
     """
 
     model: str = "linkage"
@@ -82,7 +84,8 @@ class SessionConfig:
     rate_hz: float = 120.0
     seed: int = 0
     sensor_bodies: tuple[str, ...] | None = None
-    sensors: str = "ideal"
+    sensors: str | SensorConfig = "ideal"
+    placement: tuple[tuple[str, tuple[float, float, float]], ...] = ()
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration_s) and self.duration_s > 0):
@@ -99,7 +102,8 @@ class SessionConfig:
             "rate_hz": self.rate_hz,
             "seed": self.seed,
             "sensor_bodies": None if self.sensor_bodies is None else list(self.sensor_bodies),
-            "sensors": self.sensors,
+            "sensors": self.sensors if isinstance(self.sensors, str) else self.sensors.as_dict(),
+            "placement": {k: list(v) for k, v in self.placement},
         }
 
 
@@ -219,15 +223,24 @@ def _mount_of(sensors: SensorConfig) -> Mount | None:
     )
 
 
+def _sensors(config: SessionConfig) -> SensorConfig:
+    return config.sensors if isinstance(config.sensors, SensorConfig) else load_sensor_config(config.sensors)
+
+
 def load_session_model(config: SessionConfig) -> CaptureModel:
     """The capture model a session needs (with the soft-tissue mount its sensors ask for)."""
-    sensors = load_sensor_config(config.sensors)
-    return load_capture_model(config.model, sensor_bodies=config.sensor_bodies, mount=_mount_of(sensors))
+    sensors = _sensors(config)
+    return load_capture_model(
+        config.model,
+        sensor_bodies=config.sensor_bodies,
+        mount=_mount_of(sensors),
+        placement=dict(config.placement),
+    )
 
 
 def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     """Draw everything random about a session from its seed, and check it against the model."""
-    sensors = load_sensor_config(config.sensors)
+    sensors = _sensors(config)
     if _mount_of(sensors) != cm.mount:
         raise InputError(
             f"sensors {config.sensors!r} need mount {_mount_of(sensors)}; the model was loaded with "
