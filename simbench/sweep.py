@@ -448,7 +448,8 @@ def run_study(
 
 
 def plot_study(study: Study, table, out: Path) -> list[Path]:
-    """Metric vs each parameter with 95 % confidence bands over seeds; a heat map for two."""
+    """Metric vs each parameter: means with 95 % confidence bands over seeds (grid), every trial
+    (random sampling); a heat map of the first metric for two grid parameters."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -464,6 +465,11 @@ def plot_study(study: Study, table, out: Path) -> list[Path]:
         fig, axes = plt.subplots(1, len(metrics), figsize=(3.6 * len(metrics), 3), squeeze=False)
         for ax, m in zip(axes[0], metrics, strict=True):
             y = np.array(data[m], dtype=float)
+            if study.kind == "random":  # every trial its own value: a scatter, no bands
+                ax.plot(x, y, ".", alpha=0.7)
+                ax.set_xlabel(p.name.split(".", 1)[-1])
+                ax.set_title(m, fontsize=8)
+                continue
             xs = np.unique(x)
             mean = np.array([np.nanmean(y[x == v]) for v in xs])
             n = np.array([np.sum(np.isfinite(y[x == v])) for v in xs])
@@ -475,7 +481,7 @@ def plot_study(study: Study, table, out: Path) -> list[Path]:
             ax.set_xlabel(p.name.split(".")[-1])
             ax.set_title(m, fontsize=8)
         fig.tight_layout()
-        path = out / f"vs_{p.name.split('.')[-1]}.png"
+        path = out / f"vs_{p.name.replace('.', '_')}.png"
         _savefig(fig, path)
         plt.close(fig)
         written.append(path)
@@ -534,6 +540,11 @@ def summary_markdown(study: Study, table, plots: list[Path]) -> str:
                 "Rank correlation of the joint fits' condition number with the joint-centre error: "
                 f"{rho:.2f}.",
             ]
+        if study.kind == "random" and ok.sum() > 2:
+            lines += ["", "| parameter | rank correlation with the joint-centre error |", "|---|---|"]
+            for n in names:
+                r = spearmanr(np.array(data[n], dtype=float)[ok], err[ok]).statistic
+                lines.append(f"| {n} | {r:+.2f} |")
         best = int(np.nanargmin([np.nanmean(err[cell_arr == c]) for c in cells]))
         pick = int(np.flatnonzero(cell_arr == cells[best])[0])
         lines += [
