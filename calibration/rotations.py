@@ -155,6 +155,22 @@ def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(flat).as_rotvec().reshape(*R.shape[:-2], 3)
 
 
+def euler_to_matrix(sequence: str, angles: np.ndarray, *, degrees: bool) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` of Euler angles ``(..., 3)`` in scipy's convention:
+    uppercase ``sequence`` (e.g. ``"ZYX"``) for intrinsic rotations, lowercase for extrinsic."""
+    a = np.asarray(angles, dtype=float)
+    if a.shape[-1:] != (3,):
+        raise CalibrationInputError(f"Expected Euler angles of shape (..., 3), got {a.shape}")
+    flat = a.reshape(-1, 3)
+    if flat.shape[0] == 0:
+        return np.zeros((*a.shape[:-1], 3, 3))
+    try:
+        R = Rotation.from_euler(sequence, flat, degrees=degrees).as_matrix()
+    except ValueError as exc:
+        raise CalibrationInputError(f"Euler sequence {sequence!r}: {exc}") from None
+    return R.reshape(*a.shape[:-1], 3, 3)
+
+
 def quat_norm_deviation(q_wxyz: np.ndarray) -> np.ndarray:
     """``| |q| - 1 |`` for each quaternion, ``(..., 4) -> (...)``; NaN where ``q`` is not finite."""
     q = np.asarray(q_wxyz, dtype=float)

@@ -53,13 +53,18 @@ def _load_hierarchy(path: str) -> dict[str, str]:
     return doc
 
 
-def read_poses(path: str, units: str) -> PoseRecording:
+def read_poses(path: str, units: str, spec: str | None = None) -> PoseRecording:
     """Read a pose file, choosing the reader from the file's extension.
 
     ``.csv``: the pose CSV (positions in ``units``); ``.h5``/``.hdf5``: a simbench dataset (its
-    measured poses, always in metres).
+    measured poses, always in metres); ``.c3d``: optical markers, clustered by ``spec`` (a TOML
+    ``[clusters]`` table) or automatically, one pose per cluster.
     """
     suffix = Path(path).suffix.lower()
+    if suffix == ".c3d":
+        from simbench.c3d_reader import c3d_poses, read_cluster_spec
+
+        return c3d_poses(path, clusters=read_cluster_spec(spec) if spec else None)
     if suffix in (".csv", ".txt"):
         return read_pose_csv(path, units=units)
     if suffix in (".h5", ".hdf5"):
@@ -67,7 +72,8 @@ def read_poses(path: str, units: str) -> PoseRecording:
             raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
         return read_dataset(path).poses()
     raise InputError(
-        f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv) or a simbench dataset (.h5)"
+        f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv), a simbench dataset (.h5) "
+        "or optical markers (.c3d)"
     )
 
 
@@ -143,7 +149,7 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
-    rec = read_poses(args.input, args.units)
+    rec = read_poses(args.input, args.units, args.clusters)
     parent_of = _load_hierarchy(args.hierarchy) if args.hierarchy else None
     cal = calibrate(
         rec.R_w_s,
@@ -437,6 +443,11 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
     cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
+    cal.add_argument(
+        "--clusters",
+        metavar="SPEC.toml",
+        help="C3D input: marker clusters [clusters] segment = [labels] (default: found)",
+    )
     cal.add_argument(
         "--single-axis-ratio",
         type=float,

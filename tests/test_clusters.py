@@ -1,0 +1,135 @@
+"""Marker clusters and C3D input (issue 8): rigid fits, grouping, round trips, real data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from calibration.clusters import group_markers, reference_shape, rigid_fit
+from calibration.errors import CalibrationInputError
+from calibration.rotations import rotvec_to_matrix
+from simbench.c3d_reader import c3d_poses, read_c3d_markers, read_cluster_spec, write_c3d_markers
+from simbench.errors import InputError
+
+SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def moving_cluster(rng, shape, frames=400):
+    R = rotvec_to_matrix(rng.normal(size=(frames, 3)))
+    t = rng.normal(size=(frames, 3))
+    return R, t, np.einsum("fij,kj->fki", R, shape) + t[:, None]
+
+
+def test_rigid_fit_exact_and_with_missing_markers():
+    rng = np.random.default_rng(0)
+    shape = rng.normal(0, 0.05, (4, 3))
+    R, t, x = moving_cluster(rng, shape)
+    x[::7, 1] = np.nan  # one marker hidden in some frames: three remain
+    fit = rigid_fit(shape, x)
+    assert fit.valid.all()
+    assert_allclose(fit.R_w_c, R, atol=1e-12)
+    assert_allclose(fit.p_w_c, t + np.einsum("fij,j->fi", R, shape.mean(axis=0)), atol=1e-12)
+    assert np.nanmax(fit.rms_residual) < 1e-12
+    x[::5, :2] = np.nan  # only two left: no pose, marked missing, never invented
+    fit = rigid_fit(shape, x)
+    assert not fit.valid[::5].any() and np.isnan(fit.R_w_c[::5]).all()
+
+
+def test_rigid_fit_degrades_gracefully_with_noise():
+    rng = np.random.default_rng(1)
+    shape = rng.normal(0, 0.05, (4, 3))
+    errors = []
+    for sigma in (0.0005, 0.002, 0.008):
+        R, _, x = moving_cluster(rng, shape, 2000)
+        fit = rigid_fit(shape, x + rng.normal(0, sigma, x.shape))
+        angle = np.linalg.norm(
+            np.einsum("fji,fjk->fik", fit.R_w_c, R)[:, [2, 0, 1], [1, 2, 0]], axis=1
+        )  # small-angle size of the rotation error
+        errors.append(np.sqrt(np.mean(angle**2)))
+        # residual of 4 markers fitted with 6 dof: sigma sqrt((3*4 - 6)/(3*4)) per marker
+        assert np.nanmedian(fit.rms_residual) == pytest.approx(sigma * np.sqrt(0.5) * np.sqrt(3), rel=0.25)
+    assert errors[0] < errors[1] < errors[2]  # grows with the noise, smoothly
+
+
+def test_reference_shape_and_grouping_on_simulated_markers():
+    rng = np.random.default_rng(2)
+    shapes = [rng.normal(0, 0.06, (k, 3)) for k in (3, 4, 5)]
+    parts = [moving_cluster(rng, s)[2] for s in shapes]
+    loose = rng.normal(size=(400, 2, 3))  # two markers that belong to nothing
+    x = np.concatenate([*parts, loose], axis=1)
+    order = rng.permutation(x.shape[1])
+    x = x[:, order]
+    groups = group_markers(x, tol_m=0.001)
+    truth = [
+        sorted(np.flatnonzero(np.isin(order, range(a, a + k))).tolist()) for a, k in ((7, 5), (3, 4), (0, 3))
+    ]
+    assert groups == truth
+    est = reference_shape(parts[1])
+    d = lambda s: np.linalg.norm(s[:, None] - s[None], axis=2)  # noqa: E731
+    assert_allclose(d(est), d(shapes[1]), atol=1e-12)
+    with pytest.raises(CalibrationInputError, match="Expected markers of shape"):
+        group_markers(np.zeros((4, 3)))
+
+
+def test_c3d_round_trip_and_cluster_poses(tmp_path):
+    rng = np.random.default_rng(3)
+    shapes = {"a": rng.normal(0, 0.05, (3, 3)), "b": rng.normal(0, 0.05, (4, 3))}
+    poses = {k: moving_cluster(rng, s, 300) for k, s in shapes.items()}
+    x = np.concatenate([poses["a"][2], poses["b"][2]], axis=1) + np.array([0.0, 0.0, 1.0])
+    x[10, 0] = np.nan
+    labels = ["A1", "A2", "A3", "B1", "B2", "B3", "B4"]
+    path = tmp_path / "m.c3d"
+    write_c3d_markers(path, labels, x, 100.0)
+    back_labels, back, rate = read_c3d_markers(path)
+    assert back_labels == labels and rate == 100.0
+    assert np.isnan(back[10, 0]).all() and np.isfinite(back[11, 0]).all()
+    assert_allclose(back[np.isfinite(back)], x[np.isfinite(x)], atol=1e-4)  # float32 millimetres
+    spec = tmp_path / "spec.toml"
+    spec.write_text('[clusters]\na = ["A1", "A2", "A3"]\nb = ["B1", "B2", "B3", "B4"]\n')
+    rec = c3d_poses(path, clusters=read_cluster_spec(spec))
+    assert rec.names == ("a", "b") and rec.valid[:, 1].all() and not rec.valid[10, 0]
+    # the fitted rotations are the true ones (the cluster frame is the first complete frame's)
+    R_true = poses["b"][0]
+    rel = np.einsum("fji,fjk->fik", rec.R_w_s[:, 1], R_true)
+    assert_allclose(rel, np.broadcast_to(rel[0], rel.shape), atol=1e-4)
+    assert any("rigidity residual" in n for n in rec.notes)
+
+
+def test_bad_c3d_input(tmp_path):
+    path = tmp_path / "m.c3d"
+    write_c3d_markers(path, ["A", "B", "C"], np.random.default_rng(4).normal(size=(20, 3, 3)), 50.0)
+    truncated = tmp_path / "t.c3d"
+    truncated.write_bytes(path.read_bytes()[:700])
+    with pytest.raises(InputError, match=r"not a readable C3D file|no frames"):
+        read_c3d_markers(truncated)
+    spec = tmp_path / "s.toml"
+    spec.write_text('[clusters]\nx = ["A", "B", "Z"]\n')
+    with pytest.raises(InputError, match=r"no markers named \['Z'\]"):
+        c3d_poses(path, clusters=read_cluster_spec(spec))
+    spec.write_text('[clusters]\nx = ["A", "B"]\n')
+    with pytest.raises(InputError, match="at least 3 marker labels"):
+        read_cluster_spec(spec)
+
+
+@pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data not beside the repository")
+def test_functional_hip_centre_on_real_data():
+    from calibration import calibrate
+
+    spec = Path(__file__).resolve().parents[1] / "studies" / "hip_c3d.toml"
+    rec = c3d_poses(SHARED_DATA / "biobuddy_right_hip.c3d", clusters=read_cluster_spec(spec))
+    cal = calibrate(
+        rec.R_w_s,
+        rec.p_w_s,
+        rec.names,
+        valid=rec.valid,
+        parent_of={"thigh_r": "pelvis", "shank_r": "thigh_r"},
+    )
+    hip = next(j for j in cal.joints if j.child == "thigh_r")
+    assert hip.fit.rank == 6 and hip.fit.rms_residual < 0.02  # a centimetre: skin, not a bad fit
+    labels, xyz, _ = read_c3d_markers(SHARED_DATA / "biobuddy_right_hip.c3d")
+    centre = np.einsum("fij,j->fi", rec.R_w_s[:, 0], hip.fit.joint_in_parent) + rec.p_w_s[:, 0]
+    to_asis = np.nanmedian(np.linalg.norm(centre - xyz[:, labels.index("RASIS")], axis=1))
+    assert 0.05 < to_asis < 0.15  # anatomically plausible: about 10 cm below and behind the ASIS
