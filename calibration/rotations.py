@@ -171,6 +171,15 @@ def euler_to_matrix(sequence: str, angles: np.ndarray, *, degrees: bool) -> np.n
     return R.reshape(*a.shape[:-1], 3, 3)
 
 
+def matrix_to_euler(sequence: str, R: np.ndarray, *, degrees: bool) -> np.ndarray:
+    """Euler angles ``(..., 3)`` of rotation matrices ``(..., 3, 3)`` (scipy's convention)."""
+    R = np.asarray(R, dtype=float)
+    flat = R.reshape(-1, 3, 3)
+    if flat.shape[0] == 0:
+        return np.zeros((*R.shape[:-2], 3))
+    return Rotation.from_matrix(flat).as_euler(sequence, degrees=degrees).reshape(*R.shape[:-2], 3)
+
+
 def quat_norm_deviation(q_wxyz: np.ndarray) -> np.ndarray:
     """``| |q| - 1 |`` for each quaternion, ``(..., 4) -> (...)``; NaN where ``q`` is not finite."""
     q = np.asarray(q_wxyz, dtype=float)

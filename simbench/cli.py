@@ -53,7 +53,7 @@ def _load_hierarchy(path: str) -> dict[str, str]:
     return doc
 
 
-def read_poses(path: str, units: str, spec: str | None = None) -> PoseRecording:
+def read_poses(path: str, units: str, spec: str | None = None, wide: str | None = None) -> PoseRecording:
     """Read a pose file, choosing the reader from the file's extension.
 
     ``.csv``: the pose CSV (positions in ``units``); ``.h5``/``.hdf5``: a simbench dataset (its
@@ -61,6 +61,10 @@ def read_poses(path: str, units: str, spec: str | None = None) -> PoseRecording:
     ``[clusters]`` table) or automatically, one pose per cluster.
     """
     suffix = Path(path).suffix.lower()
+    if wide is not None:
+        from simbench.wide_csv import read_wide_csv, read_wide_spec
+
+        return read_wide_csv(path, read_wide_spec(wide))
     if suffix == ".c3d":
         from simbench.c3d_reader import c3d_poses, read_cluster_spec
 
@@ -149,7 +153,7 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
-    rec = read_poses(args.input, args.units, args.clusters)
+    rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = _load_hierarchy(args.hierarchy) if args.hierarchy else None
     cal = calibrate(
         rec.R_w_s,
@@ -348,7 +352,14 @@ def cmd_report(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not out.parent.is_dir():
         raise InputError(f"cannot write {out}: folder {out.parent} does not exist")
-    paths = dataset_report(Path(args.dataset), out, Path(args.calibration) if args.calibration else None)
+    paths = dataset_report(
+        Path(args.dataset),
+        out,
+        Path(args.calibration) if args.calibration else None,
+        units=args.units,
+        clusters=args.clusters,
+        wide=args.wide,
+    )
     for p in paths.values():
         print(f"wrote {p}")
     return 0
@@ -449,6 +460,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="C3D input: marker clusters [clusters] segment = [labels] (default: found)",
     )
     cal.add_argument(
+        "--wide",
+        metavar="SPEC.toml",
+        help="INPUT is a wide tracker export (a row per frame) laid out as SPEC says",
+    )
+    cal.add_argument(
         "--single-axis-ratio",
         type=float,
         default=SINGLE_AXIS_RATIO,
@@ -540,7 +556,14 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser(
         "report", help="the report of one dataset (scored against its truth when it has one)"
     )
-    rep.add_argument("dataset", help="a simbench dataset (.h5)")
+    rep.add_argument(
+        "dataset", help="a simbench dataset (.h5), pose CSV, wide tracker export (--wide) or C3D"
+    )
+    rep.add_argument("--units", choices=sorted(UNITS), default="m", help="length unit of a CSV (default m)")
+    rep.add_argument("--clusters", metavar="SPEC.toml", help="C3D input: marker clusters (default: found)")
+    rep.add_argument(
+        "--wide", metavar="SPEC.toml", help="INPUT is a wide tracker export laid out as SPEC says"
+    )
     rep.add_argument(
         "--calibration", metavar="FILE.json", help="report this calibration JSON instead of calibrating"
     )

@@ -303,3 +303,22 @@ __all__ = [
     "truth_calibration_dict",
     "write_dataset",
 ]
+
+
+def dataset_from_poses(rec: PoseRecording) -> Dataset:
+    """A Dataset holding a recording's poses (a tracker export, optical clusters): the same
+    container the simulator writes, without inertial data (NaN) or truth."""
+    from calibration.rotations import matrix_to_quat
+
+    valid = np.array(rec.valid)
+    q = matrix_to_quat(np.where(valid[..., None, None], rec.R_w_s, np.eye(3)))
+    q[~valid] = np.nan
+    nan3 = np.full((*valid.shape, 3), np.nan)
+    measured = SensorData(p_w_s=np.array(rec.p_w_s), q_w_s=q, valid=valid, acc=nan3, gyro=nan3, mag=nan3)
+    return Dataset(
+        time_s=np.array(rec.time_s),
+        sensors=rec.names,
+        measured=measured,
+        truth=None,
+        meta={"source": rec.source, "notes": list(rec.notes), "position_unit_scale": 1.0},
+    )

@@ -492,14 +492,24 @@ class _Fitted:
     lengths: tuple
 
 
-def dataset_report(dataset: Path, out: Path, calibration_file: Path | None = None) -> dict[str, Path]:
-    """The report of one dataset: residuals, hierarchy and lengths; scored when it has truth.
+def dataset_report(
+    dataset: Path,
+    out: Path,
+    calibration_file: Path | None = None,
+    *,
+    units: str = "m",
+    clusters: str | None = None,
+    wide: str | None = None,
+) -> dict[str, Path]:
+    """The report of one recording: residuals, hierarchy and lengths; scored when it has truth.
 
     Args:
-        dataset: a simbench dataset (HDF5).
+        dataset: a simbench dataset (HDF5), or any pose input ``simbench calibrate`` reads (pose
+            CSV, wide tracker export with ``wide``, C3D markers with ``clusters``).
         out: report folder.
         calibration_file: a calibration JSON (``simbench calibrate --json``) to report instead of
-            calibrating the dataset here.
+            calibrating the recording here.
+        units, clusters, wide: as for ``simbench calibrate``.
     """
     from calibration import calibrate, frame_residuals
     from calibration.hierarchy import hierarchy_from_parents
@@ -510,9 +520,14 @@ def dataset_report(dataset: Path, out: Path, calibration_file: Path | None = Non
     from simbench.errors import InputError
     from simbench.validate import _lengths, _lookup, _same_tree, _truth_lengths
 
-    ds = read_dataset(dataset)
-    rec = ds.poses()
-    scale = float(ds.meta.get("position_unit_scale", 1.0))
+    if Path(dataset).suffix.lower() in (".h5", ".hdf5"):
+        ds = read_dataset(dataset)
+        rec = ds.poses()
+        scale = float(ds.meta.get("position_unit_scale", 1.0))
+    else:
+        from simbench.cli import read_poses
+
+        ds, rec, scale = None, read_poses(str(dataset), units, clusters, wide), 1.0
     if calibration_file is None:
         cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
         joints = list(cal.joints)
@@ -567,7 +582,10 @@ def dataset_report(dataset: Path, out: Path, calibration_file: Path | None = Non
             for j in joints
         ],
         "versions": versions(),
-        "meta": {k: ds.meta.get(k) for k in ("model", "program", "seed", "rate_hz", "sensor_model")},
+        "meta": {}
+        if ds is None
+        else {k: ds.meta.get(k) for k in ("model", "program", "seed", "rate_hz", "sensor_model")},
+        "read": list(rec.notes),
     }
     lines = [
         f"# simbench report: {dataset}",
@@ -583,7 +601,9 @@ def dataset_report(dataset: Path, out: Path, calibration_file: Path | None = Non
         "",
     ]
     got = _lengths(cal)
-    if ds.truth is not None:
+    if rec.notes:
+        lines += ["What was read:", "", *[f"- {note}" for note in rec.notes], ""]
+    if ds is not None and ds.truth is not None:
         truth = _truth_lengths(ds)
         rows = []
         for key, value in truth.items():

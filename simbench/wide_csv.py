@@ -1,0 +1,216 @@
+"""Wide tracker exports: one row per frame, each sensor's position and orientation in columns.
+
+Polhemus and Ascension software (and most tools around them) write a row per frame with every
+sensor's position and orientation, as a quaternion or as Euler angles, in columns whose names
+vary. A small TOML specification maps them::
+
+    [wide]
+    time = "Time"                 # a time column in seconds; or rate_hz = 120 for none
+    units = "cm"                  # m, cm, mm, in
+    orientation = "euler"         # or "quaternion" (scalar first: w, x, y, z)
+    euler = "ZYX"                 # scipy convention: uppercase intrinsic, lowercase extrinsic
+    angle_units = "deg"           # or "rad"
+    repeated = "drop"             # a sensor's sample equal to its previous one is missing
+                                  # (trackers polled faster than they measure repeat samples);
+                                  # "keep" to keep them
+    [wide.sensors.pelvis]
+    position = ["P1_X", "P1_Y", "P1_Z"]
+    euler = ["P1_AZ", "P1_EL", "P1_RO"]      # or quaternion = ["P1_W", "P1_X", ...]
+
+Errors name the file, line and column; what was repaired is said in the recording's notes.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calibration.rotations import euler_to_matrix, quat_to_matrix
+from simbench.errors import InputError
+from simbench.poses import PoseRecording, metres_per_unit
+
+
+@dataclass(frozen=True)
+class WideSpec:
+    """A parsed wide-CSV specification (module docstring)."""
+
+    time: str | None
+    rate_hz: float | None
+    units: str
+    orientation: str
+    euler: str
+    degrees: bool
+    drop_repeated: bool
+    sensors: dict[str, dict[str, list[str]]]
+
+
+def read_wide_spec(path: str | os.PathLike[str]) -> WideSpec:
+    """Read and check a wide-CSV specification TOML."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    w = doc.get("wide")
+    if not isinstance(w, dict):
+        raise InputError(f"{path}: expected a [wide] table")
+    known = {"time", "rate_hz", "units", "orientation", "euler", "angle_units", "repeated", "sensors"}
+    unknown = sorted(set(w) - known)
+    if unknown:
+        raise InputError(f"{path}: wide: unknown keys {unknown}; expected {sorted(known)}")
+    orientation = w.get("orientation", "quaternion")
+    if orientation not in ("quaternion", "euler"):
+        raise InputError(f"{path}: wide.orientation must be 'quaternion' or 'euler', got {orientation!r}")
+    if w.get("time") is None and not isinstance(w.get("rate_hz"), int | float):
+        raise InputError(f"{path}: wide: give a time column (time = ...) or rate_hz")
+    angle_units = w.get("angle_units", "deg")
+    if angle_units not in ("deg", "rad"):
+        raise InputError(f"{path}: wide.angle_units must be 'deg' or 'rad', got {angle_units!r}")
+    repeated = w.get("repeated", "drop")
+    if repeated not in ("drop", "keep"):
+        raise InputError(f"{path}: wide.repeated must be 'drop' or 'keep', got {repeated!r}")
+    units = w.get("units", "m")
+    metres_per_unit(units)
+    sensors = w.get("sensors")
+    if not isinstance(sensors, dict) or len(sensors) < 1:
+        raise InputError(f"{path}: expected [wide.sensors.<name>] tables")
+    for name, cols in sensors.items():
+        need = {"position": 3, orientation: 4 if orientation == "quaternion" else 3}
+        for key, count in need.items():
+            v = cols.get(key)
+            if not isinstance(v, list) or len(v) != count or not all(isinstance(c, str) for c in v):
+                raise InputError(f"{path}: wide.sensors.{name}.{key}: expected {count} column names")
+        extra = sorted(set(cols) - set(need))
+        if extra:
+            raise InputError(f"{path}: wide.sensors.{name}: unexpected keys {extra} for {orientation} input")
+    return WideSpec(
+        time=w.get("time"),
+        rate_hz=float(w["rate_hz"]) if "rate_hz" in w else None,
+        units=units,
+        orientation=orientation,
+        euler=str(w.get("euler", "ZYX")),
+        degrees=angle_units == "deg",
+        drop_repeated=repeated == "drop",
+        sensors=sensors,
+    )
+
+
+def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording:
+    """Read a wide tracker export with its specification."""
+    path = Path(path)
+    try:
+        fh = path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    with fh:
+        reader = csv.reader(fh)
+        header = next((r for r in reader if any(c.strip() for c in r)), None)
+        if header is None:
+            raise InputError(f"{path}: the file is empty")
+        header = [h.strip() for h in header]
+        wanted = [spec.time] if spec.time else []
+        for cols in spec.sensors.values():
+            for group in cols.values():
+                wanted += group
+        missing = [c for c in wanted if c not in header]
+        if missing:
+            raise InputError(f"{path}, line {reader.line_num}: missing columns {missing}; header: {header}")
+        col = {c: header.index(c) for c in wanted}
+        rows = []
+        for row in reader:
+            if not any(c.strip() for c in row):
+                continue
+            if len(row) != len(header):
+                raise InputError(
+                    f"{path}, line {reader.line_num}: expected {len(header)} fields, got {len(row)}"
+                )
+            values = []
+            for c in wanted:
+                try:
+                    values.append(float(row[col[c]]))
+                except ValueError:
+                    raise InputError(
+                        f"{path}, line {reader.line_num}: column {c!r} is not a number: {row[col[c]]!r}"
+                    ) from None
+            rows.append(values)
+    if len(rows) < 1:
+        raise InputError(f"{path}: no data rows")
+    data = np.array(rows)
+    offset = 0
+    if spec.time:
+        time_s = data[:, 0]
+        offset = 1
+        if not np.all(np.diff(time_s) > 0):
+            bad = int(np.flatnonzero(np.diff(time_s) <= 0)[0]) + 2
+            raise InputError(f"{path}: times must increase (row {bad} after the header does not)")
+    else:
+        time_s = np.arange(len(data)) / spec.rate_hz
+    scale = metres_per_unit(spec.units)
+    names = tuple(spec.sensors)
+    f, n = len(data), len(names)
+    R = np.full((f, n, 3, 3), np.nan)
+    p = np.full((f, n, 3), np.nan)
+    valid = np.zeros((f, n), dtype=bool)
+    notes = [f"read {f} frames of {n} sensors ({spec.orientation} orientation, positions in {spec.units})"]
+    k = offset
+    for s, name in enumerate(names):
+        width = 7 if spec.orientation == "quaternion" else 6
+        block = data[:, k : k + width]
+        k += width
+        ok = np.isfinite(block).all(axis=1)
+        if spec.drop_repeated:
+            same = np.zeros(f, dtype=bool)
+            same[1:] = np.all(block[1:] == block[:-1], axis=1)
+            ok &= ~same
+            if same.any():
+                notes.append(f"sensor {name}: {int(same.sum())} repeated samples treated as missing")
+        if spec.orientation == "quaternion":
+            q = block[ok, 3:]
+            if np.any(np.linalg.norm(q, axis=1) == 0):
+                raise InputError(f"{path}: sensor {name}: zero quaternion")
+            R[ok, s] = quat_to_matrix(q)
+        else:
+            R[ok, s] = euler_to_matrix(spec.euler, block[ok, 3:], degrees=spec.degrees)
+        p[ok, s] = block[ok, :3] * scale
+        valid[:, s] = ok
+    return PoseRecording(
+        names=names, time_s=time_s, R_w_s=R, p_w_s=p, valid=valid, source=str(path), notes=tuple(notes)
+    )
+
+
+def write_wide_csv(path: str | os.PathLike[str], rec: PoseRecording, spec: WideSpec) -> None:
+    """Write poses in the layout a specification describes (for tests and conversions)."""
+    from calibration.rotations import matrix_to_euler, matrix_to_quat
+    from simbench.atomic import atomic_open
+
+    scale = metres_per_unit(spec.units)
+    header = [spec.time] if spec.time else []
+    cols = []
+    for name in rec.names:
+        c = spec.sensors[name]
+        header += c["position"] + c[spec.orientation]
+        cols.append(name)
+    with atomic_open(path, "w", newline="") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
+        writer.writerow(header)
+        q = matrix_to_quat(np.where(rec.valid[..., None, None], rec.R_w_s, np.eye(3)))
+        for f in range(rec.n_frames):
+            row = [repr(float(rec.time_s[f]))] if spec.time else []
+            for s in range(len(rec.names)):
+                if not rec.valid[f, s]:
+                    row += ["nan"] * (7 if spec.orientation == "quaternion" else 6)
+                    continue
+                row += [repr(float(v)) for v in rec.p_w_s[f, s] / scale]
+                if spec.orientation == "quaternion":
+                    row += [repr(float(v)) for v in q[f, s]]
+                else:
+                    angles = matrix_to_euler(spec.euler, rec.R_w_s[f, s], degrees=spec.degrees)
+                    row += [repr(float(v)) for v in angles]
+            writer.writerow(row)
