@@ -13,14 +13,13 @@ read: clusters, frames, rate, gaps and each cluster's rigidity residual.
 from __future__ import annotations
 
 import os
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
 from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationError
-from simbench.errors import InputError
+from simbench.errors import InputError, load_toml
 from simbench.poses import PoseRecording
 
 UNITS = {"mm": 0.001, "cm": 0.01, "m": 1.0}
@@ -61,12 +60,7 @@ def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarra
 def read_cluster_spec(path: str | os.PathLike[str]) -> dict[str, list[str]]:
     """``{segment: [marker labels]}`` from a TOML file with a ``[clusters]`` table."""
     path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    doc = load_toml(path)
     clusters = doc.get("clusters")
     if not isinstance(clusters, dict) or not clusters:
         raise InputError(f'{path}: expected a [clusters] table: segment = ["MARKER1", "MARKER2", "MARKER3"]')

@@ -32,14 +32,13 @@ User programs are TOML files (``--motion FILE.toml``)::
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
-from simbench.errors import InputError
+from simbench.errors import InputError, load_toml
 from simbench.models import CaptureModel
 
 BUILTIN_PROGRAMS = ("exercise", "walk", "single-axis", "static")
@@ -213,12 +212,7 @@ def load_program(path: str | Path, cm: CaptureModel) -> Program:
             empty or reversed phases, negative frequencies.
     """
     path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    doc = load_toml(path)
     unknown = sorted(set(doc) - {"name", "root", "phase"})
     if unknown:
         raise InputError(f"{path}: unknown keys {unknown}; expected name, root, phase")

@@ -37,14 +37,13 @@ says where its numbers come from.
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from simbench.errors import InputError
+from simbench.errors import InputError, load_toml
 from simbench.sensor_models import Distortion, ImuConfig, TrackerConfig
 from simbench.skin import SlipEvent
 
@@ -216,12 +215,5 @@ def load_sensor_config(name_or_path: str) -> SensorConfig:
                 f"unknown sensor preset {name_or_path!r}: expected one of {', '.join(preset_names())} "
                 "or a .toml file"
             )
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    doc = load_toml(path)
     return parse_sensor_config(doc, str(path))

@@ -37,7 +37,6 @@ import dataclasses
 import math
 import os
 import time
-import tomllib
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -47,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from simbench.atomic import atomic_path
-from simbench.errors import InputError
+from simbench.errors import InputError, load_toml
 from simbench.sensor_config import SensorConfig, load_sensor_config
 
 #: Length, angle and time units accepted in study files, as SI per unit; a field's SI unit is
@@ -145,12 +144,7 @@ def load_study(path: str | os.PathLike[str]) -> Study:
             ranges, wrong units).
     """
     path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    doc = load_toml(path)
     known = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
     unknown = sorted(set(doc) - known)
     if unknown:

@@ -24,14 +24,13 @@ from __future__ import annotations
 
 import csv
 import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from calibration.rotations import euler_to_matrix, quat_to_matrix
-from simbench.errors import InputError
+from simbench.errors import InputError, load_toml
 from simbench.poses import PoseRecording, metres_per_unit
 
 
@@ -52,12 +51,7 @@ class WideSpec:
 def read_wide_spec(path: str | os.PathLike[str]) -> WideSpec:
     """Read and check a wide-CSV specification TOML."""
     path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
+    doc = load_toml(path)
     w = doc.get("wide")
     if not isinstance(w, dict):
         raise InputError(f"{path}: expected a [wide] table")
