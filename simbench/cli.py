@@ -86,24 +86,13 @@ def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list
     window = min(max(window, 2), rec.n_frames // 2)
     if window < 2:
         return []
-    index = {name: k for k, name in enumerate(rec.names)}
     out = []
     for j in cal.joints:
-        p, c = index[j.parent], index[j.child]
-        out.append(
-            (
-                j.name,
-                detect_slip(
-                    rec.R_w_s[:, p],
-                    rec.p_w_s[:, p],
-                    rec.R_w_s[:, c],
-                    rec.p_w_s[:, c],
-                    j.fit.joint_in_parent,
-                    j.fit.joint_in_child,
-                    window=window,
-                ),
-            )
+        fit = j.fit
+        report = detect_slip(
+            *rec.pair(j.parent, j.child), fit.joint_in_parent, fit.joint_in_child, window=window
         )
+        out.append((j.name, report))
     return out
 
 

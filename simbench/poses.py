@@ -79,6 +79,11 @@ class PoseRecording:
         """Number of frames."""
         return int(self.time_s.shape[0])
 
+    def pair(self, parent: str, child: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(R_w_p, p_w_p, R_w_c, p_w_c)`` of two sensors, as the joint functions take them."""
+        p, c = self.names.index(parent), self.names.index(child)
+        return self.R_w_s[:, p], self.p_w_s[:, p], self.R_w_s[:, c], self.p_w_s[:, c]
+
     @property
     def rate_hz(self) -> float:
         """Median sample rate, Hz (NaN with fewer than 2 frames)."""

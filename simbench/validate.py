@@ -130,6 +130,18 @@ def _lookup(table: dict, key: tuple[str, str, str]) -> float:
     return table.get(key, table.get((seg, b, a), float("nan")))
 
 
+def _length_rows(
+    labels: dict[str, tuple[str, str, str]], truth: dict, got: dict, scale: float
+) -> dict[str, dict[str, float]]:
+    """True, computed (scaled to metres) and true - computed lengths in cm for labelled rows."""
+    rows = {}
+    for label, key in labels.items():
+        true_cm = _lookup(truth, key) * 100
+        computed_cm = _lookup(got, key) * scale * 100
+        rows[label] = {"true_cm": true_cm, "computed_cm": computed_cm, "difference_cm": true_cm - computed_cm}
+    return rows
+
+
 def _same_tree(a: dict[str, str], b: dict[str, str]) -> bool:
     return {frozenset(e) for e in a.items()} == {frozenset(e) for e in b.items()}
 
@@ -178,15 +190,7 @@ def _linkage(plan: Plan, scale: float, keep: dict) -> dict[str, Any]:
         cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
         truth = _truth_lengths(ds)
         got = _lengths(cal)
-        rows = {}
-        for label, key in LINKAGE_ROWS.items():
-            true_cm = _lookup(truth, key) * 100
-            computed_cm = _lookup(got, key) * scale * 100
-            rows[label] = {
-                "true_cm": true_cm,
-                "computed_cm": computed_cm,
-                "difference_cm": true_cm - computed_cm,
-            }
+        rows = _length_rows(LINKAGE_ROWS, truth, got, scale)
         sets.append(
             {
                 "set": s,
@@ -224,15 +228,7 @@ def _humanoid(plan: Plan, scale: float) -> dict[str, Any]:
         got = _lengths(cal)
         given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
         got_given = _lengths(given)  # limb lengths for the right hierarchy, as the paper reports
-        rows = {}
-        for label, key in HUMANOID_ROWS.items():
-            true_cm = _lookup(truth, key) * 100
-            computed_cm = _lookup(got_given, key) * scale * 100
-            rows[label] = {
-                "true_cm": true_cm,
-                "computed_cm": computed_cm,
-                "difference_cm": true_cm - computed_cm,
-            }
+        rows = _length_rows(HUMANOID_ROWS, truth, got_given, scale)
         trials.append(
             {
                 "trial": f"{motion.capitalize()} {k}",
@@ -269,16 +265,9 @@ def _slip(plan: Plan, tmp: Path) -> dict[str, Any]:
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
     j = next(j for j in cal.joints if j.child == "forearm_l")
-    p, c = rec.names.index(j.parent), rec.names.index(j.child)
     window = round(rec.rate_hz)
     rep = detect_slip(
-        rec.R_w_s[:, p],
-        rec.p_w_s[:, p],
-        rec.R_w_s[:, c],
-        rec.p_w_s[:, c],
-        j.fit.joint_in_parent,
-        j.fit.joint_in_child,
-        window=window,
+        *rec.pair(j.parent, j.child), j.fit.joint_in_parent, j.fit.joint_in_child, window=window
     )
     return {
         "joint": j.name,
