@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration import calibrate
-from simbench.synthetic import random_tree, simulate_motion
+from simbench.sim.synthetic import random_tree, simulate_motion
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_simulate.py [--save]
 
 Generates the humanoid's 45 s at 120 Hz (``exercise``, physics at the model's 1/1200 s
-timestep: 54,000 steps) with :func:`simbench.simulate.run_session`, and in the same process
+timestep: 54,000 steps) with :func:`simbench.sim.session.run_session`, and in the same process
 runs a bare native ``mujoco.rollout`` of the same compiled model for the same number of physics
 steps, fed the same control array computed beforehand (so the physics is identical and only
 simbench's own work differs). Target: the session within 1.5x of the bare rollout.
@@ -21,9 +21,9 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from simbench.models import load_capture_model
-from simbench.programs import joint_targets, root_pose
-from simbench.simulate import SessionConfig, _initial_state, plan_session, run_session
+from simbench.sim.models import load_capture_model
+from simbench.sim.programs import joint_targets, root_pose
+from simbench.sim.session import SessionConfig, _initial_state, plan_session, run_session
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

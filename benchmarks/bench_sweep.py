@@ -19,7 +19,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from simbench import sweep as sw
+from simbench.experiments import sweep as sw
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

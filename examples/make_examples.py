@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.atomic import atomic_write_text
-from simbench.poses import PoseRecording, write_pose_csv
-from simbench.synthetic import linkage, simulate_motion
+from simbench.io.atomic import atomic_write_text
+from simbench.io.poses import PoseRecording, write_pose_csv
+from simbench.sim.synthetic import linkage, simulate_motion
 
 HERE = Path(__file__).resolve().parent
 

@@ -21,11 +21,11 @@ from calibration import CalibrationError, calibrate, detect_slip, unit_scale
 from calibration.joint import SINGLE_AXIS_RATIO
 from calibration.pipeline import Calibration
 from calibration.slip import SlipReport
-from simbench.atomic import atomic_write_text
-from simbench.calibration_json import calibration_to_dict, write_calibration_json
-from simbench.dataset import read_dataset, truth_calibration_dict, write_dataset
 from simbench.errors import InputError
-from simbench.poses import UNITS, PoseRecording, metres_per_unit, read_pose_csv, write_pose_csv
+from simbench.io.atomic import atomic_write_text
+from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
+from simbench.io.dataset import read_dataset, truth_calibration_dict, write_dataset
+from simbench.io.poses import UNITS, PoseRecording, metres_per_unit, read_pose_csv, write_pose_csv
 
 
 def _load_hierarchy(path: str) -> dict[str, str]:
@@ -62,11 +62,11 @@ def read_poses(path: str, units: str, spec: str | None = None, wide: str | None 
     """
     suffix = Path(path).suffix.lower()
     if wide is not None:
-        from simbench.wide_csv import read_wide_csv, read_wide_spec
+        from simbench.io.wide_csv import read_wide_csv, read_wide_spec
 
         return read_wide_csv(path, read_wide_spec(wide))
     if suffix == ".c3d":
-        from simbench.c3d_reader import c3d_poses, read_cluster_spec
+        from simbench.io.c3d import c3d_poses, read_cluster_spec
 
         return c3d_poses(path, clusters=read_cluster_spec(spec) if spec else None)
     if suffix in (".csv", ".txt"):
@@ -205,7 +205,7 @@ def cmd_scale(args: argparse.Namespace) -> int:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """``simbench simulate``: a physics-simulated capture session with exact ground truth."""
-    from simbench.simulate import SessionConfig, run_session
+    from simbench.sim.session import SessionConfig, run_session
 
     for out in (args.output, args.csv, args.truth_json):
         if out is not None and not Path(out).resolve().parent.is_dir():
@@ -246,7 +246,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_orient(args: argparse.Namespace) -> int:
     """``simbench orient``: sensor orientations from accelerometer and magnetometer."""
-    from simbench.imu_data import read_imu
+    from simbench.io.imu import read_imu
     from simbench.orient import estimate, in_frame, score, write_orientation_csv
 
     rec = read_imu(args.input)
@@ -286,8 +286,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from simbench.report import write_report
-    from simbench.validate import run_validation
+    from simbench.experiments.validate import run_validation
+    from simbench.report.validation import write_report
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():
@@ -336,7 +336,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """``simbench report``: the report of one dataset."""
-    from simbench.report import dataset_report
+    from simbench.report.validation import dataset_report
 
     out = Path(args.out)
     if not out.parent.is_dir():
@@ -356,7 +356,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def cmd_baseline(args: argparse.Namespace) -> int:
     """``simbench baseline``: check accuracy against the accepted figures, or update them."""
-    from simbench import baseline as bl
+    from simbench.experiments import baseline as bl
 
     path = Path(args.file) if args.file else bl.BASELINE_FILE
     current = bl.compute()
@@ -386,7 +386,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """``simbench sweep``: a study of seeded trials, locally or on a Dask cluster."""
     from tqdm import tqdm
 
-    from simbench import sweep as sw
+    from simbench.experiments import sweep as sw
 
     study = sw.load_study(args.study)  # every problem of the file before any work
     out = Path(args.out) if args.out else Path(args.study).with_suffix("")
@@ -414,7 +414,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             client.close()
     plots = sw.plot_study(study, table, out)
     summary = sw.summary_markdown(study, table, plots)
-    from simbench.atomic import atomic_write_text
+    from simbench.io.atomic import atomic_write_text
 
     atomic_write_text(out / "summary.md", summary)
     print(f"simbench sweep {study.name}: {table.num_rows} of {total} trials in {out}")

@@ -26,9 +26,9 @@ from calibration.orientation import (
     triad,
     wahba,
 )
-from simbench.atomic import atomic_open
 from simbench.errors import InputError
-from simbench.imu_data import ImuRecording
+from simbench.io.atomic import atomic_open
+from simbench.io.imu import ImuRecording
 
 METHODS = ("fontaine", "triad", "wahba", "mahony")
 

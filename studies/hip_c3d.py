@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration import calibrate
-from simbench.c3d_reader import c3d_poses, read_c3d_markers, read_cluster_spec
+from simbench.io.c3d import c3d_poses, read_c3d_markers, read_cluster_spec
 
 HERE = Path(__file__).resolve().parent
 C3D = HERE.parents[1] / "shared" / "data" / "biobuddy_right_hip.c3d"

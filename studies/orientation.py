@@ -25,10 +25,10 @@ import numpy as np
 from calibration.hierarchy import hierarchy_from_parents
 from calibration.posture import joint_positions, sensor_positions
 from calibration.rotations import quat_to_matrix
-from simbench.dataset import write_dataset
-from simbench.imu_data import imu_from_dataset, read_broad
+from simbench.io.dataset import write_dataset
+from simbench.io.imu import imu_from_dataset, read_broad
 from simbench.orient import estimate, score
-from simbench.simulate import SessionConfig, load_session_model, run_session
+from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 VARIANTS = {

@@ -2,7 +2,7 @@
 
     .venv/bin/python studies/paper_tracker.py [--json OUT]
 
-The same experiments as the validation run (:mod:`simbench.validate`), printed on their own:
+The same experiments as the validation run (:mod:`simbench.experiments.validate`), printed on their own:
 two sensors rigidly 56.5 cm apart moved through the volume with the ``ascension-flock`` preset
 (the paper's scale factor 0.94 and scaled spread 0.7 cm), then six 45 s linkage exercise sets
 (max error 1.1 cm, hierarchy right in all six). Nothing is tuned to the paper's numbers.
@@ -14,7 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
-from simbench.validate import PAPER, Plan, _linkage, rigid_pair_scale
+from simbench.experiments.validate import PAPER, Plan, _linkage, rigid_pair_scale
 
 
 def main() -> None:

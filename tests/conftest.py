@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simbench.synthetic import SyntheticCapture, linkage, simulate_motion
+from simbench.sim.synthetic import SyntheticCapture, linkage, simulate_motion
 
 
 @pytest.fixture(scope="session")

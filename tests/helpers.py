@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from simbench.synthetic import SyntheticCapture
+from simbench.sim.synthetic import SyntheticCapture
 
 
 def pair_arrays(cap: SyntheticCapture, parent: str, child: str):

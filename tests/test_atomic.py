@@ -7,8 +7,8 @@ import stat
 
 import pytest
 
-from simbench.atomic import atomic_open, atomic_write_text
 from simbench.errors import InputError
+from simbench.io.atomic import atomic_open, atomic_write_text
 
 
 def test_success_replaces_and_keeps_usual_permissions(tmp_path):

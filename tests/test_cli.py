@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from simbench.cli import main
-from simbench.poses import PoseRecording, write_pose_csv
+from simbench.io.poses import PoseRecording, write_pose_csv
 
 HEADER = "time,sensor,x,y,z,qw,qx,qy,qz\n"
 
@@ -27,7 +27,7 @@ def linkage_csv(tmp_path_factory, linkage_noisy_module):
 
 @pytest.fixture(scope="module")
 def linkage_noisy_module():
-    from simbench.synthetic import linkage, simulate_motion
+    from simbench.sim.synthetic import linkage, simulate_motion
 
     return simulate_motion(
         linkage(), n_frames=1200, rate_hz=120.0, rng=np.random.default_rng(31), position_noise_m=0.002
@@ -212,7 +212,7 @@ def test_scale_command(capsys, tmp_path):
 
 
 def test_slip_reported_in_table_and_json(capsys, tmp_path):
-    from simbench.synthetic import Slip, linkage, simulate_motion
+    from simbench.sim.synthetic import Slip, linkage, simulate_motion
 
     cap = simulate_motion(
         linkage(),

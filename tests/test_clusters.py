@@ -11,8 +11,8 @@ from numpy.testing import assert_allclose
 from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationInputError
 from calibration.rotations import rotvec_to_matrix
-from simbench.c3d_reader import c3d_poses, read_c3d_markers, read_cluster_spec, write_c3d_markers
 from simbench.errors import InputError
+from simbench.io.c3d import c3d_poses, read_c3d_markers, read_cluster_spec, write_c3d_markers
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 

@@ -10,9 +10,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 from simbench.cli import main
-from simbench.dataset import read_dataset, truth_calibration_dict, write_dataset
 from simbench.errors import InputError
-from simbench.simulate import SessionConfig, run_session
+from simbench.io.dataset import read_dataset, truth_calibration_dict, write_dataset
+from simbench.sim.session import SessionConfig, run_session
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +82,7 @@ def test_failed_write_leaves_nothing(session, tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr("simbench.dataset._write_group", boom)
+    monkeypatch.setattr("simbench.io.dataset._write_group", boom)
     with pytest.raises(RuntimeError):
         write_dataset(path, session)
     assert path.read_text() == "old"  # the old file is untouched

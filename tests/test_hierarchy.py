@@ -8,7 +8,7 @@ import pytest
 from calibration import CalibrationError, CalibrationInputError, calibrate, hierarchy_from_parents
 from calibration.hierarchy import spanning_tree
 from calibration.rotations import rotvec_to_matrix
-from simbench.synthetic import HINGE, Segment, Skeleton, chain, linkage, random_tree, simulate_motion
+from simbench.sim.synthetic import HINGE, Segment, Skeleton, chain, linkage, random_tree, simulate_motion
 
 
 def inferred(cap, root=None):

@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from calibration import SINGLE_AXIS_RATIO, CalibrationError, CalibrationInputError, fit_joint
 from calibration.rotations import rotvec_to_matrix
-from simbench.synthetic import HINGE, chain, linkage, simulate_motion
+from simbench.sim.synthetic import HINGE, chain, linkage, simulate_motion
 from tests.helpers import pair_arrays
 
 

@@ -173,7 +173,7 @@ def test_reference_from_data():
 
 
 def test_mahony_follows_a_simulated_session():
-    from simbench.simulate import SessionConfig, run_session
+    from simbench.sim.session import SessionConfig, run_session
 
     ds = run_session(SessionConfig(model="linkage", motion="exercise", duration_s=8.0, rate_hz=240.0, seed=5))
     t = ds.truth.actual
@@ -190,7 +190,7 @@ def test_mahony_follows_a_simulated_session():
 def test_posture_from_exact_orientations():
     from calibration.hierarchy import hierarchy_from_parents
     from calibration.posture import joint_positions, segment_alignment, segment_rotations
-    from simbench.simulate import SessionConfig, run_session
+    from simbench.sim.session import SessionConfig, run_session
 
     ds = run_session(SessionConfig(model="humanoid", motion="walk", duration_s=2.0, seed=6))
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
@@ -209,7 +209,7 @@ def test_posture_from_exact_orientations():
     not SHARED_DATA.is_dir(), reason="../shared/data (BROAD trials) not beside the repository"
 )
 def test_broad_trials_load_and_score():
-    from simbench.imu_data import read_broad
+    from simbench.io.imu import read_broad
     from simbench.orient import estimate, score
 
     calm = read_broad(SHARED_DATA / "broad_02_undisturbed_slow_rotation_B.hdf5")

@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from calibration import fit_joint, frame_residuals, pair_residual_matrix, pair_statistics, solve_pairs
-from simbench.synthetic import random_tree, simulate_motion
+from simbench.sim.synthetic import random_tree, simulate_motion
 from tests.helpers import pair_arrays
 
 

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from simbench.errors import InputError
-from simbench.poses import PoseRecording, read_pose_csv, write_pose_csv
+from simbench.io.poses import PoseRecording, read_pose_csv, write_pose_csv
 
 HEADER = "time,sensor,x,y,z,qw,qx,qy,qz\n"
 

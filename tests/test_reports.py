@@ -9,8 +9,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from simbench import baseline as bl
 from simbench.cli import main
+from simbench.experiments import baseline as bl
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from calibration.rotations import matrix_to_quat, matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
 from simbench.errors import InputError
-from simbench.sensor_models import ImuConfig, TrackerConfig, apply_imu, apply_tracker
+from simbench.sim.sensor_models import ImuConfig, TrackerConfig, apply_imu, apply_tracker
 
 F, N = 20_000, 4
 
@@ -35,7 +35,7 @@ def test_zero_config_is_exact(poses):
 
 
 def test_position_noise_grows_as_r4(poses):
-    from simbench.sensor_models import dipole_anisotropy
+    from simbench.sim.sensor_models import dipole_anisotropy
 
     t, p, q = poses
     cfg = TrackerConfig(position_noise_m=0.002, reference_distance_m=1.0)
@@ -50,7 +50,7 @@ def test_position_noise_grows_as_r4(poses):
 
 
 def test_anisotropy_averages_to_one():
-    from simbench.sensor_models import dipole_anisotropy
+    from simbench.sim.sensor_models import dipole_anisotropy
 
     cos = np.random.default_rng(0).uniform(-1, 1, 2_000_000)  # directions uniform on the sphere
     for n in (3.0, 4.0):
@@ -75,7 +75,7 @@ def test_noise_is_larger_across_the_dipole_axis(poses):
 
 
 def test_distortion_is_local(poses):
-    from simbench.sensor_models import Distortion
+    from simbench.sim.sensor_models import Distortion
 
     t, _, q = poses
     p = np.zeros((F, N, 3))
@@ -109,7 +109,7 @@ def test_orientation_noise(poses):
     cfg = TrackerConfig(orientation_noise_rad=0.01)
     _, q2, _ = apply_tracker(t, p, q, cfg, np.random.default_rng(5))  # sensors on the axis
     err = matrix_to_rotvec(quat_to_matrix(q2) @ np.swapaxes(quat_to_matrix(q), -1, -2))
-    from simbench.sensor_models import dipole_anisotropy
+    from simbench.sim.sensor_models import dipole_anisotropy
 
     on_axis = 0.01 * dipole_anisotropy(1.0, 3.0)
     assert err[:, 1].std() == pytest.approx(on_axis, rel=0.02)
@@ -134,7 +134,7 @@ def test_scale_resolution_dropout_latency(poses):
 
 
 def test_field_models():
-    from simbench.sensor_models import dipole_field, earth_field
+    from simbench.sim.sensor_models import dipole_field, earth_field
 
     b = earth_field(50.0, 60.0)
     assert np.linalg.norm(b) == pytest.approx(50.0) and b[0] == 0 and b[2] < 0

@@ -10,8 +10,8 @@ from calibration import calibrate, detect_slip
 from calibration.rotations import quat_to_matrix
 from calibration.skeleton import segment_lengths
 from simbench.errors import InputError
-from simbench.sensor_config import load_sensor_config, preset_names
-from simbench.simulate import SessionConfig, load_session_model, run_session
+from simbench.sim.sensor_config import load_sensor_config, preset_names
+from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 
 def session(tmp_path, toml: str | None = None, preset: str = "ideal", **kw):

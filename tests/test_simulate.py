@@ -10,9 +10,9 @@ from numpy.testing import assert_allclose
 from calibration import calibrate
 from calibration.rotations import matrix_to_rotvec, quat_to_matrix
 from simbench.errors import InputError
-from simbench.models import EARTH_FIELD_UT, load_capture_model
-from simbench.programs import BUILTIN_PROGRAMS
-from simbench.simulate import SessionConfig, run_session
+from simbench.sim.models import EARTH_FIELD_UT, load_capture_model
+from simbench.sim.programs import BUILTIN_PROGRAMS
+from simbench.sim.session import SessionConfig, run_session
 
 MODELS = ("linkage", "humanoid", "dm_control:humanoid_CMU")
 
@@ -57,8 +57,8 @@ def test_same_seed_same_dataset_other_seed_differs(capture_models):
 
 def test_readings_are_mujocos_sensors_at_the_sample_times(capture_models):
     """Replay the same controls with a plain mj_step loop: every sample equals MuJoCo's data."""
-    from simbench.programs import joint_targets, root_pose
-    from simbench.simulate import SETTLE_S, _initial_state, plan_session
+    from simbench.sim.programs import joint_targets, root_pose
+    from simbench.sim.session import SETTLE_S, _initial_state, plan_session
 
     cm = load_capture_model("linkage")
     config = SessionConfig(motion="exercise", duration_s=0.25, seed=2)

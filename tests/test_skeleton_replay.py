@@ -8,7 +8,7 @@ from numpy.testing import assert_allclose
 
 from calibration import CalibrationError, CalibrationInputError, calibrate, remove_residual, unit_scale
 from calibration.joint import joint_residual_vectors
-from simbench.synthetic import random_tree, simulate_motion
+from simbench.sim.synthetic import random_tree, simulate_motion
 
 
 def test_limb_lengths_exact(linkage_exact):

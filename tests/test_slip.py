@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from calibration import CalibrationInputError, calibrate, detect_slip
-from simbench.synthetic import Slip, linkage, simulate_motion
+from simbench.sim.synthetic import Slip, linkage, simulate_motion
 from tests.helpers import pair_arrays
 
 WINDOW = 120  # 1 s at 120 Hz

@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simbench import sweep as sw
 from simbench.errors import InputError
+from simbench.experiments import sweep as sw
 
 STUDY = """
 name = "small"
@@ -167,7 +167,7 @@ def test_random_sampling_is_seeded_and_in_range(tmp_path):
 
 
 def test_placement_parameter_moves_the_sensor(tmp_path):
-    from simbench.simulate import SessionConfig, load_session_model, run_session
+    from simbench.sim.session import SessionConfig, load_session_model, run_session
 
     base = run_session(SessionConfig(duration_s=1.0))
     shifted_cfg = SessionConfig(duration_s=1.0, placement=(("forearm_l", (0.05, -0.02, 0.0)),))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from simbench.synthetic import HINGE, Segment, Skeleton, chain, linkage, random_tree, simulate_motion
+from simbench.sim.synthetic import HINGE, Segment, Skeleton, chain, linkage, random_tree, simulate_motion
 
 
 @pytest.mark.parametrize(

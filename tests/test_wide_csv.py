@@ -8,8 +8,8 @@ from numpy.testing import assert_allclose
 
 from simbench.cli import main
 from simbench.errors import InputError
-from simbench.poses import PoseRecording
-from simbench.wide_csv import read_wide_csv, read_wide_spec, write_wide_csv
+from simbench.io.poses import PoseRecording
+from simbench.io.wide_csv import read_wide_csv, read_wide_spec, write_wide_csv
 
 SPEC = """
 [wide]
@@ -46,7 +46,7 @@ def recording(linkage_noisy_wide):
 
 @pytest.fixture(scope="module")
 def linkage_noisy_wide():
-    from simbench.synthetic import linkage, simulate_motion
+    from simbench.sim.synthetic import linkage, simulate_motion
 
     return simulate_motion(
         linkage(), n_frames=600, rate_hz=120.0, rng=np.random.default_rng(5), position_noise_m=0.002
@@ -116,7 +116,7 @@ def test_bad_wide_input(tmp_path, recording):
 
 
 def test_read_recordings_become_datasets(tmp_path, recording):
-    from simbench.dataset import dataset_from_poses, read_dataset, write_dataset
+    from simbench.io.dataset import dataset_from_poses, read_dataset, write_dataset
 
     spec = spec_file(tmp_path, recording.names)
     path = tmp_path / "w.csv"

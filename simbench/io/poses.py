@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from calibration.rotations import UNIT_TOLERANCE, matrix_to_quat, quat_to_matrix
-from simbench.atomic import atomic_open
 from simbench.errors import InputError
+from simbench.io.atomic import atomic_open
 
 #: Length units accepted at the edges, as metres per unit.
 UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}

@@ -1,6 +1,6 @@
 """Reports: tables, plots (matplotlib) and pictures (MuJoCo's offscreen renderer) of a run.
 
-:func:`write_report` turns the figures of :func:`simbench.validate.run_validation` into
+:func:`write_report` turns the figures of :func:`simbench.experiments.validate.run_validation` into
 ``index.md``, a self-contained ``index.html`` (images embedded), ``results.json`` and the PNG
 images beside them. Writes are atomic. Rendering uses MuJoCo's offscreen context (``simbench``
 sets ``MUJOCO_GL=egl`` when there is no display and the caller chose no backend); if no GL
@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 import simbench
-from simbench.atomic import atomic_open, atomic_write_text
+from simbench.io.atomic import atomic_open, atomic_write_text
 
 
 def _savefig(fig, path: Path) -> None:
@@ -468,7 +468,7 @@ def write_report(results: dict[str, Any], keep: dict[str, Any], out: Path) -> di
     images["Residual over time and detected slip"] = "slip.png"
     plot_orientation(results["orientation"], out / "orientation.png")
     images["Orientation error over time"] = "orientation.png"
-    from simbench.models import load_capture_model
+    from simbench.sim.models import load_capture_model
 
     ds = keep["linkage_ds"]
     cm = load_capture_model("linkage")
@@ -516,9 +516,9 @@ def dataset_report(
     from calibration.joint import JointFit
     from calibration.pipeline import Joint
     from calibration.skeleton import segment_lengths
-    from simbench.dataset import read_dataset
     from simbench.errors import InputError
-    from simbench.validate import _lengths, _lookup, _same_tree, _truth_lengths
+    from simbench.experiments.validate import _lengths, _lookup, _same_tree, _truth_lengths
+    from simbench.io.dataset import read_dataset
 
     if Path(dataset).suffix.lower() in (".h5", ".hdf5"):
         ds = read_dataset(dataset)

@@ -23,7 +23,7 @@ import scipy
 import simbench
 from calibration.pipeline import Calibration
 from calibration.slip import SlipReport
-from simbench.atomic import atomic_write_text
+from simbench.io.atomic import atomic_write_text
 
 FORMAT = "simbench-calibration"
 FORMAT_VERSION = 1

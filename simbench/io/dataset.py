@@ -44,9 +44,9 @@ import numpy as np
 
 from calibration.rotations import quat_to_matrix
 from calibration.skeleton import segment_lengths
-from simbench.atomic import atomic_path
 from simbench.errors import InputError
-from simbench.poses import PoseRecording
+from simbench.io.atomic import atomic_path
+from simbench.io.poses import PoseRecording
 
 FORMAT = "simbench-dataset"
 FORMAT_VERSION = 1

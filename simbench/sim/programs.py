@@ -39,7 +39,7 @@ import numpy as np
 
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from simbench.errors import InputError, load_toml
-from simbench.models import CaptureModel
+from simbench.sim.models import CaptureModel
 
 BUILTIN_PROGRAMS = ("exercise", "walk", "single-axis", "static")
 ROOT_STYLES = ("still", "sway", "carry", "walk")

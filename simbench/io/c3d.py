@@ -20,7 +20,7 @@ import numpy as np
 from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
-from simbench.poses import PoseRecording
+from simbench.io.poses import PoseRecording
 
 UNITS = {"mm": 0.001, "cm": 0.01, "m": 1.0}
 
@@ -132,7 +132,7 @@ def write_c3d_markers(
 
     import c3d
 
-    from simbench.atomic import atomic_open
+    from simbench.io.atomic import atomic_open
 
     xyz = np.asarray(xyz_m, dtype=float)
     if xyz.ndim != 3 or xyz.shape[1] != len(labels) or xyz.shape[2] != 3:

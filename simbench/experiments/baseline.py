@@ -23,15 +23,15 @@ import numpy as np
 
 from calibration import calibrate
 from calibration.orientation import orientation_errors
-from simbench.atomic import atomic_write_text
-from simbench.dataset import Dataset, write_dataset
 from simbench.errors import InputError
-from simbench.imu_data import imu_from_dataset
+from simbench.experiments.validate import _lengths, _lookup, _same_tree, _truth_lengths
+from simbench.io.atomic import atomic_write_text
+from simbench.io.dataset import Dataset, write_dataset
+from simbench.io.imu import imu_from_dataset
 from simbench.orient import estimate
-from simbench.simulate import SessionConfig, load_session_model, run_session
-from simbench.validate import _lengths, _lookup, _same_tree, _truth_lengths
+from simbench.sim.session import SessionConfig, load_session_model, run_session
 
-BASELINE_FILE = Path(__file__).resolve().parent.parent / "reports" / "baseline.json"
+BASELINE_FILE = Path(__file__).resolve().parents[2] / "reports" / "baseline.json"
 REL_TOL = 0.10
 
 #: Absolute slack per metric unit suffix, added to the relative tolerance.

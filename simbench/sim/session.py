@@ -11,7 +11,7 @@ Truth constants (joint centres in both sensor frames, hinge axes, sensor placeme
 the model at its reference pose; the joints of a MuJoCo model are exact, so they hold at every
 frame to rounding (unless joint laxity is switched on).
 
-Then the sensor configuration (:mod:`simbench.sensor_config`) turns truth into measurements:
+Then the sensor configuration (:mod:`simbench.sim.sensor_config`) turns truth into measurements:
 joint laxity moves joint centres (and everything below them), soft-tissue artefact and slip
 events move the worn sensors off their bone placement (on top of the physics of a sprung
 soft-tissue mount, if any), the magnetic field is the Earth's plus dipole disturbances at each
@@ -31,10 +31,10 @@ from mujoco import rollout
 
 import simbench
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
-from simbench.dataset import Dataset, SensorData, Truth
 from simbench.errors import InputError
-from simbench.models import CaptureModel, Mount, load_capture_model
-from simbench.programs import (
+from simbench.io.dataset import Dataset, SensorData, Truth
+from simbench.sim.models import CaptureModel, Mount, load_capture_model
+from simbench.sim.programs import (
     BUILTIN_PROGRAMS,
     Program,
     builtin_program,
@@ -42,9 +42,9 @@ from simbench.programs import (
     load_program,
     root_pose,
 )
-from simbench.sensor_config import SensorConfig, load_sensor_config
-from simbench.sensor_models import apply_imu, apply_tracker, dipole_field, earth_field
-from simbench.skin import (
+from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+from simbench.sim.sensor_models import apply_imu, apply_tracker, dipole_field, earth_field
+from simbench.sim.skin import (
     laxity_offsets,
     per_sensor,
     relative_rotvecs,
@@ -74,7 +74,7 @@ class SessionConfig:
         seed: seed of the session's ``numpy.random.Generator``.
         sensor_bodies: bodies carrying a sensor, or ``None`` for the model's default.
         sensors: sensor preset name, configuration TOML path, or a :class:`SensorConfig`
-            (:mod:`simbench.sensor_config`).
+            (:mod:`simbench.sim.sensor_config`).
         placement: ``((sensor, (dx, dy, dz)), ...)`` sensor shifts in their body frames, m.
     """
 

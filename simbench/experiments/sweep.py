@@ -45,9 +45,9 @@ from typing import Any
 
 import numpy as np
 
-from simbench.atomic import atomic_path
 from simbench.errors import InputError, load_toml
-from simbench.sensor_config import SensorConfig, load_sensor_config
+from simbench.io.atomic import atomic_path
+from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 
 #: Length, angle and time units accepted in study files, as SI per unit; a field's SI unit is
 #: read off its name's suffix (``_m``, ``_rad``, ``_s``, ``_hz``...).
@@ -270,7 +270,7 @@ def trials(study: Study) -> list[Trial]:
 
 
 def _trial_config(study: Study, trial: Trial):
-    from simbench.simulate import SessionConfig
+    from simbench.sim.session import SessionConfig
 
     sensors = load_sensor_config(study.base.get("sensors", "ideal"))
     duration = float(study.base.get("duration_s", 10.0))
@@ -314,10 +314,10 @@ def run_trial(study: Study, trial: Trial) -> dict[str, Any]:
 def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
     from calibration import calibrate
     from calibration.orientation import orientation_errors
-    from simbench.baseline import _lengths, _lookup, _same_tree, _truth_lengths
-    from simbench.imu_data import imu_from_dataset
+    from simbench.experiments.baseline import _lengths, _lookup, _same_tree, _truth_lengths
+    from simbench.io.imu import imu_from_dataset
     from simbench.orient import estimate
-    from simbench.simulate import load_session_model, run_session
+    from simbench.sim.session import load_session_model, run_session
 
     t0 = time.perf_counter()
     config = _trial_config(study, trial)
@@ -350,7 +350,7 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
             import tempfile
 
             with tempfile.TemporaryDirectory() as tmp:
-                from simbench.dataset import write_dataset
+                from simbench.io.dataset import write_dataset
 
                 h5 = Path(tmp) / "t.h5"
                 write_dataset(h5, ds)
@@ -449,7 +449,7 @@ def plot_study(study: Study, table, out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from simbench.report import _savefig
+    from simbench.report.validation import _savefig
 
     data = table.to_pydict()
     metrics = [m for m in data if m in METRICS or m.startswith("orientation_rmse_deg")]

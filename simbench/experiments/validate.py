@@ -33,12 +33,12 @@ import numpy as np
 from calibration import calibrate, detect_slip, unit_scale
 from calibration.orientation import orientation_errors
 from calibration.skeleton import segment_lengths
-from simbench.dataset import Dataset, write_dataset
-from simbench.imu_data import imu_from_dataset
+from simbench.io.dataset import Dataset, write_dataset
+from simbench.io.imu import imu_from_dataset
 from simbench.orient import estimate
-from simbench.sensor_config import load_sensor_config
-from simbench.sensor_models import apply_tracker
-from simbench.simulate import SessionConfig, load_session_model, run_session
+from simbench.sim.sensor_config import load_sensor_config
+from simbench.sim.sensor_models import apply_tracker
+from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 #: The paper's published figures (DESIGN.md).
 PAPER = {

@@ -4,14 +4,14 @@ A configuration has up to five tables; every key is optional (default: ideal) an
 unknown key or out-of-range value is an error naming the file and key::
 
     name = "my-rig"
-    [tracker]                       # simbench.sensor_models.TrackerConfig fields
+    [tracker]                       # simbench.sim.sensor_models.TrackerConfig fields
     position_noise_m = 0.004
     unit_scale = 0.94
-    [[tracker.distortion]]          # simbench.sensor_models.Distortion fields
+    [[tracker.distortion]]          # simbench.sim.sensor_models.Distortion fields
     center = [1.0, 0.5, 0.0]
     radius_m = 0.3
     position_gain_m = 0.02
-    [imu]                           # simbench.sensor_models.ImuConfig fields
+    [imu]                           # simbench.sim.sensor_models.ImuConfig fields
     accel_noise_density = 0.0006
     [magnetic]
     strength_ut = 50.0              # Earth field, uT
@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 
 from simbench.errors import InputError, load_toml
-from simbench.sensor_models import Distortion, ImuConfig, TrackerConfig
-from simbench.skin import SlipEvent
+from simbench.sim.sensor_models import Distortion, ImuConfig, TrackerConfig
+from simbench.sim.skin import SlipEvent
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 
@@ -81,7 +81,7 @@ class FieldConfig:
 
 @dataclass(frozen=True)
 class SkinConfig:
-    """Skin slip and non-ideal joints (see :mod:`simbench.skin` and :mod:`simbench.models`).
+    """Skin slip and non-ideal joints (see :mod:`simbench.sim.skin` and :mod:`simbench.sim.models`).
 
     Attributes:
         sta_amplitude_m: soft-tissue artefact amplitude of every sensor, m.

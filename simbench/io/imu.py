@@ -20,9 +20,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from simbench.dataset import FORMAT as DATASET_FORMAT
-from simbench.dataset import open_hdf5, read_dataset
 from simbench.errors import InputError
+from simbench.io.dataset import FORMAT as DATASET_FORMAT
+from simbench.io.dataset import open_hdf5, read_dataset
 
 
 @dataclass(frozen=True)

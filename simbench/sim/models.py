@@ -35,7 +35,7 @@ import numpy as np
 from calibration.rotations import matrix_to_quat, rotvec_to_matrix
 from simbench.errors import InputError
 
-MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 BUILTIN = ("linkage", "humanoid")
 
 #: Natural frequency of the position actuators' tracking, Hz, and their damping ratio. A PD on

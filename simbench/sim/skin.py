@@ -2,7 +2,7 @@
 
 Real sensors sit on skin, not bone, and real joints are not ideal. Three kinematic effects are
 modelled here as pure functions of the bone-rigid truth (the soft-tissue *mount*, where slip
-arises from physics, is part of the MuJoCo model: :mod:`simbench.models`):
+arises from physics, is part of the MuJoCo model: :mod:`simbench.sim.models`):
 
 - **soft-tissue artefact** (STA): each sensor's offset from its bone placement is a smooth
   function of the rotations of the joints next to its segment,
