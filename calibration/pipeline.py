@@ -45,6 +45,7 @@ from calibration.pairs import (
 from calibration.skeleton import (
     SegmentLength,
     SensorPlacement,
+    joint_arrays,
     joint_name,
     segment_lengths,
     sensor_placements,
@@ -121,13 +122,12 @@ class Calibration:
         The row of the root is zero. This is the layout
         :func:`calibration.replay.remove_residual` takes.
         """
-        n = len(self.names)
-        lp, lc = np.zeros((n, 3)), np.zeros((n, 3))
-        index = {name: k for k, name in enumerate(self.names)}
-        for j in self.joints:
-            lp[index[j.child]] = j.fit.joint_in_parent
-            lc[index[j.child]] = j.fit.joint_in_child
-        return lp, lc
+        return joint_arrays(
+            self.names,
+            [j.child for j in self.joints],
+            np.array([j.fit.joint_in_parent for j in self.joints]).reshape(-1, 3),
+            np.array([j.fit.joint_in_child for j in self.joints]).reshape(-1, 3),
+        )
 
 
 def calibrate(

@@ -112,3 +112,30 @@ def sensor_placements(
             )
         )
     return out
+
+
+def joint_arrays(
+    names: Sequence[str],
+    children: Sequence[str],
+    joint_in_parent: np.ndarray,
+    joint_in_child: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint locations indexed by the child sensor: the layout of
+    :func:`calibration.replay.remove_residual` and :func:`calibration.posture.joint_positions`.
+
+    Args:
+        names: ``(N,)`` sensor names.
+        children: ``(J,)`` the child sensor of each joint.
+        joint_in_parent, joint_in_child: ``(J, 3)`` each joint in its parent's / child's sensor
+            frame.
+
+    Returns:
+        ``(joint_in_parent, joint_in_child)``, each ``(N, 3)``: row ``k`` is the joint whose child
+        is sensor ``k``; the root's row (no joint) is zero.
+    """
+    index = {name: k for k, name in enumerate(names)}
+    lp, lc = np.zeros((len(names), 3)), np.zeros((len(names), 3))
+    for k, child in enumerate(children):
+        lp[index[child]] = joint_in_parent[k]
+        lc[index[child]] = joint_in_child[k]
+    return lp, lc

@@ -1,10 +1,55 @@
-"""simbench: a physics-simulation validation testbed for motion-capture skeleton calibration."""
+"""simbench: a physics-simulation validation testbed for motion-capture skeleton calibration.
+
+The public API (:mod:`simbench.api`)::
+
+    import simbench as sb
+
+    ds = sb.simulate(model="linkage", motion="exercise", sensors="ascension-flock", duration_s=45, seed=1)
+    cal = sb.calibrate(ds)
+    result = sb.score(cal, ds)
+    ori = sb.orient(ds, method="fontaine")
+    rec = sb.read("recording.c3d")   # pose CSV, wide export, C3D, simbench HDF5, BROAD
+
+The layers and the import rule between them are in ARCHITECTURE.md.
+"""
 
 import os
-
-__version__ = "0.1.0"
 
 # MuJoCo picks its OpenGL backend when it is first imported: without a display, offscreen EGL
 # (Mesa) renders the report's pictures; a caller's own MUJOCO_GL choice (e.g. osmesa) wins.
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
+
+from calibration import Calibration
+from simbench.api import Orientations, calibrate, orient, read, score, simulate
+from simbench.errors import InputError
+from simbench.io.dataset import Dataset, read_dataset, write_dataset
+from simbench.io.imu import ImuRecording
+from simbench.io.poses import PoseRecording
+from simbench.score import CalibrationScore, OrientationScore
+from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+from simbench.sim.session import SessionConfig
+from simbench.versions import __version__, software_versions
+
+__all__ = [
+    "Calibration",
+    "CalibrationScore",
+    "Dataset",
+    "ImuRecording",
+    "InputError",
+    "OrientationScore",
+    "Orientations",
+    "PoseRecording",
+    "SensorConfig",
+    "SessionConfig",
+    "__version__",
+    "calibrate",
+    "load_sensor_config",
+    "orient",
+    "read",
+    "read_dataset",
+    "score",
+    "simulate",
+    "software_versions",
+    "write_dataset",
+]

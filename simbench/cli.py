@@ -24,8 +24,10 @@ from calibration.slip import SlipReport
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
 from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
-from simbench.io.dataset import read_dataset, truth_calibration_dict, write_dataset
-from simbench.io.poses import UNITS, PoseRecording, metres_per_unit, read_pose_csv, write_pose_csv
+from simbench.io.dataset import truth_calibration_dict, write_dataset
+from simbench.io.poses import PoseRecording, write_pose_csv
+from simbench.io.read import read_poses
+from simbench.units import LENGTH_UNITS, metres_per_unit
 
 
 def _load_hierarchy(path: str) -> dict[str, str]:
@@ -51,34 +53,6 @@ def _load_hierarchy(path: str) -> dict[str, str]:
     ):
         raise InputError(f'{path}: expected a JSON object {{"child": "parent", ...}} of sensor names')
     return doc
-
-
-def read_poses(path: str, units: str, spec: str | None = None, wide: str | None = None) -> PoseRecording:
-    """Read a pose file, choosing the reader from the file's extension.
-
-    ``.csv``: the pose CSV (positions in ``units``); ``.h5``/``.hdf5``: a simbench dataset (its
-    measured poses, always in metres); ``.c3d``: optical markers, clustered by ``spec`` (a TOML
-    ``[clusters]`` table) or automatically, one pose per cluster.
-    """
-    suffix = Path(path).suffix.lower()
-    if wide is not None:
-        from simbench.io.wide_csv import read_wide_csv, read_wide_spec
-
-        return read_wide_csv(path, read_wide_spec(wide))
-    if suffix == ".c3d":
-        from simbench.io.c3d import c3d_poses, read_cluster_spec
-
-        return c3d_poses(path, clusters=read_cluster_spec(spec) if spec else None)
-    if suffix in (".csv", ".txt"):
-        return read_pose_csv(path, units=units)
-    if suffix in (".h5", ".hdf5"):
-        if units != "m":
-            raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
-        return read_dataset(path).poses()
-    raise InputError(
-        f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv), a simbench dataset (.h5) "
-        "or optical markers (.c3d)"
-    )
 
 
 def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list[tuple[str, SlipReport]]:
@@ -246,8 +220,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_orient(args: argparse.Namespace) -> int:
     """``simbench orient``: sensor orientations from accelerometer and magnetometer."""
-    from simbench.io.imu import read_imu
-    from simbench.orient import estimate, in_frame, score, write_orientation_csv
+    from simbench.io.orientation_csv import write_orientation_csv
+    from simbench.io.read import read_imu
+    from simbench.orient import estimate, in_frame
+    from simbench.score import score_orientation
 
     rec = read_imu(args.input)
     run = estimate(rec, args.method, weighting=not args.no_weighting, smooth_hz=args.smooth_hz)
@@ -269,7 +245,8 @@ def cmd_orient(args: argparse.Namespace) -> int:
     if rec.q_true is not None:
         print("\n  error against the reference (BROAD definitions, both in ENU), RMSE in degrees")
         print(f"  {'sensor':<16}{'total':>9}{'heading':>9}{'inclin.':>9}{'samples':>9}")
-        for name, s in score(run, rec).items():
+        scored = score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
+        for name, s in scored.per_sensor.items():
             print(
                 f"  {name:<16}{s['total_deg']:>9.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}"
                 f"{s['samples']:>9}"
@@ -282,8 +259,6 @@ def cmd_orient(args: argparse.Namespace) -> int:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     """``simbench validate``: the paper's experiments reproduced and scored; writes the report."""
-    import tempfile
-
     from tqdm import tqdm
 
     from simbench.experiments.validate import run_validation
@@ -310,8 +285,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         seen.append(step)
         bar.set_postfix_str(step)
 
-    with tempfile.TemporaryDirectory() as tmp:
-        results, keep = run_validation(quick=args.quick, tmp=Path(tmp), progress=progress)
+    results, keep = run_validation(quick=args.quick, progress=progress)
     bar.update(1)
     bar.set_postfix_str("report")
     paths = write_report(results, keep, out)
@@ -438,7 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
     cal.add_argument(
-        "--units", choices=sorted(UNITS), default="m", help="length unit of the file (default m)"
+        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of the file (default m)"
     )
     cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
@@ -474,7 +448,7 @@ def build_parser() -> argparse.ArgumentParser:
     scale.add_argument("input", help="pose file: a pose CSV")
     scale.add_argument("--sensors", nargs=2, required=True, metavar=("A", "B"), help="the two sensors")
     scale.add_argument("--distance", type=float, required=True, help="their true distance, in --units")
-    scale.add_argument("--units", choices=sorted(UNITS), default="m", help="length unit (default m)")
+    scale.add_argument("--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit (default m)")
     scale.set_defaults(func=cmd_scale)
     sim = sub.add_parser(
         "simulate",
@@ -548,7 +522,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument(
         "dataset", help="a simbench dataset (.h5), pose CSV, wide tracker export (--wide) or C3D"
     )
-    rep.add_argument("--units", choices=sorted(UNITS), default="m", help="length unit of a CSV (default m)")
+    rep.add_argument(
+        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of a CSV (default m)"
+    )
     rep.add_argument("--clusters", metavar="SPEC.toml", help="C3D input: marker clusters (default: found)")
     rep.add_argument(
         "--wide", metavar="SPEC.toml", help="INPUT is a wide tracker export laid out as SPEC says"

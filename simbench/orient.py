@@ -9,8 +9,6 @@ alignment (an output in NED is converted after scoring).
 
 from __future__ import annotations
 
-import csv
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,14 +18,12 @@ from calibration.orientation import (
     change_frame,
     fontaine,
     mahony,
-    orientation_errors,
     reference_from_data,
     smooth_vectors,
     triad,
     wahba,
 )
 from simbench.errors import InputError
-from simbench.io.atomic import atomic_open
 from simbench.io.imu import ImuRecording
 
 METHODS = ("fontaine", "triad", "wahba", "mahony")
@@ -88,38 +84,6 @@ def estimate(
     return OrientationRun(
         est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
     )
-
-
-def score(run: OrientationRun, rec: ImuRecording) -> dict[str, dict[str, float]]:
-    """Per sensor: total, heading and inclination RMSE (degrees) and the samples scored."""
-    if rec.q_true is None:
-        raise InputError(f"{rec.source}: no reference orientations to score against")
-    err = orientation_errors(run.q_enu, rec.q_true)
-    out = {}
-    for k, name in enumerate(rec.names):
-        use = np.isfinite(err[:, k]).all(axis=1)
-        if rec.evaluate is not None:
-            use &= rec.evaluate
-        e = err[use, k]
-        rmse = np.rad2deg(np.sqrt(np.mean(e**2, axis=0))) if use.any() else np.full(3, np.nan)
-        out[name] = {
-            "total_deg": float(rmse[0]),
-            "heading_deg": float(rmse[1]),
-            "inclination_deg": float(rmse[2]),
-            "samples": int(use.sum()),
-        }
-    return out
-
-
-def write_orientation_csv(path: str | os.PathLike[str], rec: ImuRecording, q_w_s: np.ndarray) -> None:
-    """``time,sensor,qw,qx,qy,qz``: one row per input sample and sensor, NaN where not estimated."""
-    with atomic_open(path, "w", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(("time", "sensor", "qw", "qx", "qy", "qz"))
-        for f in range(rec.time_s.size):
-            t = repr(float(rec.time_s[f]))
-            for k, name in enumerate(rec.names):
-                writer.writerow([t, name, *(repr(float(v)) for v in q_w_s[f, k])])
 
 
 def in_frame(q_enu: np.ndarray, frame: str) -> np.ndarray:

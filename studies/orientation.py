@@ -25,9 +25,9 @@ import numpy as np
 from calibration.hierarchy import hierarchy_from_parents
 from calibration.posture import joint_positions, sensor_positions
 from calibration.rotations import quat_to_matrix
-from simbench.io.dataset import write_dataset
-from simbench.io.imu import imu_from_dataset, read_broad
-from simbench.orient import estimate, score
+from simbench.io.imu import read_broad
+from simbench.orient import estimate
+from simbench.score import score_orientation
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -39,6 +39,10 @@ VARIANTS = {
     "fontaine (weighting, 1 Hz)": dict(method="fontaine", smooth_hz=1.0),
     "mahony (gyro)": dict(method="mahony"),
 }
+
+
+def score(run, rec) -> dict[str, dict[str, float]]:
+    return score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate).per_sensor
 
 
 def mean_scores(scores: dict[str, dict[str, float]]) -> dict[str, float]:
@@ -54,9 +58,7 @@ def simulated(tmp: Path, motion: str, sensors: str, toml: str | None = None):
         sensors = str(path)
     config = SessionConfig(model="humanoid", motion=motion, duration_s=30.0, seed=11, sensors=sensors)
     ds = run_session(config, load_session_model(config))
-    h5 = tmp / f"{motion}-{Path(sensors).stem}.h5"
-    write_dataset(h5, ds)
-    return ds, imu_from_dataset(h5)
+    return ds, ds.imu()
 
 
 def posture_error(ds, rec, method_kwargs) -> dict[str, float]:

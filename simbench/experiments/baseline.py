@@ -14,21 +14,16 @@ in :data:`ESTIMATORS` first), run ``simbench baseline --update`` and commit the 
 from __future__ import annotations
 
 import json
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from calibration import calibrate
-from calibration.orientation import orientation_errors
 from simbench.errors import InputError
-from simbench.experiments.validate import _lengths, _lookup, _same_tree, _truth_lengths
+from simbench.experiments.metrics import calibration_metrics, orientation_metrics
 from simbench.io.atomic import atomic_write_text
-from simbench.io.dataset import Dataset, write_dataset
-from simbench.io.imu import imu_from_dataset
-from simbench.orient import estimate
+from simbench.io.dataset import Dataset
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 BASELINE_FILE = Path(__file__).resolve().parents[2] / "reports" / "baseline.json"
@@ -39,32 +34,18 @@ ABS_TOL = {"_cm": 0.05, "_deg": 0.05, "_wrong": 0.0}
 
 
 def _calibration_metrics(ds: Dataset) -> dict[str, float]:
-    rec = ds.poses()
-    scale = float(ds.meta.get("position_unit_scale", 1.0))
-    inferred = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
-    given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
-    truth = _truth_lengths(ds)
-    got = _lengths(given)
-    errors = [abs(value - _lookup(got, key) * scale) * 100 for key, value in truth.items()]
+    m = calibration_metrics(ds)
     return {
-        "max_length_error_cm": float(np.max(errors)),
-        "mean_length_error_cm": float(np.mean(errors)),
-        "hierarchy_wrong": float(not _same_tree(inferred.parent_of, ds.truth.parent_of)),
+        "max_length_error_cm": m["max_limb_length_error_m"] * 100,
+        "mean_length_error_cm": m["limb_length_error_m"] * 100,
+        "hierarchy_wrong": 1.0 - m["hierarchy_correct"],
     }
 
 
 def _orientation_metrics(method: str) -> Callable[[Dataset], dict[str, float]]:
     def metrics(ds: Dataset) -> dict[str, float]:
-        with tempfile.TemporaryDirectory() as tmp:
-            path = Path(tmp) / "ds.h5"
-            write_dataset(path, ds)
-            rec = imu_from_dataset(path)
-        run = estimate(rec, method)
-        err = np.rad2deg(orientation_errors(run.q_enu, rec.q_true))
-        return {
-            "total_rmse_deg": float(np.sqrt(np.nanmean(err[..., 0] ** 2))),
-            "heading_rmse_deg": float(np.sqrt(np.nanmean(err[..., 1] ** 2))),
-        }
+        m = orientation_metrics(ds, method)
+        return {"total_rmse_deg": m["total_rmse_deg"], "heading_rmse_deg": m["heading_rmse_deg"]}
 
     return metrics
 

@@ -48,20 +48,8 @@ import numpy as np
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_path
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+from simbench.units import UNITS
 
-#: Length, angle and time units accepted in study files, as SI per unit; a field's SI unit is
-#: read off its name's suffix (``_m``, ``_rad``, ``_s``, ``_hz``...).
-UNITS = {
-    "m": ("m", 1.0),
-    "cm": ("m", 0.01),
-    "mm": ("m", 0.001),
-    "rad": ("rad", 1.0),
-    "deg": ("rad", math.pi / 180),
-    "s": ("s", 1.0),
-    "ms": ("s", 0.001),
-    "hz": ("hz", 1.0),
-    "1": ("1", 1.0),
-}
 SUFFIX_UNIT = {"_m": "m", "_rad": "rad", "_s": "s", "_hz": "hz"}
 
 METRICS = {
@@ -312,11 +300,7 @@ def run_trial(study: Study, trial: Trial) -> dict[str, Any]:
 
 
 def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
-    from calibration import calibrate
-    from calibration.orientation import orientation_errors
-    from simbench.experiments.baseline import _lengths, _lookup, _same_tree, _truth_lengths
-    from simbench.io.imu import imu_from_dataset
-    from simbench.orient import estimate
+    from simbench.experiments.metrics import calibration_metrics, orientation_metrics
     from simbench.sim.session import load_session_model, run_session
 
     t0 = time.perf_counter()
@@ -329,38 +313,14 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
         "seed": trial.seed,
     }
     row.update(dict(trial.params))
+    several = sum(e.startswith("orientation:") for e in study.estimators) > 1
     for est in study.estimators:
         if est == "calibration":
-            rec = ds.poses()
-            scale = float(ds.meta.get("position_unit_scale", 1.0))
-            cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
-            given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
-            truth_l = _truth_lengths(ds)
-            got = _lengths(given)
-            errs = [abs(v - _lookup(got, key) * scale) for key, v in truth_l.items()]
-            true_lp = {c: lp for c, lp in zip(ds.truth.child, ds.truth.joint_in_parent, strict=True)}
-            centre = [np.linalg.norm(j.fit.joint_in_parent * scale - true_lp[j.child]) for j in given.joints]
-            row["joint_centre_error_m"] = float(np.mean(centre))
-            row["limb_length_error_m"] = float(np.mean(errs))
-            row["max_limb_length_error_m"] = float(np.max(errs))
-            row["hierarchy_correct"] = float(_same_tree(cal.parent_of, ds.truth.parent_of))
-            row["residual_m"] = float(np.mean([j.fit.rms_residual * scale for j in given.joints]))
-            row["condition"] = float(np.mean([min(j.fit.condition, 1e12) for j in given.joints]))
+            row.update(calibration_metrics(ds))
         else:
-            import tempfile
-
-            with tempfile.TemporaryDirectory() as tmp:
-                from simbench.io.dataset import write_dataset
-
-                h5 = Path(tmp) / "t.h5"
-                write_dataset(h5, ds)
-                rec = imu_from_dataset(h5)
             method = est.split(":", 1)[1]
-            run = estimate(rec, method)
-            err = np.rad2deg(orientation_errors(run.q_enu, rec.q_true)[..., 0])
-            several = sum(e.startswith("orientation:") for e in study.estimators) > 1
             key = f"orientation_rmse_deg:{method}" if several else "orientation_rmse_deg"
-            row[key] = float(np.sqrt(np.nanmean(err**2)))
+            row[key] = orientation_metrics(ds, method)["total_rmse_deg"]
     row["run_time_s"] = time.perf_counter() - t0
     return row
 

@@ -25,18 +25,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from calibration import calibrate, detect_slip, unit_scale
-from calibration.orientation import orientation_errors
-from calibration.skeleton import segment_lengths
-from simbench.io.dataset import Dataset, write_dataset
-from simbench.io.imu import imu_from_dataset
 from simbench.orient import estimate
-from simbench.sim.sensor_config import load_sensor_config
+from simbench.score import compare_trees, estimated_lengths, length_of, score_orientation, truth_lengths
+from simbench.sim.sensor_config import load_sensor_config, parse_sensor_config
 from simbench.sim.sensor_models import apply_tracker
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
@@ -112,38 +108,16 @@ class Plan:
         )
 
 
-def _truth_lengths(ds: Dataset) -> dict[tuple[str, str, str], float]:
-    index = {n: k for k, n in enumerate(ds.sensors)}
-    joints = [(index[p], index[c]) for p, c in zip(ds.truth.parent, ds.truth.child, strict=True)]
-    return {
-        (x.segment, x.joint_a, x.joint_b): x.length
-        for x in segment_lengths(ds.sensors, joints, ds.truth.joint_in_parent, ds.truth.joint_in_child)
-    }
-
-
-def _lengths(cal) -> dict[tuple[str, str, str], float]:
-    return {(x.segment, x.joint_a, x.joint_b): x.length for x in cal.lengths}
-
-
-def _lookup(table: dict, key: tuple[str, str, str]) -> float:
-    seg, a, b = key
-    return table.get(key, table.get((seg, b, a), float("nan")))
-
-
 def _length_rows(
     labels: dict[str, tuple[str, str, str]], truth: dict, got: dict, scale: float
 ) -> dict[str, dict[str, float]]:
     """True, computed (scaled to metres) and true - computed lengths in cm for labelled rows."""
     rows = {}
     for label, key in labels.items():
-        true_cm = _lookup(truth, key) * 100
-        computed_cm = _lookup(got, key) * scale * 100
+        true_cm = length_of(truth, key) * 100
+        computed_cm = length_of(got, key) * scale * 100
         rows[label] = {"true_cm": true_cm, "computed_cm": computed_cm, "difference_cm": true_cm - computed_cm}
     return rows
-
-
-def _same_tree(a: dict[str, str], b: dict[str, str]) -> bool:
-    return {frozenset(e) for e in a.items()} == {frozenset(e) for e in b.items()}
 
 
 def rigid_pair_scale(seed: int = 7, duration_s: float = 60.0) -> dict[str, float]:
@@ -188,8 +162,8 @@ def _linkage(plan: Plan, scale: float, keep: dict) -> dict[str, Any]:
         ds = run_session(config, cm)
         rec = ds.poses()
         cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
-        truth = _truth_lengths(ds)
-        got = _lengths(cal)
+        truth = truth_lengths(ds)
+        got = estimated_lengths(cal)
         rows = _length_rows(LINKAGE_ROWS, truth, got, scale)
         sets.append(
             {
@@ -197,7 +171,7 @@ def _linkage(plan: Plan, scale: float, keep: dict) -> dict[str, Any]:
                 "seed": s,
                 "rows": rows,
                 "max_abs_error_cm": max(abs(r["difference_cm"]) for r in rows.values()),
-                "hierarchy_correct": _same_tree(cal.parent_of, ds.truth.parent_of),
+                "hierarchy_correct": compare_trees(cal.parent_of, ds.truth.parent_of).correct,
                 "rms_residual_mm": {j.name: j.fit.rms_residual * scale * 1e3 for j in cal.joints},
             }
         )
@@ -224,10 +198,10 @@ def _humanoid(plan: Plan, scale: float) -> dict[str, Any]:
         ds = run_session(config, cm)
         rec = ds.poses()
         cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, root="pelvis")
-        truth = _truth_lengths(ds)
-        got = _lengths(cal)
+        truth = truth_lengths(ds)
+        got = estimated_lengths(cal)
         given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
-        got_given = _lengths(given)  # limb lengths for the right hierarchy, as the paper reports
+        got_given = estimated_lengths(given)  # limb lengths for the right hierarchy, as the paper reports
         rows = _length_rows(HUMANOID_ROWS, truth, got_given, scale)
         trials.append(
             {
@@ -236,30 +210,29 @@ def _humanoid(plan: Plan, scale: float) -> dict[str, Any]:
                 "seed": config.seed,
                 "rows": rows,
                 "max_abs_error_cm": max(abs(r["difference_cm"]) for r in rows.values()),
-                "hierarchy_correct": _same_tree(cal.parent_of, ds.truth.parent_of),
+                "hierarchy_correct": compare_trees(cal.parent_of, ds.truth.parent_of).correct,
                 "thigh_parents": {t: cal.parent_of.get(t) for t in ("thigh_l", "thigh_r")},
-                "wrong_joints": sorted(
-                    f"{p}-{c}"
-                    for c, p in cal.parent_of.items()
-                    if ds.truth.parent_of.get(c) != p and ds.truth.parent_of.get(p) != c
-                ),
+                "wrong_joints": list(compare_trees(cal.parent_of, ds.truth.parent_of).wrong_edges),
                 "inferred_lengths_cm": {
-                    label: _lookup(got, key) * scale * 100 for label, key in HUMANOID_ROWS.items()
+                    label: length_of(got, key) * scale * 100 for label, key in HUMANOID_ROWS.items()
                 },
             }
         )
     return {"preset": "skin-paper-human", "duration_s": plan.humanoid_s, "trials": trials}
 
 
-def _slip(plan: Plan, tmp: Path) -> dict[str, Any]:
+def _slip(plan: Plan) -> dict[str, Any]:
     t_slip = plan.linkage_s / 2
-    toml = tmp / "slip.toml"
-    toml.write_text(
-        "[tracker]\nposition_noise_m = 0.002\ntransmitter_pos = [0.0, -0.8, 1.0]\n"
-        f'[[skin.slip]]\nsensor = "forearm_l"\ntime_s = {t_slip}\noffset_m = [0.0, 0.03, 0.0]\n'
+    sensors = parse_sensor_config(
+        {
+            "name": "slip",
+            "tracker": {"position_noise_m": 0.002, "transmitter_pos": [0.0, -0.8, 1.0]},
+            "skin": {"slip": [{"sensor": "forearm_l", "time_s": t_slip, "offset_m": [0.0, 0.03, 0.0]}]},
+        },
+        "the validation's slip case",
     )
     config = SessionConfig(
-        model="linkage", motion="exercise", duration_s=plan.linkage_s, seed=21, sensors=str(toml)
+        model="linkage", motion="exercise", duration_s=plan.linkage_s, seed=21, sensors=sensors
     )
     ds = run_session(config, load_session_model(config))
     rec = ds.poses()
@@ -281,14 +254,12 @@ def _slip(plan: Plan, tmp: Path) -> dict[str, Any]:
     }
 
 
-def _orientation(plan: Plan, tmp: Path) -> dict[str, Any]:
+def _orientation(plan: Plan) -> dict[str, Any]:
     config = SessionConfig(
         model="humanoid", motion="exercise", duration_s=plan.orientation_s, seed=31, sensors="mems-industrial"
     )
     ds = run_session(config, load_session_model(config))
-    h5 = tmp / "orientation.h5"
-    write_dataset(h5, ds)
-    rec = imu_from_dataset(h5)
+    rec = ds.imu()
     out: dict[str, Any] = {
         "preset": "mems-industrial",
         "time_s": np.asarray(rec.time_s).tolist(),
@@ -301,26 +272,24 @@ def _orientation(plan: Plan, tmp: Path) -> dict[str, Any]:
         "mahony (gyro-aided)": {"method": "mahony"},
     }.items():
         run = estimate(rec, **kw)
-        err = np.rad2deg(orientation_errors(run.q_enu, rec.q_true))  # (F, N, 3)
-        per_frame = np.sqrt(np.nanmean(err[..., 0] ** 2, axis=1))
+        scored = score_orientation(run.q_enu, rec.q_true, rec.names)
         out["methods"][label] = {
-            "total_rmse_deg": float(np.sqrt(np.nanmean(err[..., 0] ** 2))),
-            "heading_rmse_deg": float(np.sqrt(np.nanmean(err[..., 1] ** 2))),
-            "inclination_rmse_deg": float(np.sqrt(np.nanmean(err[..., 2] ** 2))),
-            "per_frame_deg": np.nan_to_num(per_frame).tolist(),
+            "total_rmse_deg": scored.total_rmse_deg,
+            "heading_rmse_deg": scored.heading_rmse_deg,
+            "inclination_rmse_deg": scored.inclination_rmse_deg,
+            "per_frame_deg": np.nan_to_num(scored.per_frame_deg).tolist(),
         }
     return out
 
 
 def run_validation(
-    *, quick: bool = False, tmp: Path, progress: Callable[[str], None] | None = None
+    *, quick: bool = False, progress: Callable[[str], None] | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Run every experiment; returns ``(results, keep)``: JSON-ready figures, and the objects
     the report draws from (datasets, calibrations).
 
     Args:
         quick: the short variant (CI).
-        tmp: a scratch folder.
         progress: called with the name of each step as it starts.
     """
     plan = Plan.of(quick)
@@ -334,9 +303,9 @@ def run_validation(
     say("humanoid trials")
     humanoid = _humanoid(plan, scale["scale"])
     say("slip detection")
-    slip = _slip(plan, tmp)
+    slip = _slip(plan)
     say("sourceless orientation")
-    orientation = _orientation(plan, tmp)
+    orientation = _orientation(plan)
     results = {
         "quick": quick,
         "plan": plan.__dict__,

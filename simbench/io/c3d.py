@@ -21,8 +21,7 @@ from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
 from simbench.io.poses import PoseRecording
-
-UNITS = {"mm": 0.001, "cm": 0.01, "m": 1.0}
+from simbench.units import LENGTH_UNITS
 
 
 def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
@@ -47,12 +46,12 @@ def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarra
             rate = float(reader.point_rate)
         except Exception as exc:  # the c3d package raises assorted errors on damaged files
             raise InputError(f"{path}: not a readable C3D file ({type(exc).__name__}: {exc})") from None
-    if units not in UNITS:
-        raise InputError(f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(UNITS)}")
+    if units not in LENGTH_UNITS:
+        raise InputError(f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(LENGTH_UNITS)}")
     if not frames:
         raise InputError(f"{path}: no frames")
     data = np.stack(frames)  # (F, M, >=4): x, y, z, residual, ...
-    xyz = data[:, :, :3] * UNITS[units]
+    xyz = data[:, :, :3] * LENGTH_UNITS[units]
     xyz[data[:, :, 3] < 0] = np.nan
     return labels, xyz, rate
 

@@ -12,18 +12,15 @@ from __future__ import annotations
 import json
 import math
 import os
-import platform
-import sys
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import scipy
 
-import simbench
 from calibration.pipeline import Calibration
 from calibration.slip import SlipReport
 from simbench.io.atomic import atomic_write_text
+from simbench.versions import software_versions
 
 FORMAT = "simbench-calibration"
 FORMAT_VERSION = 1
@@ -36,17 +33,6 @@ def _num(x: float) -> float | None:
 
 def _vec(v: np.ndarray | None) -> list[float] | None:
     return None if v is None else [float(a) for a in np.asarray(v)]
-
-
-def software_versions() -> dict[str, str]:
-    """Versions of the software that produced a result."""
-    return {
-        "simbench": simbench.__version__,
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-        "platform": sys.platform,
-    }
 
 
 def calibration_to_dict(

@@ -34,6 +34,7 @@ Writes are atomic: the file appears complete or not at all.
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -42,10 +43,12 @@ from typing import Any
 import h5py
 import numpy as np
 
-from calibration.rotations import quat_to_matrix
-from calibration.skeleton import segment_lengths
+from calibration.rotations import matrix_to_quat, quat_to_matrix
+from calibration.skeleton import joint_arrays, segment_lengths
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_path
+from simbench.io.hdf5 import open_hdf5
+from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 
 FORMAT = "simbench-dataset"
@@ -120,9 +123,14 @@ class Dataset:
     measured: SensorData
     truth: Truth | None
     meta: dict[str, Any] = field(default_factory=dict)
+    #: The tracker's unit scale factor: ``measured.p_w_s`` is in metres / this (1 for metres).
+    position_unit_scale: float = 1.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "time_s", _frozen(self.time_s))
+        scale = self.position_unit_scale
+        if not (isinstance(scale, int | float) and math.isfinite(scale) and scale > 0):
+            raise InputError(f"Expected position_unit_scale to be a positive finite number, got {scale!r}")
         f, n = self.measured.valid.shape
         if self.time_s.shape != (f,) or len(self.sensors) != n:
             raise InputError(
@@ -135,12 +143,35 @@ class Dataset:
         :func:`calibration.posture.joint_positions`."""
         if self.truth is None:
             raise InputError("the dataset has no ground truth")
-        n = len(self.sensors)
-        lp, lc = np.zeros((n, 3)), np.zeros((n, 3))
-        for k, child in enumerate(self.truth.child):
-            lp[self.sensors.index(child)] = self.truth.joint_in_parent[k]
-            lc[self.sensors.index(child)] = self.truth.joint_in_child[k]
-        return lp, lc
+        t = self.truth
+        return joint_arrays(self.sensors, t.child, t.joint_in_parent, t.joint_in_child)
+
+    def imu(self) -> ImuRecording:
+        """The measured inertial data, truth the actual (on-skin) sensor orientations; samples at
+        the accelerometer's configured range are marked invalid (saturated)."""
+        m = self.measured
+        valid = np.array(m.valid)
+        notes = []
+        acc_range = float(self.meta.get("sensor_config", {}).get("imu", {}).get("accel_range", 0.0) or 0.0)
+        if acc_range > 0:
+            saturated = (np.abs(m.acc) >= acc_range * (1 - 1e-9)).any(axis=2)
+            if saturated.any():
+                notes.append(f"{int(saturated.sum())} samples with the accelerometer at its range (masked)")
+            valid &= ~saturated
+        rate = float(self.meta.get("rate_hz", 1.0 / np.median(np.diff(self.time_s))))
+        return ImuRecording(
+            names=self.sensors,
+            time_s=np.array(self.time_s),
+            acc=np.array(m.acc),
+            gyro=np.array(m.gyro),
+            mag=np.array(m.mag),
+            valid=valid,
+            q_true=None if self.truth is None else np.array(self.truth.actual.q_w_s),
+            evaluate=None,
+            rate_hz=rate,
+            source=str(self.meta.get("source", "dataset")),
+            notes=tuple(notes),
+        )
 
     def poses(self) -> PoseRecording:
         """The measured poses as the calibration reads them."""
@@ -149,7 +180,7 @@ class Dataset:
         R = np.where(m.valid[..., None, None], R, np.nan)
         p = np.where(m.valid[..., None], m.p_w_s, np.nan)
         notes = []
-        scale = float(self.meta.get("position_unit_scale", 1.0))
+        scale = self.position_unit_scale
         if scale != 1.0:
             notes.append(
                 f"positions are in the simulated tracker's units (metres / {scale:g}): lengths below are "
@@ -169,16 +200,6 @@ class Dataset:
         )
 
 
-def open_hdf5(path: str | os.PathLike[str]) -> h5py.File:
-    """Open an HDF5 file for reading, with errors that say what is wrong with which file."""
-    try:
-        return h5py.File(path, "r")
-    except FileNotFoundError:
-        raise InputError(f"{path}: cannot read: no such file") from None
-    except OSError as exc:
-        raise InputError(f"{path}: not an HDF5 file ({exc})") from None
-
-
 def _write_group(group: h5py.Group, data: SensorData) -> None:
     for x in fields(data):
         group.create_dataset(x.name, data=getattr(data, x.name))
@@ -190,6 +211,7 @@ def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
         fh.attrs["format"] = FORMAT
         fh.attrs["format_version"] = FORMAT_VERSION
         fh.attrs["meta"] = json.dumps(ds.meta, sort_keys=True)
+        fh.attrs["position_unit_scale"] = float(ds.position_unit_scale)
         fh.create_dataset("time_s", data=ds.time_s)
         fh.create_dataset("sensors", data=np.array(ds.sensors, dtype=h5py.string_dtype()))
         _write_group(fh.create_group("measured"), ds.measured)
@@ -228,6 +250,8 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
             raise InputError(f"{path}: dataset format version {version} is newer than this simbench reads")
         try:
             meta = json.loads(fh.attrs["meta"])
+            # format 1 files written before the typed field kept the factor in meta
+            scale = float(fh.attrs.get("position_unit_scale", meta.pop("position_unit_scale", 1.0)))
             sensors = tuple(s.decode() if isinstance(s, bytes) else str(s) for s in fh["sensors"][()])
             time_s = fh["time_s"][()]
             measured = _read_sensor_data(fh["measured"], path)
@@ -249,7 +273,9 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
                 values[x.name] = value
             truth = Truth(**values)
     meta["source"] = str(path)
-    return Dataset(time_s=time_s, sensors=sensors, measured=measured, truth=truth, meta=meta)
+    return Dataset(
+        time_s=time_s, sensors=sensors, measured=measured, truth=truth, meta=meta, position_unit_scale=scale
+    )
 
 
 def truth_calibration_dict(ds: Dataset) -> dict[str, Any]:
@@ -308,8 +334,6 @@ __all__ = [
 def dataset_from_poses(rec: PoseRecording) -> Dataset:
     """A Dataset holding a recording's poses (a tracker export, optical clusters): the same
     container the simulator writes, without inertial data (NaN) or truth."""
-    from calibration.rotations import matrix_to_quat
-
     valid = np.array(rec.valid)
     q = matrix_to_quat(np.where(valid[..., None, None], rec.R_w_s, np.eye(3)))
     q[~valid] = np.nan
@@ -320,5 +344,5 @@ def dataset_from_poses(rec: PoseRecording) -> Dataset:
         sensors=rec.names,
         measured=measured,
         truth=None,
-        meta={"source": rec.source, "notes": list(rec.notes), "position_unit_scale": 1.0},
+        meta={"source": rec.source, "notes": list(rec.notes)},
     )

@@ -21,8 +21,7 @@ import h5py
 import numpy as np
 
 from simbench.errors import InputError
-from simbench.io.dataset import FORMAT as DATASET_FORMAT
-from simbench.io.dataset import open_hdf5, read_dataset
+from simbench.io.hdf5 import open_hdf5
 
 
 @dataclass(frozen=True)
@@ -97,39 +96,3 @@ def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
         source=str(path),
         notes=tuple(notes),
     )
-
-
-def imu_from_dataset(path: str | os.PathLike[str]) -> ImuRecording:
-    """The measured inertial data of a simbench dataset, truth the actual orientations."""
-    ds = read_dataset(path)
-    m = ds.measured
-    valid = np.array(m.valid)
-    notes = []
-    rng = float(ds.meta.get("sensor_config", {}).get("imu", {}).get("accel_range", 0.0) or 0.0)
-    if rng > 0:
-        saturated = (np.abs(m.acc) >= rng * (1 - 1e-9)).any(axis=2)
-        if saturated.any():
-            notes.append(f"{int(saturated.sum())} samples with the accelerometer at its range (masked)")
-        valid &= ~saturated
-    rate = float(ds.meta.get("rate_hz", 1.0 / np.median(np.diff(ds.time_s))))
-    return ImuRecording(
-        names=ds.sensors,
-        time_s=np.array(ds.time_s),
-        acc=np.array(m.acc),
-        gyro=np.array(m.gyro),
-        mag=np.array(m.mag),
-        valid=valid,
-        q_true=None if ds.truth is None else np.array(ds.truth.actual.q_w_s),
-        evaluate=None,
-        rate_hz=rate,
-        source=str(path),
-        notes=tuple(notes),
-    )
-
-
-def read_imu(path: str | os.PathLike[str]) -> ImuRecording:
-    """A BROAD file or a simbench dataset, told apart by their contents."""
-    path = Path(path)
-    with open_hdf5(path) as fh:
-        is_dataset = fh.attrs.get("format") == DATASET_FORMAT
-    return imu_from_dataset(path) if is_dataset else read_broad(path)

@@ -27,19 +27,9 @@ import numpy as np
 from calibration.rotations import UNIT_TOLERANCE, matrix_to_quat, quat_to_matrix
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_open
-
-#: Length units accepted at the edges, as metres per unit.
-UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
+from simbench.units import metres_per_unit
 
 CSV_COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
-
-
-def metres_per_unit(units: str) -> float:
-    """Metres in one ``units`` (``m``, ``cm``, ``mm``, ``in``)."""
-    try:
-        return UNITS[units]
-    except KeyError:
-        raise InputError(f"unknown units {units!r}: expected one of {', '.join(UNITS)}") from None
 
 
 @dataclass(frozen=True)

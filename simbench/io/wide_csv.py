@@ -31,7 +31,8 @@ import numpy as np
 
 from calibration.rotations import euler_to_matrix, quat_to_matrix
 from simbench.errors import InputError, load_toml
-from simbench.io.poses import PoseRecording, metres_per_unit
+from simbench.io.poses import PoseRecording
+from simbench.units import metres_per_unit
 
 
 @dataclass(frozen=True)

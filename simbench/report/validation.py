@@ -13,15 +13,14 @@ import base64
 import html
 import io
 import json
-import platform
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-import simbench
 from simbench.io.atomic import atomic_open, atomic_write_text
+from simbench.versions import software_versions
 
 
 def _savefig(fig, path: Path) -> None:
@@ -220,22 +219,6 @@ def _md_table(header: list[str], rows: list[list[Any]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
     return "\n".join(lines)
-
-
-def versions() -> dict[str, str]:
-    """Software versions recorded in every report."""
-    import matplotlib
-    import mujoco
-    import scipy
-
-    return {
-        "simbench": simbench.__version__,
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-        "mujoco": mujoco.__version__,
-        "matplotlib": matplotlib.__version__,
-    }
 
 
 def validation_markdown(results: dict[str, Any], images: dict[str, str]) -> str:
@@ -457,7 +440,7 @@ def _finite(x: Any) -> Any:
 def write_report(results: dict[str, Any], keep: dict[str, Any], out: Path) -> dict[str, Path]:
     """Write the validation report into ``out``; returns the paths written."""
     out.mkdir(parents=True, exist_ok=True)
-    results = dict(results, versions=versions())
+    results = dict(results, versions=software_versions())
     scale = results["unit_scale"]["scale"]
     images: dict[str, str] = {}
     plot_residual_histograms(keep["linkage_cal"], out / "residual_histograms.png", scale)
@@ -517,15 +500,15 @@ def dataset_report(
     from calibration.pipeline import Joint
     from calibration.skeleton import segment_lengths
     from simbench.errors import InputError
-    from simbench.experiments.validate import _lengths, _lookup, _same_tree, _truth_lengths
     from simbench.io.dataset import read_dataset
+    from simbench.score import compare_trees, estimated_lengths, length_of, truth_lengths
 
     if Path(dataset).suffix.lower() in (".h5", ".hdf5"):
         ds = read_dataset(dataset)
         rec = ds.poses()
-        scale = float(ds.meta.get("position_unit_scale", 1.0))
+        scale = ds.position_unit_scale
     else:
-        from simbench.cli import read_poses
+        from simbench.io.read import read_poses
 
         ds, rec, scale = None, read_poses(str(dataset), units, clusters, wide), 1.0
     if calibration_file is None:
@@ -581,7 +564,7 @@ def dataset_report(
             {"parent": j.parent, "child": j.child, "rms_residual_mm": j.fit.rms_residual * scale * 1e3}
             for j in joints
         ],
-        "versions": versions(),
+        "versions": software_versions(),
         "meta": {}
         if ds is None
         else {k: ds.meta.get(k) for k in ("model", "program", "seed", "rate_hz", "sensor_model")},
@@ -600,18 +583,18 @@ def dataset_report(
         ),
         "",
     ]
-    got = _lengths(cal)
+    got = estimated_lengths(cal)
     if rec.notes:
         lines += ["What was read:", "", *[f"- {note}" for note in rec.notes], ""]
     if ds is not None and ds.truth is not None:
-        truth = _truth_lengths(ds)
+        truth = truth_lengths(ds)
         rows = []
         for key, value in truth.items():
-            computed = _lookup(got, key) * scale
+            computed = length_of(got, key) * scale
             rows.append(
                 [f"{key[0]}: {key[1]} / {key[2]}", value * 100, computed * 100, (value - computed) * 100]
             )
-        results["hierarchy_correct"] = _same_tree(parent_of, ds.truth.parent_of)
+        results["hierarchy_correct"] = compare_trees(parent_of, ds.truth.parent_of).correct
         results["lengths_cm"] = [
             {"length": r[0], "true": r[1], "computed": r[2], "difference": r[3]} for r in rows
         ]

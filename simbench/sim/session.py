@@ -22,14 +22,12 @@ from a stream spawned from the session seed.
 from __future__ import annotations
 
 import math
-import platform
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
-import simbench
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset, SensorData, Truth
@@ -53,6 +51,7 @@ from simbench.sim.skin import (
     soft_tissue_offsets,
     subtree_masks,
 )
+from simbench.versions import software_versions
 
 #: Physics steps per rollout call (bounds memory: states and sensor rows of one chunk).
 CHUNK_STEPS = 12_000
@@ -446,14 +445,15 @@ def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Datase
         "steps_per_sample": plan.steps_per_sample,
         "sensor_model": sensors.name,
         "sensor_config": sensors.as_dict(),
-        "position_unit_scale": sensors.tracker.unit_scale,
         "mujoco_warnings": warnings,
         "config": config.as_dict(),
-        "versions": {
-            "simbench": simbench.__version__,
-            "mujoco": mujoco.__version__,
-            "numpy": np.__version__,
-            "python": platform.python_version(),
-        },
+        "versions": software_versions(),
     }
-    return Dataset(time_s=time_s, sensors=cm.sensors, measured=measured, truth=truth, meta=meta)
+    return Dataset(
+        time_s=time_s,
+        sensors=cm.sensors,
+        measured=measured,
+        truth=truth,
+        meta=meta,
+        position_unit_scale=sensors.tracker.unit_scale,
+    )

@@ -1,0 +1,164 @@
+"""The public Python API: simulate -> calibrate -> score -> orient in a handful of lines.
+
+    import simbench as sb
+
+    ds = sb.simulate(model="linkage", motion="exercise", sensors="ascension-flock", duration_s=45, seed=1)
+    cal = sb.calibrate(ds)                  # or calibration.calibrate(R_w_s, p_w_s, names) on arrays
+    result = sb.score(cal, ds)              # errors per joint and limb, hierarchy right/wrong edges
+    ori = sb.orient(ds, method="fontaine")  # orientations and their errors against the truth
+
+Everything is in memory (no temporary files) and in SI units; a tracker's unit scale factor is
+carried by the Dataset and applied by :func:`score`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration import SINGLE_AXIS_RATIO, Calibration
+from calibration import calibrate as calibrate_arrays
+from simbench.errors import InputError
+from simbench.io.dataset import Dataset
+from simbench.io.imu import ImuRecording
+from simbench.io.poses import PoseRecording
+from simbench.io.read import read
+from simbench.orient import estimate
+from simbench.score import CalibrationScore, OrientationScore, score_orientation
+from simbench.score import score as score_calibration
+from simbench.sim.sensor_config import SensorConfig
+from simbench.sim.session import SessionConfig, run_session
+
+_DEFAULT = SessionConfig()
+
+
+def simulate(
+    model: str = _DEFAULT.model,
+    motion: str = _DEFAULT.motion,
+    *,
+    sensors: str | SensorConfig = _DEFAULT.sensors,
+    duration_s: float = _DEFAULT.duration_s,
+    rate_hz: float = _DEFAULT.rate_hz,
+    seed: int = _DEFAULT.seed,
+    sensors_on: Sequence[str] | None = None,
+    placement: Mapping[str, Sequence[float]] | None = None,
+) -> Dataset:
+    """Simulate a capture session with MuJoCo physics and the chosen sensors.
+
+    Args:
+        model: ``linkage``, ``humanoid``, ``dm_control:NAME`` or an MJCF file path.
+        motion: ``exercise``, ``walk``, ``single-axis``, ``static`` or a program TOML path.
+        sensors: a preset name (``ideal``, ``ascension-flock``, ``polhemus-liberty``,
+            ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``), a configuration TOML
+            path or a :class:`~simbench.sim.sensor_config.SensorConfig`.
+        duration_s: session length, s.
+        rate_hz: capture rate, Hz.
+        seed: seed of every random draw of the session (same seed, same data).
+        sensors_on: bodies carrying a sensor (default: the model's).
+        placement: ``{sensor: (dx, dy, dz)}`` shifts of sensors in their body frames, m.
+
+    Returns:
+        The Dataset: ``measured`` data as the instruments give it (positions in the tracker's
+        units: metres / ``position_unit_scale``) and the exact ``truth``.
+    """
+    config = SessionConfig(
+        model=model,
+        motion=motion,
+        duration_s=float(duration_s),
+        rate_hz=float(rate_hz),
+        seed=int(seed),
+        sensor_bodies=None if sensors_on is None else tuple(sensors_on),
+        sensors=sensors,
+        placement=tuple(
+            (name, (float(v[0]), float(v[1]), float(v[2]))) for name, v in sorted((placement or {}).items())
+        ),
+    )
+    return run_session(config)
+
+
+def calibrate(
+    data: Dataset | PoseRecording,
+    *,
+    hierarchy: Mapping[str, str] | None = None,
+    root: str | None = None,
+    single_axis_ratio: float = SINGLE_AXIS_RATIO,
+) -> Calibration:
+    """Joint centres, hierarchy, limb lengths and sensor placement from a recording's poses
+    (O'Brien et al. 2000; :func:`calibration.calibrate` does the same on bare arrays).
+
+    Args:
+        data: a Dataset (simulated or read with :func:`read`) or a pose recording.
+        hierarchy: a known hierarchy ``{child: parent}``; inferred when ``None``.
+        root: root sensor (default: the tree's centre).
+        single_axis_ratio: see :mod:`calibration.joint`.
+
+    Returns:
+        The calibration, lengths in the recording's position units (the tracker's).
+    """
+    rec = data.poses() if isinstance(data, Dataset) else data
+    if not isinstance(rec, PoseRecording):
+        raise InputError(f"Expected a Dataset or a PoseRecording, got {type(data).__name__}")
+    return calibrate_arrays(
+        rec.R_w_s,
+        rec.p_w_s,
+        rec.names,
+        valid=rec.valid,
+        parent_of=hierarchy,
+        root=root,
+        single_axis_ratio=single_axis_ratio,
+    )
+
+
+def score(cal: Calibration, ds: Dataset, *, scale: float | None = None) -> CalibrationScore:
+    """A calibration against the truth of the session it came from: limb lengths, joint centres
+    (both sensor frames), the hierarchy (wrong edges named), in metres (``scale`` metres per
+    tracker unit; default the dataset's ``position_unit_scale``)."""
+    return score_calibration(cal, ds, scale=scale)
+
+
+@dataclass(frozen=True)
+class Orientations:
+    """Estimated sensor orientations and, where the recording has a reference, their errors.
+
+    Attributes:
+        q_w_s: ``(F, N, 4)`` scalar-first quaternions of ``R_w_s`` in ENU; NaN where not estimated.
+        ok: ``(F, N)`` estimated.
+        names: ``(N,)`` sensor names.
+        method: the method used.
+        score: errors against the reference (BROAD's definitions), or ``None`` without one.
+    """
+
+    q_w_s: np.ndarray
+    ok: np.ndarray
+    names: tuple[str, ...]
+    method: str
+    score: OrientationScore | None
+
+
+def orient(
+    data: Dataset | ImuRecording,
+    method: str = "fontaine",
+    *,
+    weighting: bool = True,
+    smooth_hz: float | None = None,
+) -> Orientations:
+    """Sensor orientations from accelerometer and magnetometer (Fontaine et al.; ``triad``,
+    ``wahba``, or the gyro-aided ``mahony`` reference), scored against the truth when there is one.
+
+    Args:
+        data: a Dataset with inertial data, or an IMU recording (e.g. a BROAD trial from :func:`read`).
+        method: ``fontaine``, ``triad``, ``wahba`` or ``mahony``.
+        weighting: Fontaine's disturbance weighting.
+        smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
+    """
+    rec = data.imu() if isinstance(data, Dataset) else data
+    if not isinstance(rec, ImuRecording):
+        raise InputError(f"Expected a Dataset or an ImuRecording, got {type(data).__name__}")
+    run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz)
+    scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
+    return Orientations(q_w_s=run.q_enu, ok=run.ok, names=rec.names, method=method, score=scored)
+
+
+__all__ = ["Orientations", "calibrate", "orient", "read", "score", "simulate"]

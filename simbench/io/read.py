@@ -1,0 +1,85 @@
+"""One entry for every recording simbench reads, chosen by the file's type and contents.
+
+- pose CSV (``.csv``, ``.txt``; positions in ``units``), a wide tracker export (``wide=`` a spec
+  TOML), optical markers (``.c3d``, clustered by ``clusters=`` a spec TOML or automatically):
+  a :class:`~simbench.io.dataset.Dataset` of measured poses (inertial data NaN, no truth);
+- a simbench dataset (``.h5``/``.hdf5`` with ``format = "simbench-dataset"``): the Dataset;
+- a BROAD trial (``.h5``/``.hdf5`` otherwise): an :class:`~simbench.io.imu.ImuRecording`
+  (accelerometer, gyroscope, magnetometer and the optical reference orientation).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from simbench.errors import InputError
+from simbench.io.c3d import c3d_poses, read_cluster_spec
+from simbench.io.dataset import FORMAT as DATASET_FORMAT
+from simbench.io.dataset import Dataset, dataset_from_poses, read_dataset
+from simbench.io.hdf5 import open_hdf5
+from simbench.io.imu import ImuRecording, read_broad
+from simbench.io.poses import PoseRecording, read_pose_csv
+from simbench.io.wide_csv import read_wide_csv, read_wide_spec
+
+POSE_SUFFIXES = (".csv", ".txt", ".c3d", ".h5", ".hdf5")
+
+
+def is_simbench_dataset(path: str | os.PathLike[str]) -> bool:
+    """True for an HDF5 file written by :func:`~simbench.io.dataset.write_dataset`."""
+    with open_hdf5(path) as fh:
+        return fh.attrs.get("format") == DATASET_FORMAT
+
+
+def read_poses(
+    path: str | os.PathLike[str],
+    units: str = "m",
+    clusters: str | os.PathLike[str] | None = None,
+    wide: str | os.PathLike[str] | None = None,
+) -> PoseRecording:
+    """A pose recording from a pose CSV, a wide export, a C3D file or a simbench dataset.
+
+    Args:
+        path: the file.
+        units: length unit of a CSV's positions (``m``, ``cm``, ``mm``, ``in``); datasets hold
+            metres, C3D files name their own unit.
+        clusters: for ``.c3d``: a TOML ``[clusters]`` spec (default: found automatically).
+        wide: a wide-export spec TOML: read ``path`` as a wide export.
+    """
+    suffix = Path(path).suffix.lower()
+    if wide is not None:
+        return read_wide_csv(path, read_wide_spec(wide))
+    if suffix == ".c3d":
+        return c3d_poses(path, clusters=read_cluster_spec(clusters) if clusters else None)
+    if suffix in (".csv", ".txt"):
+        return read_pose_csv(path, units=units)
+    if suffix in (".h5", ".hdf5"):
+        if units != "m":
+            raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
+        return read_dataset(path).poses()
+    raise InputError(
+        f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv), a simbench dataset (.h5) "
+        "or optical markers (.c3d)"
+    )
+
+
+def read_imu(path: str | os.PathLike[str]) -> ImuRecording:
+    """Inertial data from a simbench dataset or a BROAD trial, told apart by their contents."""
+    return read_dataset(path).imu() if is_simbench_dataset(path) else read_broad(path)
+
+
+def read(
+    path: str | os.PathLike[str],
+    *,
+    units: str = "m",
+    clusters: str | os.PathLike[str] | None = None,
+    wide: str | os.PathLike[str] | None = None,
+) -> Dataset | ImuRecording:
+    """Open any supported recording (module docstring): poses become a Dataset, a simbench
+    dataset is returned as it is, a BROAD trial becomes an ImuRecording."""
+    suffix = Path(path).suffix.lower()
+    if wide is None and suffix in (".h5", ".hdf5"):
+        if units != "m":
+            raise InputError(f"{path}: HDF5 recordings hold SI units; units={units!r} does not apply")
+        return read_dataset(path) if is_simbench_dataset(path) else read_broad(path)
+    return dataset_from_poses(read_poses(path, units, clusters, wide))
