@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import importlib
+import tomllib
+from pathlib import Path
+from types import ModuleType
+
 
 class InputError(ValueError):
     """A file or option is not what simbench expects (the message names what and where)."""
@@ -9,9 +14,6 @@ class InputError(ValueError):
 
 def load_toml(path) -> dict:
     """Parse a TOML file; a missing file or bad TOML is an :class:`InputError` naming the file."""
-    import tomllib
-    from pathlib import Path
-
     path = Path(path)
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
@@ -19,3 +21,19 @@ def load_toml(path) -> dict:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+
+
+def optional_module(name: str, extra: str, feature: str) -> ModuleType:
+    """Import an optional dependency, or fail with the extra that installs it.
+
+    Args:
+        name: the module (``pyarrow.parquet``).
+        extra: the extra of the simbench distribution that installs it (``studies``).
+        feature: what needs it, for the message (``simbench sweep``).
+    """
+    try:
+        return importlib.import_module(name)
+    except ImportError:
+        raise InputError(
+            f"{feature} needs the optional package {name.split('.')[0]!r}: pip install 'simbench[{extra}]'"
+        ) from None
