@@ -13,23 +13,22 @@ read: clusters, frames, rate, gaps and each cluster's rigidity residual.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
+import c3d
 import numpy as np
 
 from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
+from simbench.io.atomic import atomic_open
 from simbench.io.poses import PoseRecording
 from simbench.units import LENGTH_UNITS
 
 
 def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
     """Marker labels, positions ``(F, M, 3)`` in metres (NaN where invalid) and the rate (Hz)."""
-    import warnings
-
-    import c3d
-
     path = Path(path)
     try:
         fh = path.open("rb")
@@ -127,12 +126,6 @@ def write_c3d_markers(
     path: str | os.PathLike[str], labels: list[str], xyz_m: np.ndarray, rate_hz: float
 ) -> None:
     """Write markers ``(F, M, 3)`` (metres; NaN = not seen) to a C3D file in mm, atomically."""
-    import warnings
-
-    import c3d
-
-    from simbench.io.atomic import atomic_open
-
     xyz = np.asarray(xyz_m, dtype=float)
     if xyz.ndim != 3 or xyz.shape[1] != len(labels) or xyz.shape[2] != 3:
         raise InputError(f"Expected markers of shape (frames, {len(labels)}, 3), got {xyz.shape}")

@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.rotations import euler_to_matrix, quat_to_matrix
+from calibration.rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from simbench.errors import InputError, load_toml
+from simbench.io.atomic import atomic_open
 from simbench.io.poses import PoseRecording
 from simbench.units import metres_per_unit
 
@@ -182,9 +183,6 @@ def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording
 
 def write_wide_csv(path: str | os.PathLike[str], rec: PoseRecording, spec: WideSpec) -> None:
     """Write poses in the layout a specification describes (for tests and conversions)."""
-    from calibration.rotations import matrix_to_euler, matrix_to_quat
-    from simbench.io.atomic import atomic_open
-
     scale = metres_per_unit(spec.units)
     header = [spec.time] if spec.time else []
     cols = []

@@ -1,0 +1,115 @@
+"""The installable package: the wheel holds every built-in model and preset, and an installed
+(non-editable) copy runs from another directory.
+
+The wheel is built from a copy of the sources without build isolation (no network); the fast
+test installs it with ``pip --target`` next to this environment's dependencies, the slow one
+into a fresh virtual environment with its dependencies from the package index.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import venv
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import simbench
+
+ROOT = Path(simbench.__file__).resolve().parent.parent
+SOURCES = ("pyproject.toml", "README.md", "simbench", "calibration")
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    src = tmp_path_factory.mktemp("src")
+    for name in SOURCES:
+        if (ROOT / name).is_dir():
+            shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy2(ROOT / name, src / name)
+    out = tmp_path_factory.mktemp("wheel")
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", out, src],
+        check=True,
+        capture_output=True,
+    )
+    (path,) = out.glob("simbench-*.whl")
+    return path
+
+
+def test_wheel_holds_every_model_and_preset(wheel):
+    names = set(zipfile.ZipFile(wheel).namelist())
+    package = ROOT / "simbench"
+    shipped = [
+        p.relative_to(ROOT).as_posix()
+        for sub in ("models", "sim/presets")
+        for p in (package / sub).rglob("*")
+        if p.is_file()
+    ]
+    assert len(shipped) >= 12  # 2 models x (xml, scene, README) + README + 6 presets
+    assert sorted(set(shipped) - names) == []
+    assert {"simbench/py.typed", "calibration/py.typed", "simbench/versions.py"} <= names
+    assert not any(n.startswith(("tests/", "benchmarks/", "reports/")) for n in names)
+    metadata = next(n for n in names if n.endswith(".dist-info/METADATA"))
+    text = zipfile.ZipFile(wheel).read(metadata).decode()
+    assert f"Version: {simbench.__version__}" in text
+    assert "Provides-Extra: studies" in text
+
+
+def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
+    target = tmp_path / "site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", target, wheel],
+        check=True,
+        capture_output=True,
+    )
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    env = dict(os.environ, PYTHONPATH=str(target))
+    where = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import simbench, calibration; print(simbench.__file__, calibration.__file__)",
+        ],
+        cwd=work,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
+    assert all(Path(p).is_relative_to(target) for p in where), where  # the installed copy, not the sources
+    run = subprocess.run(
+        [target / "bin" / "simbench", "simulate", "--model", "humanoid", "--duration", "1", "-o", "h.h5"],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert (work / "h.h5").is_file() and "sensors: 16" in run.stdout
+
+
+@pytest.mark.slow
+def test_fresh_venv_runs_quick_validation(wheel, tmp_path):
+    """``pip install`` of the wheel into a new venv (dependencies from the index), then
+    ``simbench validate --quick`` from another directory."""
+    env_dir = tmp_path / "venv"
+    venv.create(env_dir, with_pip=True)
+    python = env_dir / "bin" / "python"
+    subprocess.run([python, "-m", "pip", "install", "-q", wheel], check=True, capture_output=True)
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    run = subprocess.run(
+        [env_dir / "bin" / "simbench", "validate", "--quick", "--no-progress", "--out", "report"],
+        cwd=work,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert (work / "report" / "index.html").is_file()
