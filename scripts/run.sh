@@ -5,5 +5,5 @@
 # results.json, images). Extra arguments go to `simbench validate` (e.g. --quick, --out DIR).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh studies,bench
 .venv/bin/simbench validate "$@"

@@ -21,6 +21,7 @@ import csv
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -30,6 +31,14 @@ from simbench.io.atomic import atomic_open
 from simbench.units import metres_per_unit
 
 CSV_COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
+
+
+def open_csv(path: Path) -> TextIO:
+    """Open a text table for ``csv.reader``; a missing or unreadable file is an InputError."""
+    try:
+        return path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
 
 
 @dataclass(frozen=True)
@@ -99,11 +108,7 @@ def read_pose_csv(path: str | os.PathLike[str], *, units: str = "m") -> PoseReco
     """
     scale = metres_per_unit(units)
     path = Path(path)
-    try:
-        fh = path.open(newline="", encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    with fh:
+    with open_csv(path) as fh:
         reader = csv.reader(fh)
         header = None
         for row in reader:

@@ -32,7 +32,7 @@ import numpy as np
 from calibration.rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_open
-from simbench.io.poses import PoseRecording
+from simbench.io.poses import PoseRecording, open_csv
 from simbench.units import metres_per_unit
 
 
@@ -101,11 +101,7 @@ def read_wide_spec(path: str | os.PathLike[str]) -> WideSpec:
 def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording:
     """Read a wide tracker export with its specification."""
     path = Path(path)
-    try:
-        fh = path.open(newline="", encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    with fh:
+    with open_csv(path) as fh:
         reader = csv.reader(fh)
         header = next((r for r in reader if any(c.strip() for c in r)), None)
         if header is None:
