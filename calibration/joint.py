@@ -111,6 +111,24 @@ class Spectrum:
     axis_in_child: np.ndarray | None
 
 
+def determined_directions(singular_values: np.ndarray, single_axis_ratio: float) -> np.ndarray:
+    """The single-axis rule (O'Brien 3.2): which directions of joint fits the motion determines.
+
+    A direction is determined when its singular value is at least ``single_axis_ratio * s_max``
+    (and not zero); the others are left out of the solution (module docstring).
+
+    Args:
+        singular_values: ``(..., 6)`` singular values of ``A`` per fit, descending (``s_max``
+            first); dimensionless.
+        single_axis_ratio: the threshold on ``s / s_max``, in (0, 1).
+
+    Returns:
+        ``(..., 6)`` bool, True for the determined directions.
+    """
+    s = np.asarray(singular_values, dtype=float)
+    return (s >= single_axis_ratio * s[..., :1]) & (s > 0.0)
+
+
 def read_spectrum(
     singular_values: np.ndarray, right_vectors: np.ndarray, single_axis_ratio: float
 ) -> Spectrum:
@@ -119,17 +137,14 @@ def read_spectrum(
     Args:
         singular_values: ``(6,)`` singular values of ``A``, descending.
         right_vectors: ``(6, 6)`` right singular vectors as columns, in the same order.
-        single_axis_ratio: directions with ``s < single_axis_ratio * s_max`` are undetermined.
+        single_axis_ratio: directions with ``s < single_axis_ratio * s_max`` are undetermined
+            (:func:`determined_directions`).
 
     Returns:
         The kept directions, the rank and, for a single-axis joint, the axis in both frames
         (sign chosen so that the parent-frame axis has a positive largest component).
     """
-    s = np.asarray(singular_values, dtype=float)
-    if s[0] <= 0.0:
-        keep = np.zeros(6, dtype=bool)
-    else:
-        keep = s >= single_axis_ratio * s[0]
+    keep = determined_directions(singular_values, single_axis_ratio)
     rank = int(np.count_nonzero(keep))
     single_axis = rank == 5
     axis_p = axis_c = None

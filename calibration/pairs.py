@@ -24,17 +24,13 @@ noise-free joint stays below about 1e-8 m.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from calibration.errors import CalibrationInputError
-from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, read_spectrum
-
-#: Frames read and multiplied at a time: big enough for BLAS, small enough for the cache.
-CHUNK_FRAMES = 1024
+from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
+from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
 @dataclass(frozen=True)
@@ -64,59 +60,6 @@ class PairStatistics:
     def n_sensors(self) -> int:
         """Number of sensors ``N``."""
         return int(self.count.shape[0])
-
-
-def check_poses(R_w_s: Any, p_w_s: Any, valid: Any = None) -> tuple[int, int]:
-    """Check the shapes of a pose array (anything sliceable on frames: ndarray, h5py, memmap).
-
-    Args:
-        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
-        p_w_s: ``(frames, sensors, 3)`` sensor positions in world, metres.
-        valid: optional ``(frames, sensors)`` bool, False where a pose is missing.
-
-    Returns:
-        ``(frames, sensors)``.
-    """
-    R_shape, p_shape = tuple(R_w_s.shape), tuple(p_w_s.shape)
-    if len(R_shape) != 4 or R_shape[2:] != (3, 3):
-        raise CalibrationInputError(f"Expected R_w_s to have shape (frames, sensors, 3, 3), got {R_shape}")
-    if p_shape != (*R_shape[:2], 3):
-        raise CalibrationInputError(
-            f"Expected p_w_s to have shape ({R_shape[0]}, {R_shape[1]}, 3) to match R_w_s, got {p_shape}"
-        )
-    if valid is not None and tuple(valid.shape) != R_shape[:2]:
-        raise CalibrationInputError(f"Expected valid to have shape {R_shape[:2]}, got {tuple(valid.shape)}")
-    return R_shape[0], R_shape[1]
-
-
-def iter_chunks(
-    R_w_s: Any, p_w_s: Any, valid: Any = None, *, chunk_frames: int = CHUNK_FRAMES
-) -> Iterator[tuple[slice, np.ndarray, np.ndarray, np.ndarray]]:
-    """Yield ``(frames, R, p, ok)`` chunk by chunk, with invalid poses zeroed.
-
-    ``ok`` is ``(chunk, sensors)`` bool: the pose is finite and not marked invalid. Where every
-    pose of a chunk is valid, ``R`` and ``p`` may be read-only views of the caller's arrays;
-    otherwise they are copies with zeros where not ``ok``, so that no NaN reaches a matrix
-    product. The caller's data are never modified.
-    """
-    n_frames, n = check_poses(R_w_s, p_w_s, valid)
-    if chunk_frames < 1:
-        raise CalibrationInputError(f"chunk_frames must be at least 1, got {chunk_frames}")
-    ones9, ones3 = np.ones(9), np.ones(3)
-    for start in range(0, n_frames, chunk_frames):
-        frames = slice(start, min(start + chunk_frames, n_frames))
-        R = np.asarray(R_w_s[frames], dtype=float)
-        p = np.asarray(p_w_s[frames], dtype=float)
-        c = R.shape[0]
-        # NaN and inf survive a sum (rotation entries cannot overflow it): one cheap pass
-        ok = np.isfinite(R.reshape(c * n, 9) @ ones9) & np.isfinite(p.reshape(c * n, 3) @ ones3)
-        ok = ok.reshape(c, n)
-        if valid is not None:
-            ok &= np.asarray(valid[frames], dtype=bool)
-        if not ok.all():
-            R = np.where(ok[:, :, None, None], R, 0.0)
-            p = np.where(ok[:, :, None], p, 0.0)
-        yield frames, R, p, ok
 
 
 _ROW = np.dtype((np.void, 24))  # one row of a 3x3 float64 matrix, moved as a unit
@@ -225,7 +168,6 @@ class PairSolutions:
         rms_residual: ``(P,)`` metres; ``inf`` where the pair has fewer than 3 common frames.
         singular_values: ``(P, 6)`` descending, as the SVD of ``A`` would give them.
         right_vectors: ``(P, 6, 6)`` right singular vectors as columns.
-        keep: ``(P, 6)`` bool, directions determined by the motion.
         n_frames: ``(P,)`` frames both sensors are valid.
     """
 
@@ -236,7 +178,6 @@ class PairSolutions:
     rms_residual: np.ndarray
     singular_values: np.ndarray
     right_vectors: np.ndarray
-    keep: np.ndarray
     n_frames: np.ndarray
 
 
@@ -280,8 +221,7 @@ def solve_pairs(
     eigval, eigvec = np.linalg.eigh(normal)
     eigval, eigvec = eigval[:, ::-1], eigvec[:, :, ::-1]  # descending, like the SVD
     s = np.sqrt(np.clip(eigval, 0.0, None))
-    keep = s >= single_axis_ratio * s[:, :1]
-    keep &= s > 0.0
+    keep = determined_directions(s, single_axis_ratio)  # O'Brien 3.2
     proj = np.einsum("pki,pk->pi", eigvec, rhs)  # V^T (A^T b)
     safe = np.where(keep, eigval, 1.0)
     coef = np.where(keep, proj / safe, 0.0)
@@ -298,7 +238,6 @@ def solve_pairs(
         rms_residual=rms,
         singular_values=s,
         right_vectors=eigvec,
-        keep=keep,
         n_frames=stats.count[parent, child],
     )
 
@@ -393,6 +332,6 @@ def frame_residuals(
     return rms, per_frame
 
 
-def pair_fit_spectrum(sol: PairSolutions, k: int, single_axis_ratio: float = SINGLE_AXIS_RATIO):
+def pair_fit_spectrum(sol: PairSolutions, k: int, single_axis_ratio: float = SINGLE_AXIS_RATIO) -> Spectrum:
     """The :class:`calibration.joint.Spectrum` of pair ``k`` of a batch solution."""
     return read_spectrum(sol.singular_values[k], sol.right_vectors[k], single_axis_ratio)

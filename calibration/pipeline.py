@@ -34,14 +34,15 @@ from calibration.hierarchy import (
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit
 from calibration.pairs import (
-    CHUNK_FRAMES,
-    check_poses,
+    PairSolutions,
+    PairStatistics,
     frame_residuals,
     pair_fit_spectrum,
     pair_residual_matrix,
     pair_statistics,
     solve_pairs,
 )
+from calibration.poses import CHUNK_FRAMES, check_poses
 from calibration.skeleton import (
     SegmentLength,
     SensorPlacement,
@@ -171,116 +172,29 @@ def calibrate(
     """
     t0 = time.perf_counter()
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
-    names = tuple(str(x) for x in names)
-    if len(names) != n:
-        raise CalibrationInputError(f"Expected {n} sensor names, got {len(names)}")
-    if len(set(names)) != n:
-        dup = sorted({x for x in names if names.count(x) > 1})
-        raise CalibrationInputError(f"sensor names must be unique, repeated: {dup}")
-    if n < 2:
-        raise CalibrationError(f"calibration needs at least 2 sensors, got {n} ({list(names)})")
-    if n_frames < MIN_FRAMES:
-        raise CalibrationError(f"calibration needs at least {MIN_FRAMES} frames, got {n_frames}")
-    if not 0.0 < single_axis_ratio < 1.0:
-        raise CalibrationInputError(f"single_axis_ratio must be in (0, 1), got {single_axis_ratio}")
-    if root is not None and root not in names:
-        raise CalibrationInputError(f"root {root!r} is not a sensor; sensors are {list(names)}")
-    seconds: dict[str, float] = {}
-
-    stats = pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
-    missing = n_frames - np.diagonal(stats.count).astype(np.int64)
-    usable_frames = int(np.max(np.diagonal(stats.count)))
-    if np.max(stats.count - np.diag(np.diagonal(stats.count))) < MIN_FRAMES:
-        raise CalibrationError(
-            f"no pair of sensors has {MIN_FRAMES} frames where both poses are valid "
-            f"(frames: {n_frames}, most valid frames of one sensor: {usable_frames})"
-        )
+    names = _checked_names(names, n)
+    _check_options(names, n_frames, single_axis_ratio=single_axis_ratio, root=root)
+    stats, missing = _pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
     t1 = time.perf_counter()
-    seconds["pair_statistics"] = t1 - t0
 
     residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio)
-    index = {name: k for k, name in enumerate(names)}
-    if parent_of is not None:
-        tree = hierarchy_from_parents(parent_of, names, root=root)
-    else:
-        tree = spanning_tree(residual, root=None if root is None else index[root], names=names)
+    tree = _hierarchy(residual, names, parent_of, root)
     t2 = time.perf_counter()
-    seconds["hierarchy"] = t2 - t1
+
+    sol, rms, per_frame = _solve_joints(
+        R_w_s, p_w_s, valid, stats, tree, names, single_axis_ratio, chunk_frames, keep_frame_residuals
+    )
+    t3 = time.perf_counter()
 
     pairs = tree.joints
-    par = np.array([p for p, _ in pairs], dtype=np.int64)
-    chi = np.array([c for _, c in pairs], dtype=np.int64)
-    sol = solve_pairs(stats, par, chi, single_axis_ratio=single_axis_ratio)
-    too_few = [f"{names[p]}-{names[c]}" for k, (p, c) in enumerate(pairs) if sol.n_frames[k] < MIN_FRAMES]
-    if too_few:
-        raise CalibrationError(
-            f"joints with fewer than {MIN_FRAMES} frames where both sensors are valid: {too_few}"
-        )
-    if keep_frame_residuals:
-        rms, per_frame = frame_residuals(
-            R_w_s,
-            p_w_s,
-            par,
-            chi,
-            sol.joint_in_parent,
-            sol.joint_in_child,
-            valid=valid,
-            chunk_frames=chunk_frames,
-        )
-    else:
-        rms, per_frame = sol.rms_residual, None
-    t3 = time.perf_counter()
-    seconds["joints"] = t3 - t2
-
-    joints = []
-    warnings: list[str] = []
-    for k, (p, c) in enumerate(pairs):
-        spec = pair_fit_spectrum(sol, k, single_axis_ratio)
-        fit = JointFit(
-            joint_in_parent=sol.joint_in_parent[k].copy(),
-            joint_in_child=sol.joint_in_child[k].copy(),
-            rms_residual=float(rms[k]),
-            frame_residual=None if per_frame is None else per_frame[:, k].copy(),
-            singular_values=sol.singular_values[k].copy(),
-            rank=spec.rank,
-            single_axis=spec.single_axis,
-            axis_in_parent=spec.axis_in_parent,
-            axis_in_child=spec.axis_in_child,
-            n_frames=int(sol.n_frames[k]),
-            n_dropped=n_frames - int(sol.n_frames[k]),
-        )
-        joint = Joint(names[p], names[c], fit)
-        joints.append(joint)
-        if fit.single_axis:
-            warnings.append(
-                f"joint {joint.name}: single-axis in this motion (axis in {names[p]} frame "
-                f"{np.round(fit.axis_in_parent, 3).tolist()}); its location along the axis is the "
-                "minimum-norm point, not a measured one"
-            )
-        elif fit.rank < 5:
-            warnings.append(
-                f"joint {joint.name}: the sensors hardly rotate relative to each other "
-                f"(rank {fit.rank} of 6); the motion does not determine this joint"
-            )
-        if fit.n_dropped:
-            warnings.append(
-                f"joint {joint.name}: {fit.n_dropped} of {n_frames} frames dropped "
-                "(a pose missing or not finite)"
-            )
-    for k in np.flatnonzero(missing):
-        warnings.append(f"sensor {names[k]}: pose missing or not finite in {missing[k]} of {n_frames} frames")
+    joints = [_joint(names, sol, k, rms, per_frame, n_frames, single_axis_ratio) for k in range(len(pairs))]
     loops = tuple(
         (names[a], names[b], r) for a, b, r in loop_candidates(residual, tree, loop_factor=loop_factor)
     )
-    for a, b, r in loops:
-        warnings.append(
-            f"pair {a}-{b} left out of the hierarchy fits as well as its joints "
-            f"(rms {r * 1e3:.3g} mm): a loop joint, or sensors the motion does not tell apart"
-        )
-    lp = np.array([j.fit.joint_in_parent for j in joints]).reshape(-1, 3)
-    lc = np.array([j.fit.joint_in_child for j in joints]).reshape(-1, 3)
+    warnings = _warnings(joints, names, missing, loops, n_frames)
+    lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
     t4 = time.perf_counter()
-    seconds["skeleton"] = t4 - t3
+    seconds = {"pair_statistics": t1 - t0, "hierarchy": t2 - t1, "joints": t3 - t2, "skeleton": t4 - t3}
     seconds["total"] = t4 - t0
     return Calibration(
         names=names,
@@ -296,3 +210,161 @@ def calibrate(
         missing=missing,
         seconds=seconds,
     )
+
+
+def _checked_names(names: Sequence[str], n: int) -> tuple[str, ...]:
+    """``names`` as a tuple of ``n`` unique strings, or an input error."""
+    names = tuple(str(x) for x in names)
+    if len(names) != n:
+        raise CalibrationInputError(f"Expected {n} sensor names, got {len(names)}")
+    if len(set(names)) != n:
+        dup = sorted({x for x in names if names.count(x) > 1})
+        raise CalibrationInputError(f"sensor names must be unique, repeated: {dup}")
+    return names
+
+
+def _check_options(
+    names: tuple[str, ...], n_frames: int, *, single_axis_ratio: float, root: str | None
+) -> None:
+    """Refuse data too small to calibrate and options out of range."""
+    if len(names) < 2:
+        raise CalibrationError(f"calibration needs at least 2 sensors, got {len(names)} ({list(names)})")
+    if n_frames < MIN_FRAMES:
+        raise CalibrationError(f"calibration needs at least {MIN_FRAMES} frames, got {n_frames}")
+    if not 0.0 < single_axis_ratio < 1.0:
+        raise CalibrationInputError(f"single_axis_ratio must be in (0, 1), got {single_axis_ratio}")
+    if root is not None and root not in names:
+        raise CalibrationInputError(f"root {root!r} is not a sensor; sensors are {list(names)}")
+
+
+def _pair_statistics(
+    R_w_s: Any, p_w_s: Any, *, valid: Any, chunk_frames: int
+) -> tuple[PairStatistics, np.ndarray]:
+    """The statistics of every pair and the ``(N,)`` frames each sensor's pose is missing in.
+
+    Raises:
+        CalibrationError: no pair of sensors shares :data:`MIN_FRAMES` valid frames.
+    """
+    stats = pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
+    per_sensor = np.diagonal(stats.count)
+    missing = stats.n_frames - per_sensor.astype(np.int64)
+    if np.max(stats.count - np.diag(per_sensor)) < MIN_FRAMES:
+        raise CalibrationError(
+            f"no pair of sensors has {MIN_FRAMES} frames where both poses are valid "
+            f"(frames: {stats.n_frames}, most valid frames of one sensor: {int(np.max(per_sensor))})"
+        )
+    return stats, missing
+
+
+def _hierarchy(
+    residual: np.ndarray, names: tuple[str, ...], parent_of: Mapping[str, str] | None, root: str | None
+) -> Hierarchy:
+    """The given hierarchy, or the minimum spanning tree of the pair residuals."""
+    if parent_of is not None:
+        return hierarchy_from_parents(parent_of, names, root=root)
+    return spanning_tree(residual, root=None if root is None else names.index(root), names=names)
+
+
+def _solve_joints(  # positional: one private caller, whose call then fits on a line
+    R_w_s: Any,
+    p_w_s: Any,
+    valid: Any,
+    stats: PairStatistics,
+    tree: Hierarchy,
+    names: tuple[str, ...],
+    single_axis_ratio: float,
+    chunk_frames: int,
+    keep_frame_residuals: bool,
+) -> tuple[PairSolutions, np.ndarray, np.ndarray | None]:
+    """Solve the tree's joints; their ``(J,)`` rms residuals and ``(frames, J)`` per-frame
+    residuals (exact, from a second pass over the data, when ``keep_frame_residuals``), metres.
+
+    Raises:
+        CalibrationError: a joint's sensors share fewer than :data:`MIN_FRAMES` valid frames.
+    """
+    pairs = tree.joints
+    par = np.array([p for p, _ in pairs], dtype=np.int64)
+    chi = np.array([c for _, c in pairs], dtype=np.int64)
+    sol = solve_pairs(stats, par, chi, single_axis_ratio=single_axis_ratio)
+    too_few = [f"{names[p]}-{names[c]}" for k, (p, c) in enumerate(pairs) if sol.n_frames[k] < MIN_FRAMES]
+    if too_few:
+        raise CalibrationError(
+            f"joints with fewer than {MIN_FRAMES} frames where both sensors are valid: {too_few}"
+        )
+    if not keep_frame_residuals:
+        return sol, sol.rms_residual, None
+    rms, per_frame = frame_residuals(
+        R_w_s,
+        p_w_s,
+        par,
+        chi,
+        sol.joint_in_parent,
+        sol.joint_in_child,
+        valid=valid,
+        chunk_frames=chunk_frames,
+    )
+    return sol, rms, per_frame
+
+
+def _joint(
+    names: tuple[str, ...],
+    sol: PairSolutions,
+    k: int,
+    rms: np.ndarray,
+    per_frame: np.ndarray | None,
+    n_frames: int,
+    single_axis_ratio: float,
+) -> Joint:
+    """Joint ``k`` of the solved batch, with its spectrum read and its own copies of the arrays."""
+    spec = pair_fit_spectrum(sol, k, single_axis_ratio)
+    fit = JointFit(
+        joint_in_parent=sol.joint_in_parent[k].copy(),
+        joint_in_child=sol.joint_in_child[k].copy(),
+        rms_residual=float(rms[k]),
+        frame_residual=None if per_frame is None else per_frame[:, k].copy(),
+        singular_values=sol.singular_values[k].copy(),
+        rank=spec.rank,
+        single_axis=spec.single_axis,
+        axis_in_parent=spec.axis_in_parent,
+        axis_in_child=spec.axis_in_child,
+        n_frames=int(sol.n_frames[k]),
+        n_dropped=n_frames - int(sol.n_frames[k]),
+    )
+    return Joint(names[sol.parent[k]], names[sol.child[k]], fit)
+
+
+def _warnings(
+    joints: Sequence[Joint],
+    names: tuple[str, ...],
+    missing: np.ndarray,
+    loops: Sequence[tuple[str, str, float]],
+    n_frames: int,
+) -> list[str]:
+    """Plain-language notes: undetermined joints, dropped frames, missing poses, loop joints."""
+    warnings: list[str] = []
+    for joint in joints:
+        fit = joint.fit
+        if fit.single_axis:
+            warnings.append(
+                f"joint {joint.name}: single-axis in this motion (axis in {joint.parent} frame "
+                f"{np.round(fit.axis_in_parent, 3).tolist()}); its location along the axis is the "
+                "minimum-norm point, not a measured one"
+            )
+        elif fit.rank < 5:
+            warnings.append(
+                f"joint {joint.name}: the sensors hardly rotate relative to each other "
+                f"(rank {fit.rank} of 6); the motion does not determine this joint"
+            )
+        if fit.n_dropped:
+            warnings.append(
+                f"joint {joint.name}: {fit.n_dropped} of {n_frames} frames dropped "
+                "(a pose missing or not finite)"
+            )
+    for k in np.flatnonzero(missing):
+        warnings.append(f"sensor {names[k]}: pose missing or not finite in {missing[k]} of {n_frames} frames")
+    for a, b, r in loops:
+        warnings.append(
+            f"pair {a}-{b} left out of the hierarchy fits as well as its joints "
+            f"(rms {r * 1e3:.3g} mm): a loop joint, or sensors the motion does not tell apart"
+        )
+    return warnings

@@ -15,7 +15,7 @@ import numpy as np
 
 from calibration.errors import CalibrationInputError
 from calibration.hierarchy import Hierarchy
-from calibration.pairs import check_poses
+from calibration.poses import check_poses
 
 
 def remove_residual(

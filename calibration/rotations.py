@@ -3,6 +3,9 @@
 Quaternions are scalar-first ``(w, x, y, z)`` everywhere in this project (as in MuJoCo and in
 files); scipy is scalar-last by default, so every crossing passes ``scalar_first=True`` here and
 nowhere else. A quaternion ``q`` and ``-q`` are the same rotation.
+
+Also the two plain-numpy pieces the orientation estimators build on in their inner loops:
+:func:`skew` (the cross-product matrix) and :func:`axis_angle_to_matrix` (Rodrigues).
 """
 
 from __future__ import annotations
@@ -184,3 +187,21 @@ def quat_norm_deviation(q_wxyz: np.ndarray) -> np.ndarray:
     """``| |q| - 1 |`` for each quaternion, ``(..., 4) -> (...)``; NaN where ``q`` is not finite."""
     q = np.asarray(q_wxyz, dtype=float)
     return np.abs(np.linalg.norm(q, axis=-1) - 1.0)
+
+
+def skew(u: np.ndarray) -> np.ndarray:
+    """Cross-product matrices ``[u]x`` (``[u]x v == u x v``), ``(..., 3) -> (..., 3, 3)``."""
+    K = np.zeros((*u.shape[:-1], 3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -u[..., 2], u[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = u[..., 2], -u[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -u[..., 1], u[..., 0]
+    return K
+
+
+def axis_angle_to_matrix(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rodrigues: ``(..., 3, 3)`` rotations by ``angle`` (``(...)``, rad) about unit ``axis``
+    (``(..., 3)``). A zero axis gives the identity; no normalisation, no input checks (it serves
+    the estimators' inner loops)."""
+    K = skew(axis)
+    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
+    return np.eye(3) + s * K + (1 - c) * (K @ K)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from calibration import calibrate
 from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationInputError
 from calibration.rotations import rotvec_to_matrix
@@ -116,8 +117,6 @@ def test_bad_c3d_input(tmp_path):
 
 @pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data not beside the repository")
 def test_functional_hip_centre_on_real_data():
-    from calibration import calibrate
-
     spec = Path(__file__).resolve().parents[1] / "studies" / "hip_c3d.toml"
     rec = c3d_poses(SHARED_DATA / "biobuddy_right_hip.c3d", clusters=read_cluster_spec(spec))
     cal = calibrate(

@@ -7,6 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from calibration import SINGLE_AXIS_RATIO, CalibrationError, CalibrationInputError, fit_joint
+from calibration.joint import determined_directions
 from calibration.rotations import rotvec_to_matrix
 from simbench.sim.synthetic import HINGE, chain, linkage, simulate_motion
 from tests.helpers import pair_arrays
@@ -114,6 +115,23 @@ def test_error_shrinks_as_frames_grow():
     assert errors[0] > errors[1] > errors[2]
     assert errors[2] < 0.5 * errors[0]
     assert errors[0] < 0.01  # a few-mm noise gives a joint well under a centimetre off
+
+
+@pytest.mark.parametrize("batch", [(), (1,), (3, 1, 2)])
+def test_single_axis_rule_is_vectorised(batch):
+    rng = np.random.default_rng(3)
+    s = -np.sort(-rng.uniform(0.0, 1.0, (*batch, 6)), axis=-1)
+    flat = s.reshape(-1, 6)
+    flat[::2, 5] = 0.004 * flat[::2, 0]  # a single-axis fit in every other row
+    if flat.shape[0] > 1:
+        flat[1] = 0.0  # a fit with no determined direction at all
+    keep = determined_directions(s, SINGLE_AXIS_RATIO)
+    assert keep.shape == s.shape
+    # the rule row by row, as O'Brien 3.2 states it
+    for row, mask in zip(flat, keep.reshape(-1, 6), strict=True):
+        expect = (row >= SINGLE_AXIS_RATIO * row[0]) if row[0] > 0 else np.zeros(6, dtype=bool)
+        np.testing.assert_array_equal(mask, expect)
+    assert not keep.reshape(-1, 6)[0, 5]
 
 
 def test_rigid_pair_is_not_determined():

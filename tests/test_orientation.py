@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
 from calibration.errors import CalibrationInputError
+from calibration.hierarchy import hierarchy_from_parents
 from calibration.orientation import (
     Weighting,
     change_frame,
@@ -21,7 +23,13 @@ from calibration.orientation import (
     triad,
     wahba,
 )
+from calibration.posture import joint_positions, segment_alignment, segment_rotations
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
+from simbench.cli import main
+from simbench.io.imu import read_broad
+from simbench.orient import estimate
+from simbench.score import score_orientation
+from simbench.sim.session import SessionConfig, run_session
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -173,8 +181,6 @@ def test_reference_from_data():
 
 
 def test_mahony_follows_a_simulated_session():
-    from simbench.sim.session import SessionConfig, run_session
-
     ds = run_session(SessionConfig(model="linkage", motion="exercise", duration_s=8.0, rate_hz=240.0, seed=5))
     t = ds.truth.actual
     ref = reference(field_strength_ut=50.0, inclination_deg=60.0)
@@ -188,10 +194,6 @@ def test_mahony_follows_a_simulated_session():
 
 
 def test_posture_from_exact_orientations():
-    from calibration.hierarchy import hierarchy_from_parents
-    from calibration.posture import joint_positions, segment_alignment, segment_rotations
-    from simbench.sim.session import SessionConfig, run_session
-
     ds = run_session(SessionConfig(model="humanoid", motion="walk", duration_s=2.0, seed=6))
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
     lp, lc = ds.truth_joint_arrays()
@@ -209,10 +211,6 @@ def test_posture_from_exact_orientations():
     not SHARED_DATA.is_dir(), reason="../shared/data (BROAD trials) not beside the repository"
 )
 def test_broad_trials_load_and_score():
-    from simbench.io.imu import read_broad
-    from simbench.orient import estimate
-    from simbench.score import score_orientation
-
     def score(run, rec):
         return score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate).per_sensor
 
@@ -230,8 +228,6 @@ def test_broad_trials_load_and_score():
 
 
 def test_orient_command_on_a_dataset(tmp_path, capsys):
-    from simbench.cli import main
-
     h5 = tmp_path / "run.h5"
     assert (
         main(
@@ -265,10 +261,6 @@ def test_orient_command_on_a_dataset(tmp_path, capsys):
 
 
 def test_orient_bad_input(tmp_path, capsys):
-    import h5py
-
-    from simbench.cli import main
-
     bad = tmp_path / "bad.hdf5"
     with h5py.File(bad, "w") as fh:
         fh["imu_acc"] = np.zeros((10, 3))

@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from calibration import fit_joint, frame_residuals, pair_residual_matrix, pair_statistics, solve_pairs
+from calibration import (
+    CalibrationInputError,
+    fit_joint,
+    frame_residuals,
+    pair_residual_matrix,
+    pair_statistics,
+    solve_pairs,
+)
 from simbench.sim.synthetic import random_tree, simulate_motion
 from tests.helpers import pair_arrays
 
@@ -117,7 +124,5 @@ def test_input_not_modified(linkage_noisy):
 
 
 def test_shapes_checked():
-    from calibration import CalibrationInputError
-
     with pytest.raises(CalibrationInputError, match=r"Expected p_w_s to have shape \(4, 2, 3\)"):
         pair_statistics(np.zeros((4, 2, 3, 3)), np.zeros((4, 3, 3)))

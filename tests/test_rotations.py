@@ -7,7 +7,13 @@ import pytest
 from numpy.testing import assert_allclose
 
 from calibration.errors import CalibrationInputError
-from calibration.rotations import matrix_to_quat, matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
+from calibration.rotations import (
+    matrix_to_quat,
+    matrix_to_rotvec,
+    orthonormal_to_quat,
+    quat_to_matrix,
+    rotvec_to_matrix,
+)
 
 
 def test_scalar_first_golden():
@@ -43,8 +49,6 @@ def test_bad_shapes_and_zero():
 
 
 def test_fast_conversion_matches_scipy():
-    from calibration.rotations import orthonormal_to_quat
-
     rng = np.random.default_rng(5)
     R = rotvec_to_matrix(rng.normal(size=(20_000, 3)) * 3.0)
     # include every branch of Shepperd's method: angles near 0 and near pi about each axis

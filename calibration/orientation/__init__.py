@@ -1,0 +1,69 @@
+"""Sourceless orientation from accelerometer and magnetometer (Fontaine et al.), and references.
+
+A tracker of three accelerometers and three magnetometers, no gyroscope, no source: at every
+sample the accelerometer's specific force points up (when the sensor does not accelerate) and the
+magnetometer sees the Earth field; the orientation ``R_w_s`` (sensor to world) is the rotation
+that best carries those two measured vectors onto the world's up and field directions.
+
+**Frames.** World ENU by default (x east, y north, z up; the field points north and down by its
+inclination ``I``: ``b_w = (0, cos I, -sin I)``), or NED (x north, y east, z down). Every result
+says its frame. Quaternions are scalar-first ``(w, x, y, z)`` of ``R_w_s``. All functions are
+vectorised over any leading ``(...)`` axes (frames, sensors).
+
+**Modules**, one concept each (every public name is importable from this package):
+
+- :mod:`.world`: the reference vectors of a frame (:func:`reference`,
+  :func:`reference_from_data`, :func:`change_frame`), the common result :class:`Estimate`, and
+  BROAD's error angles (:func:`orientation_errors`).
+- :mod:`.two_vector`: :func:`triad` (the accelerometer primary) and :func:`wahba` (the optimal
+  weighted two-observation solution, closed form or SVD).
+- :mod:`.disturbance`: Fontaine's disturbance weighting (:class:`Weighting`, section 2.1.2) and
+  zero-phase temporal smoothing (:func:`smooth_vectors`, :func:`weighted_smooth`).
+- :mod:`.gauss_newton`: :func:`fontaine`, Fontaine et al.'s iterative estimator, Gauss-Newton on
+  a rotation vector, started from TRIAD; both it and :func:`wahba` take the weights.
+- :mod:`.complementary`: :func:`mahony`, a gyro-aided reference (Mahony's explicit
+  complementary filter), so users can see how far gyro-free estimation is from an established
+  fusion filter.
+
+Samples that cannot be estimated -- NaN input, a zero or near-zero vector, accelerometer and
+magnetometer (nearly) parallel, or masked out -- come back as NaN, never dropped, so outputs stay
+aligned with inputs.
+"""
+
+from calibration.orientation.complementary import mahony
+from calibration.orientation.disturbance import Weighting, smooth_vectors, weighted_smooth
+from calibration.orientation.gauss_newton import fontaine
+from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
+from calibration.orientation.world import (
+    FRAMES,
+    GRAVITY,
+    MIN_NORM_FRACTION,
+    R_NED_ENU,
+    Estimate,
+    Reference,
+    change_frame,
+    orientation_errors,
+    reference,
+    reference_from_data,
+)
+
+__all__ = [
+    "FRAMES",
+    "GRAVITY",
+    "MIN_NORM_FRACTION",
+    "MIN_SIN_ANGLE",
+    "R_NED_ENU",
+    "Estimate",
+    "Reference",
+    "Weighting",
+    "change_frame",
+    "fontaine",
+    "mahony",
+    "orientation_errors",
+    "reference",
+    "reference_from_data",
+    "smooth_vectors",
+    "triad",
+    "wahba",
+    "weighted_smooth",
+]
