@@ -22,8 +22,9 @@ import numpy as np
 from mujoco import rollout
 
 from simbench.sim.models import load_capture_model
+from simbench.sim.physics import initial_state
 from simbench.sim.programs import joint_targets, root_pose
-from simbench.sim.session import SessionConfig, _initial_state, plan_session, run_session
+from simbench.sim.session import SessionConfig, plan_session, run_session
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -43,7 +44,7 @@ def main() -> None:
     plan = plan_session(config, cm)
     program, phases = plan.program, plan.root_phases
     t = np.arange(n_steps) * m.opt.timestep
-    d = _initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
+    d = initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
     pos, quat = root_pose(program, d.mocap_pos[0].copy(), d.mocap_quat[0].copy(), t, phases)
     control = np.concatenate([joint_targets(program, cm, t), pos, quat], axis=1)[None]
     spec_state = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)

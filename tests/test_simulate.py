@@ -9,10 +9,12 @@ from numpy.testing import assert_allclose
 
 from calibration import calibrate
 from calibration.rotations import matrix_to_rotvec, quat_to_matrix
+from calibration.skeleton import segment_lengths
 from simbench.errors import InputError
 from simbench.sim.models import EARTH_FIELD_UT, load_capture_model
-from simbench.sim.programs import BUILTIN_PROGRAMS
-from simbench.sim.session import SessionConfig, run_session
+from simbench.sim.physics import SETTLE_S, initial_state
+from simbench.sim.programs import BUILTIN_PROGRAMS, joint_targets, root_pose
+from simbench.sim.session import SessionConfig, plan_session, run_session
 
 MODELS = ("linkage", "humanoid", "dm_control:humanoid_CMU")
 
@@ -57,16 +59,13 @@ def test_same_seed_same_dataset_other_seed_differs(capture_models):
 
 def test_readings_are_mujocos_sensors_at_the_sample_times(capture_models):
     """Replay the same controls with a plain mj_step loop: every sample equals MuJoCo's data."""
-    from simbench.sim.programs import joint_targets, root_pose
-    from simbench.sim.session import SETTLE_S, _initial_state, plan_session
-
     cm = load_capture_model("linkage")
     config = SessionConfig(motion="exercise", duration_s=0.25, seed=2)
     ds = run_session(config, cm)
     plan = plan_session(config, cm)
     program, phases = plan.program, plan.root_phases
     m = cm.model
-    d = _initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
+    d = initial_state(cm, joint_targets(program, cm, np.zeros(1))[0])
     p0, q0 = d.mocap_pos[0].copy(), d.mocap_quat[0].copy()
     k = ds.meta["steps_per_sample"]
     for _ in range(round(SETTLE_S / m.opt.timestep)):  # settle holding the first set-points
@@ -118,8 +117,6 @@ def test_noise_free_session_calibrates_exactly(capture_models, model):
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, root=ds.sensors[0])
     assert cal.parent_of == ds.truth.parent_of
     index = {name: k for k, name in enumerate(ds.sensors)}
-    from calibration.skeleton import segment_lengths
-
     joints = [(index[p], index[c]) for p, c in zip(ds.truth.parent, ds.truth.child, strict=True)]
     truth = {
         (x.segment, x.joint_a, x.joint_b): x.length

@@ -29,7 +29,7 @@ unknown key or out-of-range value is an error naming the file and key::
     time_s = 10.0
     offset_m = [0.0, 0.03, 0.0]
 
-Presets ship in ``simbench/presets/<name>.toml`` (``ideal``, ``ascension-flock``,
+Presets ship in ``simbench/sim/presets/<name>.toml`` (``ideal``, ``ascension-flock``,
 ``polhemus-liberty``, ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``); each file
 says where its numbers come from.
 """
@@ -45,7 +45,7 @@ import numpy as np
 
 from simbench.errors import InputError, load_toml
 from simbench.sim.sensor_models import Distortion, ImuConfig, TrackerConfig
-from simbench.sim.skin import SlipEvent
+from simbench.sim.skin import SkinSlip
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 
@@ -81,7 +81,7 @@ class FieldConfig:
 
 @dataclass(frozen=True)
 class SkinConfig:
-    """Skin slip and non-ideal joints (see :mod:`simbench.sim.skin` and :mod:`simbench.sim.models`).
+    """Skin slip and non-ideal joints (see :mod:`simbench.sim.skin` and :mod:`simbench.sim.mounts`).
 
     Attributes:
         sta_amplitude_m: soft-tissue artefact amplitude of every sensor, m.
@@ -99,7 +99,7 @@ class SkinConfig:
     sta_amplitude_m: float = 0.0
     sta_by_sensor: dict[str, float] = field(default_factory=dict)
     laxity_by_joint: dict[str, float] = field(default_factory=dict)
-    slip: tuple[SlipEvent, ...] = ()
+    slip: tuple[SkinSlip, ...] = ()
     mount_stiffness_n_per_m: float = 0.0
     mount_rot_stiffness_nm_per_rad: float = 0.0
     mount_damping_ratio: float = 0.3
@@ -153,7 +153,7 @@ def _build(cls: type, table: Any, where: str) -> Any:
         raise InputError(f"{where}: unknown keys {unknown}; expected some of {sorted(names)}")
     kwargs: dict[str, Any] = {}
     for key, value in table.items():
-        sub = {"distortion": Distortion, "disturbance": Disturbance, "slip": SlipEvent}.get(key)
+        sub = {"distortion": Distortion, "disturbance": Disturbance, "slip": SkinSlip}.get(key)
         if sub is not None:
             if not isinstance(value, list):
                 raise InputError(f"{where}.{key}: expected an array of tables ([[{where}.{key}]])")

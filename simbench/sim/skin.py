@@ -2,7 +2,7 @@
 
 Real sensors sit on skin, not bone, and real joints are not ideal. Three kinematic effects are
 modelled here as pure functions of the bone-rigid truth (the soft-tissue *mount*, where slip
-arises from physics, is part of the MuJoCo model: :mod:`simbench.sim.models`):
+arises from physics, is part of the MuJoCo model: :mod:`simbench.sim.mounts`):
 
 - **soft-tissue artefact** (STA): each sensor's offset from its bone placement is a smooth
   function of the rotations of the joints next to its segment,
@@ -12,8 +12,9 @@ arises from physics, is part of the MuJoCo model: :mod:`simbench.sim.models`):
   rotation (centimetres on the thigh over the knee's range, DESIGN.md), following the motion as
   skin does. Being a function of the joint angles, STA biases the joint centre a calibration
   finds, which is what makes it the dominant error on people;
-- **slip events**: a sensor shifts on its segment by a fixed offset (segment frame), starting at
-  a given time and taking :data:`SLIP_DURATION_S` (a smooth step), and stays there;
+- **slip events** (:class:`SkinSlip`): a sensor shifts on its segment by a fixed offset
+  (segment frame) at a given time -- a step, complete from the first sample at or after that
+  time -- and stays there;
 - **joint laxity**: a joint's centre moves relative to its parent segment by
   ``d(t) = L tanh(W phi(t))`` (parent segment frame), a few millimetres as real knees do
   (Lafortune et al. 1992 in O'Brien et al.: 7 mm compression, 14.3 mm front-back, 5.6 mm
@@ -33,13 +34,20 @@ import numpy as np
 from calibration.rotations import matrix_to_rotvec, quat_to_matrix
 from simbench.errors import InputError
 
-#: How long a slip event takes, s: a smooth (C1) step, so accelerations stay finite.
-SLIP_DURATION_S = 0.05
-
 
 @dataclass(frozen=True)
-class SlipEvent:
-    """A sensor that shifts on its segment by ``offset_m`` (segment frame) from ``time_s`` on."""
+class SkinSlip:
+    """A slip the simulation injects: a sensor shifts on its segment by ``offset_m`` from ``time_s`` on.
+
+    Configured as ``[[skin.slip]]`` (:mod:`simbench.sim.sensor_config`); not to be confused with
+    :class:`calibration.slip.SlipEvent`, a slip the detector finds in a recording.
+
+    Attributes:
+        sensor: name of the sensor that slips.
+        time_s: when the sensor slips, s (>= 0): a step, complete from the first sample at or
+            after ``time_s``.
+        offset_m: ``(3,)`` the shift in the segment frame, m.
+    """
 
     sensor: str
     time_s: float
@@ -107,7 +115,7 @@ def soft_tissue_offsets(
     return out
 
 
-def slip_offsets(time_s: np.ndarray, sensors: Sequence[str], slips: Sequence[SlipEvent]) -> np.ndarray:
+def slip_offsets(time_s: np.ndarray, sensors: Sequence[str], slips: Sequence[SkinSlip]) -> np.ndarray:
     """``(F, N, 3)`` offsets (segment frame, m) of slip events: zero before, the offset after."""
     index = {name: k for k, name in enumerate(sensors)}
     out = np.zeros((time_s.size, len(sensors), 3))

@@ -1,0 +1,163 @@
+"""What a capture session is asked to be, and everything about it fixed before physics runs.
+
+A :class:`SessionConfig` names the model, motion, duration, rate, seed and sensors;
+:func:`plan_session` turns it into a :class:`SessionPlan` against a loaded model: the motion
+program, the root's phases, the physics timestep (the model's, or slightly finer so that the
+capture period is a whole number ``k`` of steps) and the random streams of the sensor models,
+all drawn from the session seed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from simbench.errors import InputError
+from simbench.sim.models import CaptureModel, Mount, load_capture_model
+from simbench.sim.programs import BUILTIN_PROGRAMS, Program, builtin_program, load_program
+from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """What a capture session is asked to be.
+
+    Attributes:
+        model: model name (``linkage``, ``humanoid``, ``dm_control:NAME``, an MJCF path).
+        motion: built-in program name or a program TOML path.
+        duration_s: session length, s (> 0).
+        rate_hz: capture rate, Hz (> 0, at most the model's physics rate).
+        seed: seed of the session's ``numpy.random.Generator``.
+        sensor_bodies: bodies carrying a sensor, or ``None`` for the model's default.
+        sensors: sensor preset name, configuration TOML path, or a :class:`SensorConfig`
+            (:mod:`simbench.sim.sensor_config`).
+        placement: ``((sensor, (dx, dy, dz)), ...)`` sensor shifts in their body frames, m.
+    """
+
+    model: str = "linkage"
+    motion: str = "exercise"
+    duration_s: float = 20.0
+    rate_hz: float = 120.0
+    seed: int = 0
+    sensor_bodies: tuple[str, ...] | None = None
+    sensors: str | SensorConfig = "ideal"
+    placement: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.duration_s) and self.duration_s > 0):
+            raise InputError(f"duration must be > 0 s, got {self.duration_s}")
+        if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
+            raise InputError(f"rate must be > 0 Hz, got {self.rate_hz}")
+
+    def as_dict(self) -> dict:
+        """JSON-ready copy."""
+        return {
+            "model": self.model,
+            "motion": self.motion,
+            "duration_s": self.duration_s,
+            "rate_hz": self.rate_hz,
+            "seed": self.seed,
+            "sensor_bodies": None if self.sensor_bodies is None else list(self.sensor_bodies),
+            "sensors": self.sensors if isinstance(self.sensors, str) else self.sensors.as_dict(),
+            "placement": {k: list(v) for k, v in self.placement},
+        }
+
+
+@dataclass(frozen=True)
+class SessionPlan:
+    """What a session will do, fixed before any physics runs.
+
+    Attributes:
+        program: the motion program.
+        root_phases: ``(12,)`` phases of the root's motion, rad.
+        steps_per_sample: physics steps per capture sample ``k``.
+        timestep: physics timestep, s.
+        n_samples: samples to record.
+        sensors: the sensor configuration.
+        streams: independent random generators for the ``skin``, ``tracker`` and ``imu`` models
+            (so that switching one imperfection on does not change another's draws).
+    """
+
+    program: Program
+    root_phases: np.ndarray
+    steps_per_sample: int
+    timestep: float
+    n_samples: int
+    sensors: SensorConfig
+    streams: dict[str, np.random.Generator]
+
+
+def steps_per_sample(model_timestep: float, rate_hz: float) -> tuple[int, float]:
+    """``(k, dt)``: physics steps per sample and the timestep, ``dt <= model_timestep``.
+
+    Raises:
+        InputError: when the capture rate is above the model's physics rate.
+    """
+    period = 1.0 / rate_hz
+    if period < model_timestep * (1 - 1e-9):
+        raise InputError(
+            f"capture rate {rate_hz:g} Hz is above the model's physics rate {1 / model_timestep:g} Hz"
+        )
+    k = max(1, math.ceil(period / model_timestep - 1e-9))
+    return k, period / k
+
+
+def _program(config: SessionConfig, cm: CaptureModel, rng: np.random.Generator) -> Program:
+    if config.motion in BUILTIN_PROGRAMS:
+        return builtin_program(config.motion, cm, config.duration_s, rng)
+    if config.motion.endswith(".toml"):
+        return load_program(config.motion, cm)
+    raise InputError(
+        f"unknown motion {config.motion!r}: expected one of {', '.join(BUILTIN_PROGRAMS)} or a .toml file"
+    )
+
+
+def _mount_of(sensors: SensorConfig) -> Mount | None:
+    skin = sensors.skin
+    if not skin.has_mount:
+        return None
+    return Mount(
+        stiffness_n_per_m=skin.mount_stiffness_n_per_m,
+        rot_stiffness_nm_per_rad=skin.mount_rot_stiffness_nm_per_rad,
+        damping_ratio=skin.mount_damping_ratio,
+        mass_kg=skin.mount_mass_kg,
+    )
+
+
+def _sensors(config: SessionConfig) -> SensorConfig:
+    return config.sensors if isinstance(config.sensors, SensorConfig) else load_sensor_config(config.sensors)
+
+
+def load_session_model(config: SessionConfig) -> CaptureModel:
+    """The capture model a session needs (with the soft-tissue mount its sensors ask for)."""
+    sensors = _sensors(config)
+    return load_capture_model(
+        config.model,
+        sensor_bodies=config.sensor_bodies,
+        mount=_mount_of(sensors),
+        placement=dict(config.placement),
+    )
+
+
+def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
+    """Draw everything random about a session from its seed, and check it against the model."""
+    sensors = _sensors(config)
+    if _mount_of(sensors) != cm.mount:
+        raise InputError(
+            f"sensors {config.sensors!r} need mount {_mount_of(sensors)}; the model was loaded with "
+            f"{cm.mount} (load it with load_session_model)"
+        )
+    k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
+    n_samples = math.floor(config.duration_s * config.rate_hz + 1e-9)
+    if n_samples < 2:
+        raise InputError(f"duration {config.duration_s} s at {config.rate_hz} Hz gives fewer than 2 samples")
+    seeds = np.random.SeedSequence(config.seed).spawn(5)
+    motion_rng = np.random.default_rng(seeds[0])
+    program = _program(config, cm, motion_rng)
+    root_phases = np.random.default_rng(seeds[1]).uniform(0, 2 * np.pi, 12)
+    streams = {
+        name: np.random.default_rng(s) for name, s in zip(("skin", "tracker", "imu"), seeds[2:], strict=True)
+    }
+    return SessionPlan(program, root_phases, k, dt, n_samples, sensors, streams)
