@@ -59,6 +59,16 @@ def test_report_images_are_real_pictures(quick_report):
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") == 5  # self-contained
 
 
+def test_report_html_renders_the_markdown(quick_report):
+    md = (quick_report / "index.md").read_text()
+    html = (quick_report / "index.html").read_text()
+    assert "|:---|---:|---:|---:|---:|---:|" in md  # linkage table: names left, numbers right
+    assert "<title>simbench validation report</title>" in html and "<code>ascension-flock</code>" in html
+    assert '<td style="text-align:left">Neck - Left Shoulder</td>' in html
+    assert html.count('<td style="text-align:right">') > 40
+    assert "`" not in html and "|---" not in html  # inline code and tables were rendered
+
+
 def test_validation_is_deterministic(quick_report, tmp_path):
     assert main(["validate", "--quick", "--out", str(tmp_path), "--no-progress"]) == 0
     a = json.loads((quick_report / "results.json").read_text())
@@ -108,11 +118,18 @@ def test_dataset_report(tmp_path, capsys):
         assert label in md and "Hierarchy: correct" in md and "chest: chest-head / chest-upper_arm_l" in md
         doc = json.loads((out / "results.json").read_text())
         assert len(doc["joints"]) == 5 and len(doc["lengths_cm"]) == 5
+        html = (out / "index.html").read_text()
+        assert f"<title>simbench report: {h5}</title>" in html and html.count("data:image/png;base64,") == 1
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
     capsys.readouterr()
     assert main(["report", str(h5), "--calibration", str(bad), "--out", str(tmp_path / "x")]) == 2
     assert "not a calibration JSON" in capsys.readouterr().err
+    other = json.loads(cal_json.read_text())
+    other["joints"][0]["child"] = "tail"
+    bad.write_text(json.dumps(other))
+    assert main(["report", str(h5), "--calibration", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "bad.json: names sensors the data lacks: ['tail']" in capsys.readouterr().err
 
 
 def test_accuracy_has_not_regressed():

@@ -5,6 +5,9 @@ The fields of DESIGN.md (``units``, ``root``, ``joints`` with ``parent``, ``chil
 ``axis_in_child``) are kept as they are; everything else is added beside them. Lengths are in
 ``units`` (always ``"m"`` here); a value JSON cannot hold (an infinite condition number) is
 written as ``null``.
+
+:func:`read_calibration_json` reads such a file back (checking the fields the readers need) and
+:func:`calibration_joints` turns its joints into arrays indexed by a recording's sensors.
 """
 
 from __future__ import annotations
@@ -13,12 +16,15 @@ import json
 import math
 import os
 from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from calibration.pipeline import Calibration
+from calibration.pipeline import Calibration, Joint
 from calibration.slip import SlipReport
+from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
 from simbench.versions import software_versions
 
@@ -33,6 +39,65 @@ def _num(x: float) -> float | None:
 
 def _vec(v: np.ndarray | None) -> list[float] | None:
     return None if v is None else [float(a) for a in np.asarray(v)]
+
+
+def _joint_dict(joint: Joint) -> dict[str, Any]:
+    """One joint: the fields of DESIGN.md, then the fit's diagnostics."""
+    fit = joint.fit
+    s = fit.singular_values
+    return {
+        "parent": joint.parent,
+        "child": joint.child,
+        "joint_in_parent": _vec(fit.joint_in_parent),
+        "joint_in_child": _vec(fit.joint_in_child),
+        "rms_residual": float(fit.rms_residual),
+        "single_axis": bool(fit.single_axis),
+        "axis_in_parent": _vec(fit.axis_in_parent),
+        "axis_in_child": _vec(fit.axis_in_child),
+        "max_residual": (
+            _num(np.nanmax(fit.frame_residual))
+            if fit.frame_residual is not None and np.isfinite(fit.frame_residual).any()
+            else None
+        ),
+        "rank": fit.rank,
+        "singular_values_per_sqrt_frame": [float(x) for x in s / math.sqrt(max(fit.n_frames, 1))],
+        "condition": _num(fit.condition),
+        "n_frames": fit.n_frames,
+        "n_dropped": fit.n_dropped,
+    }
+
+
+def _slip_dict(name: str, rep: SlipReport, time_s: np.ndarray | None) -> dict[str, Any]:
+    """Slip detection on one joint; times in seconds when ``time_s`` is given, else ``None``."""
+
+    def t(frame: int) -> float | None:
+        if time_s is None:
+            return None
+        return float(time_s[min(frame, len(time_s) - 1)])
+
+    def t_end(stop: int) -> float | None:
+        if time_s is None:
+            return None
+        return float(time_s[stop - 1])
+
+    return {
+        "joint": name,
+        "window_frames": rep.window,
+        "noise": float(rep.noise),
+        "events": [
+            {
+                "frame": ev.frame,
+                "time_s": t(ev.frame),
+                "jump": ev.jump,
+                "sensor": ev.sensor_frame,
+                "z": _num(ev.z),
+            }
+            for ev in rep.events
+        ],
+        "intervals": [
+            {"start_frame": a, "stop_frame": b, "start_s": t(a), "end_s": t_end(b)} for a, b in rep.intervals
+        ],
+    }
 
 
 def calibration_to_dict(
@@ -54,72 +119,13 @@ def calibration_to_dict(
         notes: what the reader repaired or noticed.
         options: the options the calibration ran with.
     """
-    joints = []
-    for j in cal.joints:
-        fit = j.fit
-        s = fit.singular_values
-        joints.append(
-            {
-                "parent": j.parent,
-                "child": j.child,
-                "joint_in_parent": _vec(fit.joint_in_parent),
-                "joint_in_child": _vec(fit.joint_in_child),
-                "rms_residual": float(fit.rms_residual),
-                "single_axis": bool(fit.single_axis),
-                "axis_in_parent": _vec(fit.axis_in_parent),
-                "axis_in_child": _vec(fit.axis_in_child),
-                "max_residual": (
-                    _num(np.nanmax(fit.frame_residual))
-                    if fit.frame_residual is not None and np.isfinite(fit.frame_residual).any()
-                    else None
-                ),
-                "rank": fit.rank,
-                "singular_values_per_sqrt_frame": [float(x) for x in s / math.sqrt(max(fit.n_frames, 1))],
-                "condition": _num(fit.condition),
-                "n_frames": fit.n_frames,
-                "n_dropped": fit.n_dropped,
-            }
-        )
-
-    def t(frame: int) -> float | None:
-        if time_s is None:
-            return None
-        return float(time_s[min(frame, len(time_s) - 1)])
-
-    def t_end(stop: int) -> float | None:
-        if time_s is None:
-            return None
-        return float(time_s[stop - 1])
-
-    slip_out = [
-        {
-            "joint": name,
-            "window_frames": rep.window,
-            "noise": float(rep.noise),
-            "events": [
-                {
-                    "frame": ev.frame,
-                    "time_s": t(ev.frame),
-                    "jump": ev.jump,
-                    "sensor": ev.sensor_frame,
-                    "z": _num(ev.z),
-                }
-                for ev in rep.events
-            ],
-            "intervals": [
-                {"start_frame": a, "stop_frame": b, "start_s": t(a), "end_s": t_end(b)}
-                for a, b in rep.intervals
-            ],
-        }
-        for name, rep in slips
-    ]
     return {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "units": "m",
         "root": cal.root,
         "hierarchy": "given" if cal.hierarchy_given else "inferred",
-        "joints": joints,
+        "joints": [_joint_dict(j) for j in cal.joints],
         "limb_lengths": [
             {"segment": x.segment, "joint_a": x.joint_a, "joint_b": x.joint_b, "length": x.length}
             for x in cal.lengths
@@ -134,7 +140,7 @@ def calibration_to_dict(
             for pl in cal.placements
         ],
         "loop_candidates": [{"a": a, "b": b, "rms_residual": r} for a, b, r in cal.loop_candidates],
-        "slip": slip_out,
+        "slip": [_slip_dict(name, rep, time_s) for name, rep in slips],
         "warnings": list(cal.warnings),
         "notes": list(notes),
         "input": dict(input_info or {}),
@@ -147,3 +153,111 @@ def calibration_to_dict(
 def write_calibration_json(path: str | os.PathLike[str], doc: dict[str, Any]) -> None:
     """Write a calibration dict as JSON, atomically."""
     atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+
+
+def _check_joint(path: Path, k: int, joint: Any) -> None:
+    """Raise an :class:`InputError` naming what ``joints[k]`` lacks."""
+    where = f"{path}: not a calibration JSON: joints[{k}]"
+    if not isinstance(joint, dict):
+        raise InputError(f"{where} is not an object")
+    for key in ("parent", "child"):
+        if not isinstance(joint.get(key), str):
+            raise InputError(f"{where} has no sensor name {key!r}")
+    for key in ("joint_in_parent", "joint_in_child"):
+        value = joint.get(key)
+        if not (
+            isinstance(value, list)
+            and len(value) == 3
+            and all(isinstance(x, int | float) and not isinstance(x, bool) for x in value)
+        ):
+            raise InputError(f"{where}: expected {key!r} to be a list of 3 numbers, got {value!r}")
+    if not isinstance(joint.get("single_axis", False), bool | None):
+        raise InputError(f"{where}: expected 'single_axis' to be true or false, got {joint['single_axis']!r}")
+
+
+def read_calibration_json(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read a calibration JSON (``simbench calibrate --json``, ``simbench simulate --truth-json``).
+
+    Checks what readers of the file rely on: a JSON object with a ``joints`` list whose entries
+    name their ``parent`` and ``child`` sensors and give ``joint_in_parent`` and
+    ``joint_in_child`` as 3 numbers each (in the document's ``units``).
+
+    Returns:
+        The document as parsed.
+
+    Raises:
+        InputError: naming the file and what is wrong (cannot read, not JSON, a missing field).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a calibration JSON: not UTF-8 text") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(
+            f"{path}, line {exc.lineno}: not a calibration JSON: not valid JSON: {exc.msg}"
+        ) from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("joints"), list):
+        raise InputError(f'{path}: not a calibration JSON: expected an object with a "joints" list')
+    for k, joint in enumerate(doc["joints"]):
+        _check_joint(path, k, joint)
+    return doc
+
+
+@dataclass(frozen=True)
+class CalibrationJoints:
+    """The joints of a calibration JSON as arrays, indexed by a recording's sensors.
+
+    Attributes:
+        parent, child: ``(J,)`` sensor names of each joint.
+        parent_index, child_index: ``(J,)`` indices of those sensors in the recording.
+        joint_in_parent, joint_in_child: ``(J, 3)`` joint centres in the parent's and the child's
+            sensor frame, in the document's ``units``.
+        single_axis: ``(J,)`` whether the joint was found to turn about one axis only.
+    """
+
+    parent: tuple[str, ...]
+    child: tuple[str, ...]
+    parent_index: np.ndarray
+    child_index: np.ndarray
+    joint_in_parent: np.ndarray
+    joint_in_child: np.ndarray
+    single_axis: np.ndarray
+
+    @property
+    def parent_of(self) -> dict[str, str]:
+        """``{child: parent}``."""
+        return dict(zip(self.child, self.parent, strict=True))
+
+
+def calibration_joints(
+    doc: dict[str, Any], names: Sequence[str], *, source: str | os.PathLike[str] = "the calibration"
+) -> CalibrationJoints:
+    """The joints of a calibration document (:func:`read_calibration_json`) as arrays.
+
+    Args:
+        doc: the document.
+        names: the recording's sensor names, which the joints' sensors index into.
+        source: where the document came from (its path), for messages.
+
+    Raises:
+        InputError: a joint names a sensor that ``names`` lacks.
+    """
+    entries = doc["joints"]
+    index = {name: k for k, name in enumerate(names)}
+    unknown = sorted({name for j in entries for name in (j["parent"], j["child"])} - index.keys())
+    if unknown:
+        raise InputError(f"{source}: names sensors the data lacks: {unknown} (sensors are {list(names)})")
+    return CalibrationJoints(
+        parent=tuple(j["parent"] for j in entries),
+        child=tuple(j["child"] for j in entries),
+        parent_index=np.array([index[j["parent"]] for j in entries], dtype=int),
+        child_index=np.array([index[j["child"]] for j in entries], dtype=int),
+        joint_in_parent=np.array([j["joint_in_parent"] for j in entries], dtype=float).reshape(-1, 3),
+        joint_in_child=np.array([j["joint_in_child"] for j in entries], dtype=float).reshape(-1, 3),
+        single_axis=np.array([bool(j.get("single_axis")) for j in entries], dtype=bool),
+    )
