@@ -12,6 +12,7 @@ and the per-trial overhead of the executor relative to a trial (target < 5 %).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import json
 import platform
 import tempfile
@@ -19,6 +20,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from simbench.experiments import study as st
 from simbench.experiments import sweep as sw
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -52,8 +54,8 @@ def main() -> None:
         tmp = Path(tmp_s)
         path = tmp / "study.toml"
         path.write_text(STUDY.format(seeds=max(1, args.trials // 10)))
-        study = sw.load_study(path)
-        todo = sw.trials(study)
+        study = st.load_study(path)
+        todo = st.trials(study)
         n = len(todo)
         t0 = time.perf_counter()
         for t in todo:
@@ -65,25 +67,11 @@ def main() -> None:
             with ProcessPoolExecutor(workers) as ex:
                 sw.run_study(study, tmp / label, executor=ex)
             times[label] = time.perf_counter() - t0
-        try:
-            import distributed
-
-            with (
-                distributed.LocalCluster(
-                    n_workers=2,
-                    threads_per_worker=1,
-                    processes=True,
-                    protocol="tcp",
-                    host="127.0.0.1",
-                    dashboard_address=None,
-                ) as cluster,
-                distributed.Client(cluster) as client,
-            ):
+        if importlib.util.find_spec("distributed") is not None:  # the studies extra has it
+            with sw.local_dask_executor(2) as executor:
                 t0 = time.perf_counter()
-                sw.run_study(study, tmp / "dask-2", executor=client.get_executor())
+                sw.run_study(study, tmp / "dask-2", executor=executor)
                 times["dask-2"] = time.perf_counter() - t0
-        except ImportError:
-            pass
     out = {
         "trials": n,
         "seconds": times,

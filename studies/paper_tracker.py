@@ -14,7 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
-from simbench.experiments.validate import PAPER, Plan, _linkage, rigid_pair_scale
+from simbench.experiments.validate import PAPER, Plan, linkage_experiment, rigid_pair_scale
 
 
 def main() -> None:
@@ -22,7 +22,7 @@ def main() -> None:
     parser.add_argument("--json", metavar="OUT")
     args = parser.parse_args()
     scale = rigid_pair_scale()
-    linkage = _linkage(Plan.of(quick=False), scale["scale"], keep={})
+    linkage = linkage_experiment(Plan.of(quick=False), scale["scale"])
     print("Two sensors rigidly 56.5 cm apart, ascension-flock preset")
     print(f"  {'':24}{'paper':>10}{'simbench':>10}")
     print(f"  {'scale factor':24}{PAPER['unit_scale']:>10.3f}{scale['scale']:>10.3f}")

@@ -1,4 +1,5 @@
-"""Studies (issue 7): identical rows for any executor, resumption after a kill, bad files, effects."""
+"""Studies (issue 7): identical rows for any executor, resumption after a kill, bad files, effects,
+the base session's defaults, the error when the optional packages are missing, the report."""
 
 from __future__ import annotations
 
@@ -13,8 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from simbench.cli import main
 from simbench.errors import InputError
+from simbench.experiments import study as st
 from simbench.experiments import sweep as sw
+from simbench.report import study as study_report
+from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 STUDY = """
 name = "small"
@@ -50,7 +55,7 @@ def rows(table) -> list[dict]:
 
 
 def test_one_or_two_workers_give_identical_rows(tmp_path):
-    study = sw.load_study(study_file(tmp_path))
+    study = st.load_study(study_file(tmp_path))
     one = sw.run_study(study, tmp_path / "one", workers=1)
     two = sw.run_study(study, tmp_path / "two", workers=2)
     assert len(rows(one)) == 4 and rows(one) == rows(two)
@@ -58,22 +63,11 @@ def test_one_or_two_workers_give_identical_rows(tmp_path):
 
 
 def test_dask_local_cluster_gives_identical_rows(tmp_path):
-    distributed = pytest.importorskip("distributed")
-    study = sw.load_study(study_file(tmp_path))
+    pytest.importorskip("distributed")
+    study = st.load_study(study_file(tmp_path))
     local = sw.run_study(study, tmp_path / "local", workers=1)
-    with (
-        distributed.LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            protocol="tcp",
-            host="127.0.0.1",
-            dashboard_address=None,
-        ) as cluster,
-        distributed.Client(cluster) as client,
-    ):
-        assert cluster.scheduler_address.startswith("tcp://127.0.0.1")
-        dask = sw.run_study(study, tmp_path / "dask", executor=client.get_executor())
+    with sw.local_dask_executor(2) as executor:  # two worker processes over loopback TCP
+        dask = sw.run_study(study, tmp_path / "dask", executor=executor)
     assert rows(dask) == rows(local)
 
 
@@ -106,12 +100,12 @@ def test_killed_study_resumes_with_each_trial_once(tmp_path):
     table = sw.gather(out)
     ids = table.column("trial").to_pylist()
     assert len(ids) == 8 and len(set(ids)) == 8
-    fresh = sw.run_study(sw.load_study(path), tmp_path / "fresh", workers=2)
+    fresh = sw.run_study(st.load_study(path), tmp_path / "fresh", workers=2)
     assert rows(table) == rows(fresh)
 
 
 def test_error_grows_with_noise(tmp_path):
-    study = sw.load_study(study_file(tmp_path, duration=6.0, values="[0.0, 12.0]"))
+    study = st.load_study(study_file(tmp_path, duration=6.0, values="[0.0, 12.0]"))
     table = sw.run_study(study, tmp_path / "noise", executor=ProcessPoolExecutor(2))
     data = table.to_pydict()
     noise = np.array(data["sensors.tracker.position_noise_m"])
@@ -139,12 +133,10 @@ def test_bad_study_files_are_rejected_before_any_work(tmp_path, patch, message):
     path = study_file(tmp_path)
     path.write_text(path.read_text().replace(*patch))
     with pytest.raises(InputError, match=message):
-        sw.load_study(path)
+        st.load_study(path)
 
 
 def test_cli_rejects_bad_study_without_output(tmp_path, capsys):
-    from simbench.cli import main
-
     path = study_file(tmp_path)
     path.write_text(path.read_text().replace("ascension-flock", "no-such-preset"))
     assert main(["sweep", str(path), "--out", str(tmp_path / "o")]) == 2
@@ -159,16 +151,14 @@ def test_random_sampling_is_seeded_and_in_range(tmp_path):
         .replace('kind = "grid"', 'kind = "random"\nsamples = 50')
         .replace("values = [0]", "low = 1.0\nhigh = 10.0\nlog = true")
     )
-    study = sw.load_study(path)
-    a, b = sw.trials(study), sw.trials(study)
+    study = st.load_study(path)
+    a, b = st.trials(study), st.trials(study)
     assert a == b and len(a) == 100
     v = np.array([t.params[0][1] for t in a])
     assert v.min() >= 0.001 and v.max() <= 0.010  # mm converted to metres
 
 
 def test_placement_parameter_moves_the_sensor(tmp_path):
-    from simbench.sim.session import SessionConfig, load_session_model, run_session
-
     base = run_session(SessionConfig(duration_s=1.0))
     shifted_cfg = SessionConfig(duration_s=1.0, placement=(("forearm_l", (0.05, -0.02, 0.0)),))
     shifted = run_session(shifted_cfg, load_session_model(shifted_cfg))
@@ -183,11 +173,96 @@ def test_placement_parameter_moves_the_sensor(tmp_path):
         .replace('unit = "mm"', 'unit = "cm"')
         .replace("values = [0.0]", "values = [-5.0, 5.0]")
     )
-    study = sw.load_study(path)
-    assert [t.params for t in sw.trials(study)][::2] == [
+    study = st.load_study(path)
+    assert [t.params for t in st.trials(study)][::2] == [
         (("placement.forearm_l.x_m", -0.05),),
         (("placement.forearm_l.x_m", 0.05),),
     ]
     path.write_text(path.read_text().replace("placement.forearm_l.x_m", "placement.forearm_l.w"))
     with pytest.raises(InputError, match=r"expected placement\.<sensor>\.x_m"):
-        sw.load_study(path)
+        st.load_study(path)
+
+
+def test_base_session_takes_session_config_defaults(tmp_path):
+    path = study_file(tmp_path)
+    text = path.read_text().replace('model = "linkage"\n', "").replace("duration_s = 3.0\n", "")
+    path.write_text(text.replace('sensors = "ascension-flock"\n', ""))
+    study = st.load_study(path)
+    assert study.base == {"motion": "exercise", "sensors": SessionConfig().sensors}
+    config = st.trial_config(study, st.trials(study)[-1])
+    defaults = SessionConfig()
+    assert (config.model, config.duration_s, config.rate_hz) == (
+        defaults.model,
+        defaults.duration_s,
+        defaults.rate_hz,
+    )
+    assert config.sensors.tracker.position_noise_m == 0.008  # the trial's value, in metres
+    assert config.seed == st.trials(study)[-1].seed
+
+
+@pytest.mark.parametrize(
+    ("patch", "message"),
+    [
+        (("duration_s = 3.0", "duration_s = 0.0"), "base: duration must be > 0 s"),
+        (("duration_s = 3.0", 'duration_s = "3"'), "base.duration_s: expected a number"),
+        (('model = "linkage"', "model = 1"), "base.model: expected a string"),
+    ],
+)
+def test_bad_base_session_is_rejected_when_loading(tmp_path, patch, message):
+    path = study_file(tmp_path)
+    path.write_text(path.read_text().replace(*patch))
+    with pytest.raises(InputError, match=message):
+        st.load_study(path)
+
+
+@pytest.mark.parametrize("missing", ["pyarrow.parquet", "threadpoolctl"])
+def test_missing_optional_package_names_the_extra(tmp_path, monkeypatch, missing):
+    study = st.load_study(study_file(tmp_path))
+    monkeypatch.setitem(sys.modules, missing, None)  # importing it now raises ImportError
+    with pytest.raises(InputError, match=r"simbench sweep needs .* pip install 'simbench\[studies\]'"):
+        sw.run_study(study, tmp_path / "out")
+    assert not (tmp_path / "out").exists()  # refused before any work
+
+
+def test_missing_dask_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with (
+        pytest.raises(InputError, match=r"--scheduler needs .*'distributed'.*simbench\[studies\]"),
+        sw.dask_executor("tcp://127.0.0.1:1"),
+    ):
+        pass
+
+
+def test_report_plots_and_summary_of_a_two_parameter_grid(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    path = study_file(tmp_path)
+    text = path.read_text() + '[[parameter]]\nname = "rate_hz"\nunit = "hz"\nvalues = [60, 120]\n'
+    path.write_text(text)
+    study = st.load_study(path)
+    every = st.trials(study)
+    err = [0.01 * (1 + t.cell) for t in every]  # cell 3 (8 mm, 120 Hz) has the largest error
+    table = pa.Table.from_pylist(
+        [
+            {"trial": t.trial_id, "cell": t.cell, "replicate": t.replicate, "seed": t.seed}
+            | dict(t.params)
+            | {"joint_centre_error_m": e, "condition": 10.0 + e, "run_time_s": 1.0}
+            for t, e in zip(every, err, strict=True)
+        ]
+    )
+    assert study_report.metric_columns(study, table.to_pydict()) == [
+        "joint_centre_error_m",
+        "condition",
+        "run_time_s",
+    ]
+    plots = study_report.plot_study(study, table, tmp_path)
+    assert [p.name for p in plots] == [
+        "vs_sensors_tracker_position_noise_m.png",
+        "vs_rate_hz.png",
+        "heatmap.png",
+    ]
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in plots)
+    text = study_report.summary_markdown(study, table, plots)
+    assert "| 0.008 | 120 | 0.04 | 10.04 | 1 |" in text  # cell 3's parameters and means
+    assert "condition number with the joint-centre error: 1.00." in text
+    assert "Smallest mean joint-centre error: sensors.tracker.position_noise_m = 0, rate_hz = 60." in text
+    assert "![heatmap](heatmap.png)" in text

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from calibration import calibrate, detect_slip, unit_scale
+from calibration.rotations import matrix_to_quat, rotvec_to_matrix
 from simbench.orient import estimate
 from simbench.score import compare_trees, estimated_lengths, length_of, score_orientation, truth_lengths
 from simbench.sim.sensor_config import load_sensor_config, parse_sensor_config
@@ -135,8 +136,6 @@ def rigid_pair_scale(seed: int = 7, duration_s: float = 60.0) -> dict[str, float
         )
         / 3**0.5
     )
-    from calibration.rotations import matrix_to_quat, rotvec_to_matrix
-
     R = rotvec_to_matrix(
         np.sum(1.5 * np.sin(2 * np.pi * f[None, :, 3:] * t[:, None, None] + ph[:, 3:]), axis=2) / 3**0.5
     )
@@ -149,7 +148,20 @@ def rigid_pair_scale(seed: int = 7, duration_s: float = 60.0) -> dict[str, float
     return {"scale": est.scale, "scaled_std_cm": est.scaled_std * 100, "frames": est.n_frames}
 
 
-def _linkage(plan: Plan, scale: float, keep: dict) -> dict[str, Any]:
+def linkage_experiment(plan: Plan, scale: float, keep: dict[str, Any] | None = None) -> dict[str, Any]:
+    """O'Brien Table 1: the linkage's exercise sets with the ``ascension-flock`` preset.
+
+    Args:
+        plan: sizes (number of sets, seconds each).
+        scale: the tracker's unit scale factor (:func:`rigid_pair_scale`): computed lengths are
+            multiplied by it.
+        keep: if given, receives the first set's dataset and calibration (``linkage_ds``,
+            ``linkage_cal``) for the report's pictures.
+
+    Returns:
+        JSON-ready figures: per set the true, computed and difference lengths (cm) of Table 1's
+        rows, the largest error, whether the hierarchy is right, each joint's rms residual (mm).
+    """
     config0 = SessionConfig(
         model="linkage", motion="exercise", duration_s=plan.linkage_s, sensors="ascension-flock"
     )
@@ -175,7 +187,7 @@ def _linkage(plan: Plan, scale: float, keep: dict) -> dict[str, Any]:
                 "rms_residual_mm": {j.name: j.fit.rms_residual * scale * 1e3 for j in cal.joints},
             }
         )
-        if s == 1:
+        if s == 1 and keep is not None:
             keep["linkage_ds"], keep["linkage_cal"] = ds, cal
     return {"preset": "ascension-flock", "duration_s": plan.linkage_s, "sets": sets}
 
@@ -299,7 +311,7 @@ def run_validation(
     say("unit scale: two rigid sensors")
     scale = rigid_pair_scale(duration_s=20.0 if quick else 60.0)
     say("linkage sets")
-    linkage = _linkage(plan, scale["scale"], keep)
+    linkage = linkage_experiment(plan, scale["scale"], keep)
     say("humanoid trials")
     humanoid = _humanoid(plan, scale["scale"])
     say("slip detection")

@@ -1,0 +1,314 @@
+"""Study files: seeded trials over a grid or a random sample of parameters.
+
+A study (TOML) names a base scenario, the parameters to vary, seeds per cell, estimators and
+metrics::
+
+    name = "noise"
+    seed = 1
+    seeds_per_cell = 3
+    estimators = ["calibration"]                  # and/or "orientation:fontaine", ...
+    metrics = ["joint_centre_error_m", "limb_length_error_m", "hierarchy_correct"]
+    [base]                                        # a missing key takes SessionConfig's default
+    model = "linkage"
+    motion = "exercise"
+    sensors = "ascension-flock"                   # a preset: the parameters change its fields
+    duration_s = 10.0
+    rate_hz = 120.0
+    [sampling]
+    kind = "grid"                                 # or "random", with samples = N
+    [[parameter]]
+    name = "sensors.tracker.position_noise_m"     # a field of the sensor configuration,
+    unit = "mm"                                   # placement.<sensor>.x_m (y_m, z_m), duration_s
+    values = [0, 2, 4, 8]                         # or rate_hz; unit converted to SI. Grid: values;
+                                                  # random: low, high (, log)
+
+:func:`load_study` checks the whole file before any work; :func:`trials` enumerates its seeded
+trials and :func:`trial_config` gives the session of one. Running them is
+:mod:`simbench.experiments.sweep`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from simbench.errors import InputError, load_toml
+from simbench.experiments.metrics import CALIBRATION_METRICS
+from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+from simbench.sim.session import SessionConfig
+from simbench.units import UNITS
+
+#: Every metric a study may name: a trial's row holds these columns (:func:`sweep.run_trial`).
+METRICS = {
+    **CALIBRATION_METRICS,
+    "orientation_rmse_deg": "orientation RMSE over sensors and frames, degrees",
+    "run_time_s": "seconds the trial took",
+}
+#: Keys of ``[base]``: fields of :class:`SessionConfig` (a missing one takes its default).
+BASE_KEYS = {"model", "motion", "sensors", "duration_s", "rate_hz"}
+#: Orientation methods a study may score (``orientation:<method>``).
+ORIENTATION_METHODS = ("fontaine", "triad", "wahba", "mahony")
+DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
+STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
+PARAMETER_KEYS = {"name", "unit", "values", "low", "high", "log"}
+SUFFIX_UNIT = {"_m": "m", "_rad": "rad", "_s": "s", "_hz": "hz"}
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One varied parameter: its SI values (grid) or SI range ``[low, high)`` (random; ``log``
+    samples uniformly in the logarithm)."""
+
+    name: str
+    values: tuple[float, ...] = ()
+    low: float = math.nan
+    high: float = math.nan
+    log: bool = False
+
+
+@dataclass(frozen=True)
+class Study:
+    """A parsed study file (module docstring); ``base`` as written, with ``sensors`` filled in."""
+
+    name: str
+    seed: int
+    seeds_per_cell: int
+    estimators: tuple[str, ...]
+    metrics: tuple[str, ...]
+    base: dict[str, Any]
+    kind: str
+    samples: int
+    parameters: tuple[Parameter, ...]
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One seeded trial: cell index, replicate, parameter values (SI) and session seed."""
+
+    cell: int
+    replicate: int
+    params: tuple[tuple[str, float], ...]
+    seed: int
+
+    @property
+    def trial_id(self) -> str:
+        """``c<cell>-r<replicate>``, zero-padded: sorts in trial order."""
+        return f"c{self.cell:05d}-r{self.replicate:03d}"
+
+
+def _field_unit(field: str) -> str:
+    """SI unit of a field from its name's suffix (``1`` for a plain number)."""
+    return next((u for suffix, u in SUFFIX_UNIT.items() if field.endswith(suffix)), "1")
+
+
+def _check_parameter_name(name: str, base_sensors: SensorConfig) -> None:
+    if name in ("duration_s", "rate_hz"):
+        return
+    parts = name.split(".")
+    if parts[0] == "placement":
+        if len(parts) != 3 or parts[2] not in ("x_m", "y_m", "z_m"):
+            raise InputError(f"parameter {name!r}: expected placement.<sensor>.x_m, .y_m or .z_m")
+        return
+    if len(parts) != 3 or parts[0] != "sensors":
+        raise InputError(
+            f"parameter {name!r}: expected duration_s, rate_hz or sensors.<section>.<field> "
+            "(section: tracker, imu, magnetic, skin)"
+        )
+    section = getattr(base_sensors, parts[1], None)
+    if section is None or not dataclasses.is_dataclass(section):
+        raise InputError(f"parameter {name!r}: no sensor section {parts[1]!r} (tracker, imu, magnetic, skin)")
+    fields = {f.name: f for f in dataclasses.fields(section)}
+    if parts[2] not in fields or fields[parts[2]].type != "float":
+        numeric = sorted(f for f, v in fields.items() if v.type == "float")
+        raise InputError(
+            f"parameter {name!r}: {parts[1]} has no numeric field {parts[2]!r}; fields: {numeric}"
+        )
+
+
+def _parse_parameter(p: dict[str, Any], where: str, kind: str, base_sensors: SensorConfig) -> Parameter:
+    """One ``[[parameter]]`` table, its values converted to SI."""
+    extra = sorted(set(p) - PARAMETER_KEYS)
+    if extra:
+        raise InputError(f"{where}: unknown keys {extra}")
+    name = p.get("name")
+    if not isinstance(name, str):
+        raise InputError(f"{where}: missing name")
+    _check_parameter_name(name, base_sensors)
+    where = f"{where} ({name})"
+    unit = str(p.get("unit", "1")).lower()
+    if unit not in UNITS:
+        raise InputError(f"{where}: unknown unit {unit!r}; expected one of {sorted(UNITS)}")
+    si, factor = UNITS[unit]
+    field_unit = _field_unit(name.split(".")[-1])
+    if si != field_unit:
+        raise InputError(f"{where}: unit {unit!r} does not fit (the field is in {field_unit})")
+    if kind == "grid":
+        values = p.get("values")
+        if not isinstance(values, list) or not values or not all(isinstance(v, int | float) for v in values):
+            raise InputError(f"{where}: grid sampling needs a non-empty list of numbers in 'values'")
+        return Parameter(name, values=tuple(float(v) * factor for v in values))
+    low, high = p.get("low"), p.get("high")
+    if not isinstance(low, int | float) or not isinstance(high, int | float) or not low < high:
+        raise InputError(f"{where}: random sampling needs low < high, got {low!r} and {high!r}")
+    log = bool(p.get("log", False))
+    if log and low <= 0:
+        raise InputError(f"{where}: log sampling needs low > 0")
+    return Parameter(name, low=float(low) * factor, high=float(high) * factor, log=log)
+
+
+def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], SensorConfig]:
+    """``[base]`` as written (``sensors`` filled in from SessionConfig's default) and its sensors."""
+    base = dict(doc.get("base", {}))
+    bad = sorted(set(base) - BASE_KEYS)
+    if bad:
+        raise InputError(f"{path}: base: unknown keys {bad}; expected {sorted(BASE_KEYS)}")
+    base.setdefault("sensors", SessionConfig().sensors)
+    for key, value in base.items():
+        numeric = key in ("duration_s", "rate_hz")
+        if numeric and not (isinstance(value, int | float) and not isinstance(value, bool)):
+            raise InputError(f"{path}: base.{key}: expected a number, got {value!r}")
+        if not numeric and not isinstance(value, str):
+            raise InputError(f"{path}: base.{key}: expected a string, got {value!r}")
+    try:
+        base_sensors = load_sensor_config(base["sensors"])
+    except InputError as exc:
+        raise InputError(f"{path}: base.sensors: {exc}") from None
+    return base, base_sensors
+
+
+def _parse_estimators(doc: dict[str, Any], path: Path) -> tuple[str, ...]:
+    estimators = tuple(doc.get("estimators", ["calibration"]))
+    for e in estimators:
+        method = e.split(":", 1)[1] if e.startswith("orientation:") else None
+        if e != "calibration" and method not in ORIENTATION_METHODS:
+            expected = f"calibration or orientation:<{'|'.join(ORIENTATION_METHODS)}>"
+            raise InputError(f"{path}: estimators: unknown {e!r}; expected {expected}")
+    return estimators
+
+
+def _parse_sampling(doc: dict[str, Any], path: Path) -> tuple[str, int]:
+    """``(kind, samples)`` of ``[sampling]``."""
+    sampling = dict(doc.get("sampling", {"kind": "grid"}))
+    kind = sampling.get("kind", "grid")
+    if kind not in ("grid", "random"):
+        raise InputError(f"{path}: sampling.kind must be 'grid' or 'random', got {kind!r}")
+    samples = int(sampling.get("samples", 0))
+    if kind == "random" and samples < 1:
+        raise InputError(f"{path}: sampling.samples must be >= 1 for random sampling")
+    return kind, samples
+
+
+def load_study(path: str | os.PathLike[str]) -> Study:
+    """Read and check a study file; every problem is reported before any work starts.
+
+    Raises:
+        InputError: naming the file and key (unknown keys, parameters or estimators, empty
+            ranges, wrong units, a base session that is not valid).
+    """
+    path = Path(path)
+    doc = load_toml(path)
+    unknown = sorted(set(doc) - STUDY_KEYS)
+    if unknown:
+        raise InputError(f"{path}: unknown keys {unknown}; expected {sorted(STUDY_KEYS)}")
+    base, base_sensors = _parse_base(doc, path)
+    estimators = _parse_estimators(doc, path)
+    metrics = tuple(doc.get("metrics", DEFAULT_METRICS))
+    bad = sorted(set(metrics) - set(METRICS))
+    if bad:
+        raise InputError(f"{path}: metrics: unknown {bad}; expected some of {sorted(METRICS)}")
+    kind, samples = _parse_sampling(doc, path)
+    seeds = doc.get("seeds_per_cell", 1)
+    if not isinstance(seeds, int) or seeds < 1:
+        raise InputError(f"{path}: seeds_per_cell must be an integer >= 1, got {seeds!r}")
+    raw = doc.get("parameter", [])
+    if not raw:
+        raise InputError(f"{path}: expected at least one [[parameter]]")
+    params = tuple(
+        _parse_parameter(p, f"{path}: parameter[{k}]", kind, base_sensors) for k, p in enumerate(raw)
+    )
+    study = Study(
+        name=str(doc.get("name", path.stem)),
+        seed=int(doc.get("seed", 0)),
+        seeds_per_cell=seeds,
+        estimators=estimators,
+        metrics=metrics,
+        base=base,
+        kind=kind,
+        samples=samples,
+        parameters=params,
+    )
+    try:
+        base_session(study)
+    except InputError as exc:
+        raise InputError(f"{path}: base: {exc}") from None
+    return study
+
+
+def _cells(study: Study) -> np.ndarray:
+    """Parameter values of every cell, ``(cells, parameters)``, SI: the grid's cartesian product
+    (first parameter slowest) or the seeded random sample."""
+    if study.kind == "grid":
+        grids = np.meshgrid(*[np.array(p.values) for p in study.parameters], indexing="ij")
+        return np.stack([g.ravel() for g in grids], axis=1)
+    rng = np.random.default_rng([study.seed, 0xC0FFEE])
+    cols = []
+    for p in study.parameters:
+        u = rng.random(study.samples)
+        cols.append(
+            np.exp(np.log(p.low) + u * np.log(p.high / p.low)) if p.log else p.low + u * (p.high - p.low)
+        )
+    return np.stack(cols, axis=1)
+
+
+def trials(study: Study) -> list[Trial]:
+    """Every trial of the study, in a fixed order; trial ``(cell, replicate)`` is seeded from
+    ``(study seed, cell, replicate)`` alone."""
+    out = []
+    for c, row in enumerate(_cells(study)):
+        for r in range(study.seeds_per_cell):
+            seed = int(np.random.SeedSequence([study.seed, c, r]).generate_state(1)[0])
+            params = tuple((p.name, float(v)) for p, v in zip(study.parameters, row, strict=True))
+            out.append(Trial(c, r, params, seed))
+    return out
+
+
+def base_session(study: Study) -> SessionConfig:
+    """The study's base session: ``[base]``'s keys, :class:`SessionConfig`'s defaults for the rest.
+
+    Raises:
+        InputError: a base value SessionConfig refuses (duration or rate not > 0).
+    """
+    given = {k: study.base[k] for k in ("model", "motion", "sensors") if k in study.base}
+    given.update({k: float(study.base[k]) for k in ("duration_s", "rate_hz") if k in study.base})
+    return SessionConfig(**given)
+
+
+def trial_config(study: Study, trial: Trial) -> SessionConfig:
+    """The session of one trial: the base session with the trial's parameter values and seed."""
+    base = base_session(study)
+    sensors = base.sensors if isinstance(base.sensors, SensorConfig) else load_sensor_config(base.sensors)
+    timing: dict[str, float] = {}
+    shifts: dict[str, list[float]] = {}
+    for name, value in trial.params:
+        if name in ("duration_s", "rate_hz"):
+            timing[name] = value
+        elif name.startswith("placement."):
+            _, sensor, axis = name.split(".")
+            shifts.setdefault(sensor, [0.0, 0.0, 0.0])["xyz".index(axis[0])] = value
+        else:
+            _, section, field = name.split(".")
+            changed = dataclasses.replace(getattr(sensors, section), **{field: value})
+            sensors = dataclasses.replace(sensors, **{section: changed})
+    return dataclasses.replace(
+        base,
+        **timing,
+        seed=trial.seed,
+        sensors=sensors,
+        placement=tuple((k, tuple(v)) for k, v in sorted(shifts.items())),
+    )
