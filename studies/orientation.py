@@ -76,7 +76,7 @@ def posture_error(ds, rec, method_kwargs) -> dict[str, float]:
     out = {}
     for name in ("hand_l", "hand_r", "foot_l", "foot_r"):
         k = ds.sensors.index(name)
-        d = np.linalg.norm(P[:, k] - ds.truth.sensors.p_w_s[:, k], axis=1)
+        d = np.linalg.norm(P[:, k] - ds.truth.rigid.p_w_s[:, k], axis=1)
         out[name] = float(np.sqrt(np.nanmean(d**2)) * 100)
     return out
 

@@ -31,7 +31,7 @@ def test_hdf5_round_trip_is_lossless(session, tmp_path):
     assert np.array_equal(back.time_s, session.time_s)
     for name in ("p_w_s", "q_w_s", "valid", "acc", "gyro", "mag"):
         assert np.array_equal(getattr(back.measured, name), getattr(session.measured, name), equal_nan=True)
-        assert np.array_equal(getattr(back.truth.sensors, name), getattr(session.truth.sensors, name))
+        assert np.array_equal(getattr(back.truth.rigid, name), getattr(session.truth.rigid, name))
         assert np.array_equal(getattr(back.truth.actual, name), getattr(session.truth.actual, name))
     for name in (
         "p_w_b",

@@ -197,8 +197,8 @@ def test_posture_from_exact_orientations():
     ds = run_session(SessionConfig(model="humanoid", motion="walk", duration_s=2.0, seed=6))
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
     lp, lc = ds.truth_joint_arrays()
-    R = quat_to_matrix(ds.truth.sensors.q_w_s)
-    J = joint_positions(R, tree, lp, lc, root_w=ds.truth.sensors.p_w_s[:, 0])
+    R = quat_to_matrix(ds.truth.rigid.q_w_s)
+    J = joint_positions(R, tree, lp, lc, root_w=ds.truth.rigid.p_w_s[:, 0])
     for k, c in enumerate(ds.truth.child):
         assert_allclose(J[:, ds.sensors.index(c)], ds.truth.joint_w[:, k], atol=1e-9)
     # segment orientations from the sensors through the alignment at the first frame

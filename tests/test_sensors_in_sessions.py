@@ -41,7 +41,7 @@ def test_ideal_measures_the_truth_exactly(tmp_path):
     ds = session(tmp_path)
     for name in ("p_w_s", "q_w_s", "acc", "gyro", "mag"):
         assert np.array_equal(getattr(ds.measured, name), getattr(ds.truth.actual, name))
-        assert np.array_equal(getattr(ds.truth.actual, name), getattr(ds.truth.sensors, name))
+        assert np.array_equal(getattr(ds.truth.actual, name), getattr(ds.truth.rigid, name))
     assert ds.measured.valid.all()
 
 
@@ -50,7 +50,7 @@ def test_sensors_do_not_change_the_motion_and_are_seeded(tmp_path):
     flock = session(tmp_path, preset="ascension-flock")
     again = session(tmp_path, preset="ascension-flock")
     other = session(tmp_path, preset="ascension-flock", seed=2)
-    assert np.array_equal(ideal.truth.sensors.p_w_s, flock.truth.sensors.p_w_s)  # same physics
+    assert np.array_equal(ideal.truth.rigid.p_w_s, flock.truth.rigid.p_w_s)  # same physics
     assert np.array_equal(flock.measured.p_w_s, again.measured.p_w_s, equal_nan=True)
     assert not np.array_equal(flock.measured.p_w_s, other.measured.p_w_s, equal_nan=True)
     # positions are reported in the Flock's units: metres / 0.94, plus noise of millimetres
@@ -70,7 +70,7 @@ def test_mount_slip_grows_as_stiffness_falls(tmp_path):
     slips = []
     for k in (20000.0, 2000.0, 200.0):
         ds = session(tmp_path, f"[skin]\nmount_stiffness_n_per_m = {k}\n", motion="walk")
-        slips.append(np.sqrt(np.mean(np.sum((ds.truth.actual.p_w_s - ds.truth.sensors.p_w_s) ** 2, axis=2))))
+        slips.append(np.sqrt(np.mean(np.sum((ds.truth.actual.p_w_s - ds.truth.rigid.p_w_s) ** 2, axis=2))))
     assert slips[0] < slips[1] < slips[2]
     assert slips[0] > 0  # the physics moves the sensor on its mount
     assert ds.meta["mujoco_warnings"] == {}
@@ -78,7 +78,7 @@ def test_mount_slip_grows_as_stiffness_falls(tmp_path):
 
 def test_soft_tissue_artefact_on_one_sensor(tmp_path):
     ds = session(tmp_path, "[skin]\nsta_by_sensor = { forearm_l = 0.03 }\n")
-    move = np.linalg.norm(ds.truth.actual.p_w_s - ds.truth.sensors.p_w_s, axis=2)
+    move = np.linalg.norm(ds.truth.actual.p_w_s - ds.truth.rigid.p_w_s, axis=2)
     k = ds.sensors.index("forearm_l")
     assert np.delete(move, k, axis=1).max() == 0.0
     assert 0.005 < np.sqrt(np.mean(move[:, k] ** 2)) < 0.05  # centimetres, following the motion
@@ -90,7 +90,7 @@ def test_slip_event_found_by_the_detector(tmp_path):
     ds = session(tmp_path, toml, duration_s=12.0)
     k = ds.sensors.index("forearm_r")
     R_b = quat_to_matrix(ds.truth.q_w_b[:, k])
-    offset = np.einsum("fji,fj->fi", R_b, ds.truth.actual.p_w_s[:, k] - ds.truth.sensors.p_w_s[:, k])
+    offset = np.einsum("fji,fj->fi", R_b, ds.truth.actual.p_w_s[:, k] - ds.truth.rigid.p_w_s[:, k])
     assert_allclose(offset[ds.time_s < 5.999], 0.0, atol=1e-12)
     after = offset[ds.time_s > 6.051]  # the slip takes 50 ms
     assert_allclose(after, np.tile([0.0, 0.03, 0.0], (len(after), 1)), atol=1e-12)

@@ -33,7 +33,7 @@ def test_every_model_runs_every_program_without_warning(capture_models, model, m
     assert np.isfinite(ds.measured.p_w_s).all() and np.isfinite(ds.measured.acc).all()
     assert_allclose(ds.time_s, np.arange(240) / 120.0, atol=1e-9)
     if motion != "static":
-        assert np.ptp(ds.truth.sensors.p_w_s, axis=0).max() > 0.05
+        assert np.ptp(ds.truth.rigid.p_w_s, axis=0).max() > 0.05
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -90,7 +90,7 @@ def test_readings_are_mujocos_sensors_at_the_sample_times(capture_models):
 def test_ideal_readings_agree_with_finite_differences_of_true_poses(capture_models):
     cm = capture_models["linkage"]
     ds = run_session(SessionConfig(motion="exercise", duration_s=3.0, rate_hz=1200.0, seed=4), cm)
-    t = ds.truth.sensors
+    t = ds.truth.rigid
     h = 1.0 / 1200.0
     R = quat_to_matrix(t.q_w_s)
     # magnetometer: the Earth field seen in the sensor frame, exactly
@@ -177,7 +177,7 @@ def test_user_program_from_toml(capture_models, tmp_path):
     )
     ds = run_session(SessionConfig(motion=str(program), duration_s=2.0), capture_models["linkage"])
     assert ds.meta["program"] == "wave"
-    moved = np.ptp(ds.truth.sensors.p_w_s, axis=0).max(axis=1)
+    moved = np.ptp(ds.truth.rigid.p_w_s, axis=0).max(axis=1)
     names = list(ds.sensors)
     # the left arm moves, the rest (root still, other joints held) barely does
     assert moved[names.index("forearm_l")] > 0.1

@@ -85,9 +85,13 @@ class SensorData:
 
 @dataclass(frozen=True)
 class Truth:
-    """Exact ground truth of a simulated session (module docstring for the fields)."""
+    """Exact ground truth of a simulated session (module docstring for the fields).
 
-    sensors: SensorData
+    ``rigid`` holds the sensor data as if each sensor were fixed to its bone (``/truth/...`` in
+    the file), ``actual`` where the sensor actually is on the skin (``/truth/actual/...``).
+    """
+
+    rigid: SensorData
     actual: SensorData
     p_w_b: np.ndarray
     q_w_b: np.ndarray
@@ -217,10 +221,10 @@ def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
         _write_group(fh.create_group("measured"), ds.measured)
         if ds.truth is not None:
             g = fh.create_group("truth")
-            _write_group(g, ds.truth.sensors)
+            _write_group(g, ds.truth.rigid)
             _write_group(g.create_group("actual"), ds.truth.actual)
             for x in fields(ds.truth):
-                if x.name in ("sensors", "actual"):
+                if x.name in ("rigid", "actual"):
                     continue
                 value = getattr(ds.truth, x.name)
                 if isinstance(value, tuple):
@@ -260,10 +264,10 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
         truth = None
         if "truth" in fh:
             g = fh["truth"]
-            values: dict[str, Any] = {"sensors": _read_sensor_data(g, path)}
-            values["actual"] = _read_sensor_data(g["actual"], path) if "actual" in g else values["sensors"]
+            values: dict[str, Any] = {"rigid": _read_sensor_data(g, path)}
+            values["actual"] = _read_sensor_data(g["actual"], path) if "actual" in g else values["rigid"]
             for x in fields(Truth):
-                if x.name in ("sensors", "actual"):
+                if x.name in ("rigid", "actual"):
                     continue
                 if x.name not in g:
                     raise InputError(f"{path}: missing dataset /truth/{x.name}")

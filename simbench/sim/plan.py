@@ -75,7 +75,7 @@ class SessionPlan:
         steps_per_sample: physics steps per capture sample ``k``.
         timestep: physics timestep, s.
         n_samples: samples to record.
-        sensors: the sensor configuration.
+        sensor_config: the sensor configuration (resolved from a preset, file or object).
         streams: independent random generators for the ``skin``, ``tracker`` and ``imu`` models
             (so that switching one imperfection on does not change another's draws).
     """
@@ -85,7 +85,7 @@ class SessionPlan:
     steps_per_sample: int
     timestep: float
     n_samples: int
-    sensors: SensorConfig
+    sensor_config: SensorConfig
     streams: dict[str, np.random.Generator]
 
 
@@ -114,8 +114,8 @@ def _program(config: SessionConfig, cm: CaptureModel, rng: np.random.Generator) 
     )
 
 
-def _mount_of(sensors: SensorConfig) -> Mount | None:
-    skin = sensors.skin
+def _mount_of(sensor_config: SensorConfig) -> Mount | None:
+    skin = sensor_config.skin
     if not skin.has_mount:
         return None
     return Mount(
@@ -126,27 +126,27 @@ def _mount_of(sensors: SensorConfig) -> Mount | None:
     )
 
 
-def _sensors(config: SessionConfig) -> SensorConfig:
+def _sensor_config(config: SessionConfig) -> SensorConfig:
     return config.sensors if isinstance(config.sensors, SensorConfig) else load_sensor_config(config.sensors)
 
 
 def load_session_model(config: SessionConfig) -> CaptureModel:
     """The capture model a session needs (with the soft-tissue mount its sensors ask for)."""
-    sensors = _sensors(config)
+    sensor_config = _sensor_config(config)
     return load_capture_model(
         config.model,
         sensor_bodies=config.sensor_bodies,
-        mount=_mount_of(sensors),
+        mount=_mount_of(sensor_config),
         placement=dict(config.placement),
     )
 
 
 def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     """Draw everything random about a session from its seed, and check it against the model."""
-    sensors = _sensors(config)
-    if _mount_of(sensors) != cm.mount:
+    sensor_config = _sensor_config(config)
+    if _mount_of(sensor_config) != cm.mount:
         raise InputError(
-            f"sensors {config.sensors!r} need mount {_mount_of(sensors)}; the model was loaded with "
+            f"sensors {config.sensors!r} need mount {_mount_of(sensor_config)}; the model was loaded with "
             f"{cm.mount} (load it with load_session_model)"
         )
     k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
@@ -160,4 +160,4 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     streams = {
         name: np.random.default_rng(s) for name, s in zip(("skin", "tracker", "imu"), seeds[2:], strict=True)
     }
-    return SessionPlan(program, root_phases, k, dt, n_samples, sensors, streams)
+    return SessionPlan(program, root_phases, k, dt, n_samples, sensor_config, streams)

@@ -98,12 +98,12 @@ def truth_constants(cm: CaptureModel) -> dict[str, np.ndarray]:
 
 def _measure(config: SessionConfig, plan: SessionPlan, time_s: np.ndarray, actual: SensorData) -> SensorData:
     """What the configured tracker and IMU report of the actual sensors."""
-    sensors = plan.sensors
+    sensor_config = plan.sensor_config
     p_w_s, q_w_s, valid = apply_tracker(
-        time_s, actual.p_w_s, actual.q_w_s, sensors.tracker, plan.streams["tracker"]
+        time_s, actual.p_w_s, actual.q_w_s, sensor_config.tracker, plan.streams["tracker"]
     )
     acc, gyro, mag = apply_imu(
-        config.rate_hz, actual.acc, actual.gyro, actual.mag, sensors.imu, plan.streams["imu"]
+        config.rate_hz, actual.acc, actual.gyro, actual.mag, sensor_config.imu, plan.streams["imu"]
     )
     return SensorData(p_w_s=p_w_s, q_w_s=q_w_s, valid=valid, acc=acc, gyro=gyro, mag=mag)
 
@@ -115,7 +115,7 @@ def _truth(cm: CaptureModel, readings: Readings, bone: SensorData, actual: Senso
     R_w_c = quat_to_matrix(bone.q_w_s[:, child])
     joint_w = np.einsum("fjab,jb->fja", R_w_c, const["joint_in_child"]) + bone.p_w_s[:, child]
     return Truth(
-        sensors=bone,
+        rigid=bone,
         actual=actual,
         p_w_b=readings.p_w_b,
         q_w_b=readings.q_w_b,
@@ -136,7 +136,7 @@ def _meta(
     config: SessionConfig, cm: CaptureModel, plan: SessionPlan, n_samples: int, warnings: dict[str, int]
 ) -> dict:
     """The Dataset's metadata: what was asked, what ran, MuJoCo's warnings, software versions."""
-    sensors = plan.sensors
+    sensor_config = plan.sensor_config
     return {
         "model": config.model,
         "program": plan.program.name,
@@ -147,8 +147,8 @@ def _meta(
         "physics_timestep_s": plan.timestep,
         "model_timestep_s": float(cm.model.opt.timestep),
         "steps_per_sample": plan.steps_per_sample,
-        "sensor_model": sensors.name,
-        "sensor_config": sensors.as_dict(),
+        "sensor_model": sensor_config.name,
+        "sensor_config": sensor_config.as_dict(),
         "mujoco_warnings": warnings,
         "config": config.as_dict(),
         "versions": software_versions(),
@@ -158,7 +158,7 @@ def _meta(
 def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Dataset:
     """Simulate one capture session and return its dataset.
 
-    Truth keeps both the bone-rigid sensor data (``truth.sensors``) and the actual ones where the
+    Truth keeps both the bone-rigid sensor data (``truth.rigid``) and the actual ones where the
     sensor sits on the skin (``truth.actual``: soft-tissue mount, artefact, slip events);
     ``measured`` is what the configured instruments report of the actual ones.
 
@@ -173,16 +173,16 @@ def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Datase
         cm = load_session_model(config)
     plan = plan_session(config, cm)
     sensordata, warnings = run_physics(cm, plan)
-    readings = wear(readings_at_samples(cm, sensordata), cm, plan.sensors.skin, plan.streams["skin"])
+    readings = wear(readings_at_samples(cm, sensordata), cm, plan.sensor_config.skin, plan.streams["skin"])
     time_s = readings.time_s
     valid = np.ones((time_s.size, len(cm.sensors)), dtype=bool)
-    bone = true_sensor_data(readings.bone, valid, plan.sensors.magnetic)
-    actual = true_sensor_data(readings.worn, valid, plan.sensors.magnetic)
+    bone = true_sensor_data(readings.bone, valid, plan.sensor_config.magnetic)
+    actual = true_sensor_data(readings.worn, valid, plan.sensor_config.magnetic)
     return Dataset(
         time_s=time_s,
         sensors=cm.sensors,
         measured=_measure(config, plan, time_s, actual),
         truth=_truth(cm, readings, bone, actual),
         meta=_meta(config, cm, plan, time_s.size, warnings),
-        position_unit_scale=plan.sensors.tracker.unit_scale,
+        position_unit_scale=plan.sensor_config.tracker.unit_scale,
     )
