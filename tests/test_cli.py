@@ -12,6 +12,7 @@ import pytest
 
 from simbench.cli import main
 from simbench.io.poses import PoseRecording, write_pose_csv
+from simbench.sim.synthetic import Slip, linkage, simulate_motion
 
 HEADER = "time,sensor,x,y,z,qw,qx,qy,qz\n"
 
@@ -27,8 +28,6 @@ def linkage_csv(tmp_path_factory, linkage_noisy_module):
 
 @pytest.fixture(scope="module")
 def linkage_noisy_module():
-    from simbench.sim.synthetic import linkage, simulate_motion
-
     return simulate_motion(
         linkage(), n_frames=1200, rate_hz=120.0, rng=np.random.default_rng(31), position_noise_m=0.002
     )
@@ -212,8 +211,6 @@ def test_scale_command(capsys, tmp_path):
 
 
 def test_slip_reported_in_table_and_json(capsys, tmp_path):
-    from simbench.sim.synthetic import Slip, linkage, simulate_motion
-
     cap = simulate_motion(
         linkage(),
         n_frames=2400,

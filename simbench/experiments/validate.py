@@ -77,6 +77,16 @@ HUMANOID_ROWS = {
 }
 
 
+#: The steps :func:`run_validation` announces through ``progress``, in order.
+STEPS = (
+    "unit scale: two rigid sensors",
+    "linkage sets",
+    "humanoid trials",
+    "slip detection",
+    "sourceless orientation",
+)
+
+
 @dataclass(frozen=True)
 class Plan:
     """Sizes of the validation run."""
@@ -308,15 +318,15 @@ def run_validation(
     say = progress or (lambda _: None)
     keep: dict[str, Any] = {}
     t0 = time.perf_counter()
-    say("unit scale: two rigid sensors")
+    say(STEPS[0])
     scale = rigid_pair_scale(duration_s=20.0 if quick else 60.0)
-    say("linkage sets")
+    say(STEPS[1])
     linkage = linkage_experiment(plan, scale["scale"], keep)
-    say("humanoid trials")
+    say(STEPS[2])
     humanoid = _humanoid(plan, scale["scale"])
-    say("slip detection")
+    say(STEPS[3])
     slip = _slip(plan)
-    say("sourceless orientation")
+    say(STEPS[4])
     orientation = _orientation(plan)
     results = {
         "quick": quick,

@@ -1,0 +1,59 @@
+"""``simbench baseline``: the accuracy regression check against ``reports/baseline.json``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from simbench.errors import InputError
+from simbench.experiments.baseline import (
+    BASELINE_FILE,
+    compare,
+    compute,
+    diff_lines,
+    load_baseline,
+    write_baseline,
+)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``baseline`` subcommand to ``simbench``'s subparsers."""
+    bas = sub.add_parser(
+        "baseline", help="accuracy regression check against reports/baseline.json (or --update it)"
+    )
+    bas.add_argument(
+        "--update", action="store_true", help="recompute and rewrite the baseline, showing the diff"
+    )
+    bas.add_argument("--tolerance", type=float, default=0.10, help="relative tolerance (default 0.10)")
+    bas.add_argument("--file", metavar="PATH", help="baseline file (default reports/baseline.json)")
+    bas.set_defaults(func=cmd_baseline)
+
+
+def cmd_baseline(args: argparse.Namespace) -> int:
+    """``simbench baseline``: check accuracy against the accepted figures, or update them.
+
+    Returns 0 when no figure got worse than the tolerance (or after ``--update``), 1 otherwise.
+    """
+    path = Path(args.file) if args.file else BASELINE_FILE
+    current = compute()
+    if args.update:
+        try:
+            old = load_baseline(path)
+        except InputError:
+            old = {}
+        changes = diff_lines(old, current)
+        write_baseline(current, path)
+        print(f"simbench baseline --update: wrote {path}")
+        print("\n".join(f"  {line}" for line in changes) if changes else "  no change")
+        return 0
+    problems = compare(current, load_baseline(path), rel_tol=args.tolerance)
+    for name, figures in current.items():
+        print(f"  {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in figures.items()))
+    if problems:
+        print("simbench baseline: accuracy got worse:", file=sys.stderr)
+        for p in problems:
+            print(f"  {p}", file=sys.stderr)
+        return 1
+    print("simbench baseline: no regression")
+    return 0

@@ -1,0 +1,107 @@
+"""``simbench calibrate``: joints, hierarchy and skeleton from a pose file (O'Brien et al. 2000)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from calibration import SINGLE_AXIS_RATIO, Calibration, SlipReport, detect_slip
+from simbench.api import calibrate
+from simbench.cli.table import format_table
+from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
+from simbench.io.hierarchy_json import read_hierarchy_json
+from simbench.io.poses import PoseRecording
+from simbench.io.read import read_poses
+from simbench.units import LENGTH_UNITS
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``calibrate`` subcommand to ``simbench``'s subparsers."""
+    cal = sub.add_parser(
+        "calibrate",
+        help="joint centres, hierarchy, limb lengths and sensor offsets from sensor poses",
+        description="Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
+        "6-DoF sensor poses (O'Brien et al. 2000).",
+    )
+    cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
+    cal.add_argument(
+        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of the file (default m)"
+    )
+    cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
+    cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
+    cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
+    cal.add_argument(
+        "--clusters",
+        metavar="SPEC.toml",
+        help="C3D input: marker clusters [clusters] segment = [labels] (default: found)",
+    )
+    cal.add_argument(
+        "--wide",
+        metavar="SPEC.toml",
+        help="INPUT is a wide tracker export (a row per frame) laid out as SPEC says",
+    )
+    cal.add_argument(
+        "--single-axis-ratio",
+        type=float,
+        default=SINGLE_AXIS_RATIO,
+        metavar="R",
+        help=f"s_min/s_max below which a joint is single-axis (default {SINGLE_AXIS_RATIO})",
+    )
+    cal.add_argument(
+        "--slip-window", type=float, default=1.0, metavar="SECONDS", help="slip detector window (default 1 s)"
+    )
+    cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
+    cal.set_defaults(func=cmd_calibrate)
+
+
+def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list[tuple[str, SlipReport]]:
+    """Slip detection on every calibrated joint; ``[]`` when the recording is too short.
+
+    The window of ``window_s`` seconds becomes frames at the recording's rate (at least 2, at
+    most half the recording; 0 when the rate is unknown, which skips detection).
+    """
+    window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
+    window = min(max(window, 2), rec.n_frames // 2)
+    if window < 2:
+        return []
+    out = []
+    for j in cal.joints:
+        fit = j.fit
+        report = detect_slip(
+            *rec.pair(j.parent, j.child), fit.joint_in_parent, fit.joint_in_child, window=window
+        )
+        out.append((j.name, report))
+    return out
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
+    rec = read_poses(args.input, args.units, args.clusters, args.wide)
+    parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
+    cal = calibrate(rec, hierarchy=parent_of, root=args.root, single_axis_ratio=args.single_axis_ratio)
+    slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window)
+    print(format_table(rec, cal, slips))
+    if args.json:
+        doc = calibration_to_dict(
+            cal,
+            time_s=rec.time_s,
+            slips=slips,
+            input_info={
+                "source": rec.source,
+                "sensors": list(rec.names),
+                "frames": rec.n_frames,
+                "rate_hz": rec.rate_hz,
+                "units": args.units,
+            },
+            notes=rec.notes,
+            options={
+                "hierarchy_file": args.hierarchy,
+                "root": args.root,
+                "single_axis_ratio": args.single_axis_ratio,
+                "slip_window_s": None if args.no_slip else args.slip_window,
+            },
+        )
+        write_calibration_json(args.json, doc)
+        print(f"\n  wrote {args.json}")
+    return 0

@@ -1,0 +1,50 @@
+"""``simbench report``: the report of one dataset (scored against its truth when it has one)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from simbench.errors import InputError
+from simbench.report.dataset import dataset_report
+from simbench.units import LENGTH_UNITS
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``report`` subcommand to ``simbench``'s subparsers."""
+    rep = sub.add_parser(
+        "report", help="the report of one dataset (scored against its truth when it has one)"
+    )
+    rep.add_argument(
+        "dataset", help="a simbench dataset (.h5), pose CSV, wide tracker export (--wide) or C3D"
+    )
+    rep.add_argument(
+        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of a CSV (default m)"
+    )
+    rep.add_argument("--clusters", metavar="SPEC.toml", help="C3D input: marker clusters (default: found)")
+    rep.add_argument(
+        "--wide", metavar="SPEC.toml", help="INPUT is a wide tracker export laid out as SPEC says"
+    )
+    rep.add_argument(
+        "--calibration", metavar="FILE.json", help="report this calibration JSON instead of calibrating"
+    )
+    rep.add_argument("--out", default="report", metavar="DIR", help="report folder (default ./report)")
+    rep.set_defaults(func=cmd_report)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """``simbench report``: the report of one dataset."""
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise InputError(f"cannot write {out}: folder {out.parent} does not exist")
+    paths = dataset_report(
+        Path(args.dataset),
+        out,
+        Path(args.calibration) if args.calibration else None,
+        units=args.units,
+        clusters=args.clusters,
+        wide=args.wide,
+    )
+    for p in paths.values():
+        print(f"wrote {p}")
+    return 0

@@ -1,0 +1,66 @@
+"""``simbench validate``: the paper's experiments reproduced in simulation, scored; writes the report."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+from simbench.errors import InputError
+from simbench.experiments.validate import STEPS, run_validation
+from simbench.report.validation import write_report
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``validate`` subcommand to ``simbench``'s subparsers."""
+    val = sub.add_parser(
+        "validate",
+        help="the main job: the paper's experiments reproduced in simulation, scored; writes the report",
+        description="Reproduce O'Brien et al.'s linkage and human experiments and Fontaine et al.'s "
+        "sourceless orientation in simulation, score them against the truth and write the report.",
+    )
+    val.add_argument("--quick", action="store_true", help="fewer, shorter sessions (under a minute)")
+    val.add_argument("--out", default="reports", metavar="DIR", help="report folder (default reports)")
+    val.add_argument("--no-progress", action="store_true", help="no progress bar")
+    val.set_defaults(func=cmd_validate)
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    """``simbench validate``: the paper's experiments reproduced and scored; writes the report."""
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} exists and is not a folder")
+    if not out.parent.is_dir():
+        raise InputError(f"cannot write {out}: folder {out.parent} does not exist")
+    bar = tqdm(total=len(STEPS) + 1, desc="validate", unit="step", file=sys.stderr, disable=args.no_progress)
+    seen: list[str] = []
+
+    def progress(step: str) -> None:
+        if seen:
+            bar.update(1)
+        seen.append(step)
+        bar.set_postfix_str(step)
+
+    results, keep = run_validation(quick=args.quick, progress=progress)
+    bar.update(1)
+    bar.set_postfix_str("report")
+    paths = write_report(results, keep, out)
+    bar.update(1)
+    bar.close()
+    s = results["summary"]
+    print(f"simbench validate{' --quick' if args.quick else ''}: {results['run_time_s']:.0f} s")
+    print(
+        f"  linkage: max error {s['linkage_max_error_cm']:.2f} cm (paper 1.1), hierarchy correct in "
+        f"{s['linkage_hierarchy_correct']} of {s['linkage_sets']} sets"
+    )
+    print(
+        f"  humanoid: max limb error {s['humanoid_max_error_cm']:.2f} cm (paper 4.1); hierarchy correct in "
+        f"{s['exercise_hierarchy_correct']} of {s['exercise_trials']} exercise and "
+        f"{s['walk_hierarchy_correct']} of {s['walk_trials']} walk trials"
+    )
+    print(f"  slip found: {s['slip_found']}")
+    for name, p in paths.items():
+        print(f"  wrote {p}" if name != "json" else f"  wrote {p} (every figure)")
+    return 0

@@ -1,0 +1,47 @@
+"""The hierarchy JSON that ``simbench calibrate --hierarchy`` reads: ``{"child": "parent", ...}``."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from simbench.errors import InputError
+
+
+def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
+    """Read a known body hierarchy from a JSON file.
+
+    Args:
+        path: a JSON object mapping each child sensor's name to its parent sensor's name,
+            ``{"thigh_l": "pelvis", "shank_l": "thigh_l", ...}``.
+
+    Returns:
+        ``{child: parent}`` for every sensor that has a parent (the root has none).
+
+    Raises:
+        InputError: the file cannot be read, is not valid JSON (with the line), names a sensor
+            twice as a child, or is not an object of strings.
+    """
+
+    def no_repeats(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        keys = [k for k, _ in pairs]
+        repeated = sorted({k for k in keys if keys.count(k) > 1})
+        if repeated:
+            raise InputError(f"{path}: sensors given a parent twice: {repeated}")
+        return dict(pairs)
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    try:
+        doc = json.loads(text, object_pairs_hook=no_repeats)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
+    if not isinstance(doc, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in doc.items()
+    ):
+        raise InputError(f'{path}: expected a JSON object {{"child": "parent", ...}} of sensor names')
+    return doc
