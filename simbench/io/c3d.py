@@ -1,58 +1,105 @@
 """Optical marker recordings (C3D) as segment poses, for the same calibration.
 
-Markers are read with the ``c3d`` package (a maintained pure-Python C3D reader); positions are
+Markers are read and written with ezc3d (the C3D library of the field's tools); positions are
 converted to metres from the file's ``POINT:UNITS``; samples the file marks invalid (negative
-residual) are missing. Markers are grouped into rigid clusters -- by a specification naming the
-markers of each segment (TOML ``[clusters] thigh_r = ["RTHI1", "RTHI2", "RTHI3"]``), or
-automatically from the constancy of their mutual distances -- and each cluster's pose at every
-frame comes from a least-squares rigid fit (:mod:`calibration.clusters`). The resulting
-:class:`PoseRecording` feeds the calibration like any tracker's poses; its notes say what was
+residual) are missing; a file shorter than its header announces is an error. Markers are grouped
+into rigid clusters -- by a specification naming the markers of each segment (TOML
+``[clusters] thigh_r = ["RTHI1", "RTHI2", "RTHI3"]``), or automatically from the steadiness of
+their mutual distances relative to motion, with groups that barely move set apart as still --
+and each cluster's pose at every frame comes from a least-squares rigid fit
+(:mod:`calibration.clusters`). The resulting :class:`PoseRecording` feeds the calibration like
+any tracker's poses; its notes say what was
 read: clusters, frames, rate, gaps and each cluster's rigidity residual.
 """
 
 from __future__ import annotations
 
 import os
-import warnings
+import struct
 from pathlib import Path
 
-import c3d
+import ezc3d
 import numpy as np
 
-from calibration.clusters import group_markers, reference_shape, rigid_fit
+from calibration.clusters import find_clusters, reference_shape, rigid_fit
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
-from simbench.io.atomic import atomic_open
+from simbench.io.atomic import atomic_path
 from simbench.io.poses import PoseRecording
 from simbench.units import LENGTH_UNITS
 
 
+def _header_frames(path: Path) -> tuple[int, int]:
+    """Frames the C3D header announces and the frames the file's bytes can hold.
+
+    The header (first 512-byte block) gives, in 16-bit words: the parameter block (byte 0), the
+    number of points (word 2), analog values per frame (word 3), first and last frame (words 4,
+    5), the point scale (float, words 7-8: negative means float storage) and the first data block
+    (word 9). The processor type (fourth byte of the parameter section) gives the byte order.
+    """
+    size = path.stat().st_size
+    with path.open("rb") as fh:
+        head = fh.read(512)
+        if len(head) < 512:
+            raise InputError(f"{path}: not a C3D file: {size} bytes, shorter than its header")
+        fh.seek((head[0] - 1) * 512)
+        param = fh.read(4)
+    order = ">" if len(param) == 4 and param[3] == 86 else "<"  # 86: MIPS (big-endian)
+    points, analogs, first, last = struct.unpack(order + "4H", head[2:10])
+    if param[3:] == b"\x55":  # 85: DEC, whose float keeps its sign in bit 7 of the second byte
+        scale = -1.0 if head[13] & 0x80 else 1.0
+    else:
+        (scale,) = struct.unpack(order + "f", head[12:16])
+    (data_block,) = struct.unpack(order + "H", head[16:18])
+    word = 4 if scale < 0 else 2
+    frame_bytes = (4 * points + analogs) * word
+    announced = last - first + 1
+    available = (size - (data_block - 1) * 512) // frame_bytes if frame_bytes else announced
+    return announced, available
+
+
 def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
-    """Marker labels, positions ``(F, M, 3)`` in metres (NaN where invalid) and the rate (Hz)."""
+    """Marker labels, positions ``(F, M, 3)`` in metres (NaN where invalid) and the rate (Hz).
+
+    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``); a sample with a
+    negative residual (C3D's mark for invalid) or a non-finite coordinate is missing; the rate
+    is ``POINT:RATE``. ANALOG parameters without analog channels are fine.
+
+    Raises:
+        InputError: unreadable or truncated file (fewer frames than its header announces).
+    """
     path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    announced, available = _header_frames(path)
+    if available < announced:
+        raise InputError(
+            f"{path}: truncated C3D file: the header announces {announced} frames, "
+            f"the file holds {max(available, 0)}"
+        )
     try:
-        fh = path.open("rb")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    with fh, warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # "no analog data" and similar notices
-        try:
-            reader = c3d.Reader(fh)
-            labels = [str(label).strip() for label in reader.point_labels]
-            units_param = reader.get("POINT:UNITS")
-            units = units_param.string_value.strip().lower() if units_param is not None else "mm"
-            frames = [points.copy() for _, points, _ in reader.read_frames()]
-            rate = float(reader.point_rate)
-        except Exception as exc:  # the c3d package raises assorted errors on damaged files
-            raise InputError(f"{path}: not a readable C3D file ({type(exc).__name__}: {exc})") from None
+        c = ezc3d.c3d(str(path), extract_forceplat_data=False)
+        point = c["parameters"]["POINT"]
+        labels = [str(label).strip() for label in point["LABELS"]["value"]]
+        units_value = point["UNITS"]["value"] if "UNITS" in point else ["mm"]
+        units = (units_value[0] if len(units_value) else "mm").strip().lower()
+        rate = float(np.ravel(point["RATE"]["value"])[0])
+        data = np.asarray(c["data"]["points"], dtype=float)  # (4, M, F): x, y, z, 1
+        residual = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)  # (1, M, F)
+    except Exception as exc:  # ezc3d raises assorted errors on damaged files
+        raise InputError(f"{path}: not a readable C3D file ({type(exc).__name__}: {exc})") from None
     if units not in LENGTH_UNITS:
         raise InputError(f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(LENGTH_UNITS)}")
-    if not frames:
+    if data.shape[2] == 0:
         raise InputError(f"{path}: no frames")
-    data = np.stack(frames)  # (F, M, >=4): x, y, z, residual, ...
-    xyz = data[:, :, :3] * LENGTH_UNITS[units]
-    xyz[data[:, :, 3] < 0] = np.nan
-    return labels, xyz, rate
+    if data.shape[2] < announced:
+        raise InputError(f"{path}: truncated C3D file: {data.shape[2]} of {announced} frames read")
+    if not rate > 0:
+        raise InputError(f"{path}: POINT:RATE is {rate}; expected a positive rate in Hz")
+    xyz = np.transpose(data[:3], (2, 1, 0)) * LENGTH_UNITS[units]  # (F, M, 3)
+    bad = (residual[0].T < 0) | ~np.isfinite(xyz).all(axis=2)
+    xyz[bad] = np.nan
+    return labels[: xyz.shape[1]], xyz, rate
 
 
 def read_cluster_spec(path: str | os.PathLike[str]) -> dict[str, list[str]]:
@@ -68,27 +115,62 @@ def read_cluster_spec(path: str | os.PathLike[str]) -> dict[str, list[str]]:
     return clusters
 
 
+def _group_name(labels: list[str]) -> str:
+    return "+".join(labels) if len(labels) <= 4 else f"{labels[0]}+{len(labels) - 1}"
+
+
+def auto_clusters(
+    labels: list[str], xyz: np.ndarray, *, still_deg: float = 10.0
+) -> tuple[dict[str, list[str]], list[str]]:
+    """``{name: [labels]}`` found by :func:`calibration.clusters.find_clusters`, and notes.
+
+    Moving clusters first (named by their markers), then still groups (``still``, ``still2``...);
+    the notes say which markers were left out and why.
+    """
+    found = find_clusters(xyz, still_deg=still_deg)
+    clusters = {_group_name([labels[k] for k in g]): [labels[k] for k in g] for g in found.clusters}
+    for i, g in enumerate(found.still):
+        name = "still" if i == 0 else f"still{i + 1}"
+        clusters[name] = [labels[k] for k in g]
+    rot = found.rotation_deg
+    notes = [
+        f"clusters found automatically: {len(found.clusters)} moving (rotating "
+        + ", ".join(f"{a:.0f}" for a in rot[: len(found.clusters)])
+        + f" deg), {len(found.still)} still; cuts on the distance spread at "
+        f"{found.cut_m[0] * 1e3:.3g} mm (still/moving groups) and {found.cut_m[1] * 1e3:.3g} mm (segments)"
+    ]
+    for i, g in enumerate(found.still):
+        notes.append(
+            f"{'still' if i == 0 else f'still{i + 1}'}: {len(g)} markers whose distances are steady "
+            f"but which rotate only {rot[len(found.clusters) + i]:.1f} deg (< {still_deg:g}): rigidity not "
+            f"proven by "
+            f"motion, treated as one body: {', '.join(labels[k] for k in g)}"
+        )
+    if found.left_out:
+        notes.append("left out: " + "; ".join(f"{labels[k]} ({why})" for k, why in found.left_out.items()))
+    return clusters, notes
+
+
 def c3d_poses(
-    path: str | os.PathLike[str], *, clusters: dict[str, list[str]] | None = None, tol_m: float = 0.003
+    path: str | os.PathLike[str], *, clusters: dict[str, list[str]] | None = None, still_deg: float = 10.0
 ) -> PoseRecording:
     """Segment poses from the marker clusters of a C3D file (module docstring).
 
     Args:
         path: the C3D file.
         clusters: ``{segment: [labels]}``; ``None`` to find clusters automatically.
-        tol_m: automatic grouping: largest spread of a within-cluster distance, m.
+        still_deg: automatic grouping: a group rotating less than this is still, degrees.
     """
     labels, xyz, rate = read_c3d_markers(path)
     index = {label: k for k, label in enumerate(labels)}
     notes = []
     if clusters is None:
-        groups = group_markers(xyz, tol_m=tol_m)
-        if len(groups) < 2:
+        clusters, notes = auto_clusters(labels, xyz, still_deg=still_deg)
+        if len(clusters) < 2:
             raise InputError(
-                f"{path}: found {len(groups)} rigid marker cluster(s); calibration needs 2 or more"
+                f"{path}: found {len(clusters)} rigid marker group(s); calibration needs 2 or more. "
+                + " ".join(notes)
             )
-        clusters = {"+".join(labels[k] for k in g): [labels[k] for k in g] for g in groups}
-        notes.append(f"clusters found automatically (distances steady within {tol_m * 1e3:g} mm)")
     missing = sorted({m for ms in clusters.values() for m in ms} - index.keys())
     if missing:
         raise InputError(f"{path}: no markers named {missing}; markers: {labels}")
@@ -97,6 +179,7 @@ def c3d_poses(
     R = np.full((f, len(names), 3, 3), np.nan)
     p = np.full((f, len(names), 3), np.nan)
     valid = np.zeros((f, len(names)), dtype=bool)
+    residual = np.zeros(len(names))
     for k, (name, marker_labels) in enumerate(clusters.items()):
         x = xyz[:, [index[m] for m in marker_labels]]
         try:
@@ -105,11 +188,19 @@ def c3d_poses(
             raise InputError(f"{path}: cluster {name}: {exc}") from None
         fit = rigid_fit(shape, x)
         R[:, k], p[:, k], valid[:, k] = fit.R_w_c, fit.p_w_c, fit.valid
+        residual[k] = np.nanmedian(fit.rms_residual)
         gaps = int((~fit.valid).sum())
         notes.append(
             f"cluster {name} ({', '.join(marker_labels)}): rigidity residual median "
-            f"{np.nanmedian(fit.rms_residual) * 1e3:.2f} mm, {gaps} of {f} frames without a pose"
+            f"{residual[k] * 1e3:.2f} mm, {gaps} of {f} frames without a pose"
         )
+    for k, name in enumerate(names):
+        others = np.delete(residual, k)
+        if len(others) and residual[k] > 2 * np.median(others):
+            notes.append(
+                f"high rigidity residual: cluster {name} {residual[k] * 1e3:.2f} mm, more than twice the "
+                f"others' median {np.median(others) * 1e3:.2f} mm: markers moving on skin or not one body"
+            )
     notes.insert(0, f"read {len(labels)} markers, {f} frames at {rate:g} Hz; {len(names)} clusters")
     return PoseRecording(
         names=names,
@@ -125,20 +216,28 @@ def c3d_poses(
 def write_c3d_markers(
     path: str | os.PathLike[str], labels: list[str], xyz_m: np.ndarray, rate_hz: float
 ) -> None:
-    """Write markers ``(F, M, 3)`` (metres; NaN = not seen) to a C3D file in mm, atomically."""
+    """Write markers ``(F, M, 3)`` (metres; NaN = not seen) to a C3D file in mm with ezc3d, atomically.
+
+    Missing samples get residual -1 (C3D's invalid mark); others residual 0.
+    """
     xyz = np.asarray(xyz_m, dtype=float)
     if xyz.ndim != 3 or xyz.shape[1] != len(labels) or xyz.shape[2] != 3:
         raise InputError(f"Expected markers of shape (frames, {len(labels)}, 3), got {xyz.shape}")
-    writer = c3d.Writer(point_rate=float(rate_hz), point_units="mm  ")
-    writer.set_point_labels(list(labels))
-    frames = []
-    for f in range(xyz.shape[0]):
-        pts = np.zeros((len(labels), 5), dtype=np.float32)
-        seen = np.isfinite(xyz[f]).all(axis=1)
-        pts[seen, :3] = xyz[f, seen] * 1000.0
-        pts[~seen, 3] = -1.0  # C3D's mark for an invalid sample
-        frames.append((pts, np.zeros((0, 0), dtype=np.float32)))
-    writer.add_frames(frames)
-    with atomic_open(path, "wb") as fh, warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        writer.write(fh)
+    if not rate_hz > 0:
+        raise InputError(f"Expected a positive rate in Hz, got {rate_hz}")
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [float(rate_hz)]
+    c["parameters"]["POINT"]["LABELS"]["value"] = list(labels)
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    seen = np.isfinite(xyz).all(axis=2)  # (F, M)
+    points = np.ones((4, xyz.shape[1], xyz.shape[0]))
+    points[:3] = np.transpose(np.where(seen[..., None], xyz * 1000.0, 0.0), (2, 1, 0))
+    c["data"]["points"] = points
+    c["data"]["meta_points"]["residuals"] = np.where(seen.T, 0.0, -1.0)[None]
+    with atomic_path(path) as tmp:
+        named = tmp.with_name(tmp.name + ".c3d")  # ezc3d appends ".c3d" to any other name
+        try:
+            c.write(str(named))
+            os.replace(named, tmp)
+        finally:
+            named.unlink(missing_ok=True)
