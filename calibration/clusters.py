@@ -8,15 +8,19 @@ centred cross-covariance with the reflection guard. The fit's rms residual measu
 cluster really is (skin moves markers against each other). Frames with fewer than three visible
 markers of a cluster give no pose (marked missing, never interpolated).
 
-:func:`group_markers` finds clusters without a specification: markers whose mutual distances stay
-constant over the recording (standard deviation below a tolerance) belong together.
+:func:`find_clusters` finds clusters without a specification, from how steady each pair's distance
+stays (its standard deviation over frames) with cuts at the largest gaps of a hierarchical tree
+(no tolerance in metres), and sets apart groups that are steady only because they barely move.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
 
@@ -111,42 +115,133 @@ def reference_shape(markers: np.ndarray, iterations: int = 3) -> np.ndarray:
     return shape
 
 
-def group_markers(markers: np.ndarray, *, tol_m: float = 0.002, min_size: int = 3) -> list[list[int]]:
-    """Clusters of markers whose mutual distances stay constant.
+@dataclass(frozen=True)
+class MarkerGroups:
+    """Markers grouped automatically (:func:`find_clusters`).
+
+    Attributes:
+        clusters: marker index lists of the moving rigid clusters, each sorted, largest first.
+        still: marker index lists of groups whose distances are steady but which rotate less than
+            the still limit: rigidity not proven by motion (the body at rest, lab markers).
+        left_out: ``{marker index: reason}`` for markers in no cluster and no still group.
+        residual_m: median rigidity residual of each cluster, then each still group, m.
+        rotation_deg: 95th-percentile rotation from the mean orientation, same order, degrees.
+        cut_m: ``(still/moving cut, cluster cut)`` on the distance spread, m.
+    """
+
+    clusters: list[list[int]]
+    still: list[list[int]]
+    left_out: dict[int, str]
+    residual_m: list[float]
+    rotation_deg: list[float]
+    cut_m: tuple[float, float]
+
+
+def distance_spread(markers: np.ndarray) -> np.ndarray:
+    """``(M, M)`` standard deviation over frames of every pair's distance, m (inf if < 3 frames)."""
+    x = np.asarray(markers, dtype=float)
+    d = np.linalg.norm(x[:, :, None] - x[:, None, :], axis=3)  # (F, M, M)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pairs
+        spread = np.nanstd(d, axis=0)
+    seen = np.isfinite(d).sum(axis=0)
+    spread = np.where(seen >= 3, spread, np.inf)
+    np.fill_diagonal(spread, 0.0)
+    return spread
+
+
+def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[np.ndarray], float]:
+    """Complete-linkage tree on the distance spread, cut at its largest ratio gap (unit-free)."""
+    if len(members) < 2:
+        return [members], np.inf
+    sub = spread[np.ix_(members, members)]
+    finite = np.isfinite(sub)
+    top = sub[finite].max() if finite.any() else 1.0
+    sub = np.where(finite, sub, 1e3 * top + 1.0)  # never seen together: apart
+    Z = linkage(squareform(sub, checks=False), method="complete")
+    h = np.maximum(Z[:, 2], np.finfo(float).tiny)
+    if len(h) < 2:
+        return [members], np.inf
+    k = int(np.argmax(h[1:] / h[:-1]))
+    cut = float(np.sqrt(h[k] * h[k + 1]))
+    labels = fcluster(Z, cut, criterion="distance")
+    return [members[labels == v] for v in np.unique(labels)], cut
+
+
+def _rotation_deg(markers: np.ndarray) -> tuple[float, float]:
+    """A group's median rigid-fit residual (m) and 95th-percentile rotation from its mean (deg)."""
+    shape = reference_shape(markers)
+    fit = rigid_fit(shape, markers)
+    R = fit.R_w_c[fit.valid]
+    U, _, Vt = np.linalg.svd(R.mean(axis=0))  # chordal mean orientation
+    R_mean = U @ Vt
+    cos = (np.einsum("ij,fij->f", R_mean, R) - 1.0) / 2.0
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return float(np.nanmedian(fit.rms_residual)), float(np.percentile(angle, 95))
+
+
+def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int = 3) -> MarkerGroups:
+    """Rigid marker clusters found from the steadiness of their distances, relative to motion.
+
+    Two cuts, each at the largest ratio gap of a complete-linkage tree on the pairs' distance
+    spread (standard deviation over frames), so no tolerance in metres is needed and the result
+    is the same in any unit. The first cut, over all markers, separates groups that move against
+    each other; a group of ``min_size`` or more whose rigid fit rotates less than ``still_deg``
+    (95th percentile from its mean orientation) is *still*: its distances are steady because it
+    barely moves, so its rigidity is not proven (a body at rest, lab markers); it is reported
+    apart. The second cut, over the markers of the moving groups only, separates the segments
+    (skin spread within a cluster, joint motion between clusters). ``still_deg`` defaults to 10
+    degrees: below that a joint centre is not determined (DESIGN.md, facts from real recordings).
 
     Args:
-        markers: ``(F, M, 3)`` marker positions, m (NaN where not seen).
-        tol_m: largest standard deviation over frames of a distance within one cluster, m.
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        still_deg: smallest rotation of a group that counts as moving, degrees.
         min_size: smallest cluster.
-
-    Returns:
-        Marker index lists, each sorted, largest cluster first.
     """
     x = np.asarray(markers, dtype=float)
     if x.ndim != 3 or x.shape[2] != 3:
         raise CalibrationInputError(f"Expected markers of shape (frames, markers, 3), got {x.shape}")
-    d = np.linalg.norm(x[:, :, None] - x[:, None, :], axis=3)  # (F, M, M)
-    with np.errstate(invalid="ignore"):
-        spread = np.nanstd(d, axis=0)
-        seen = np.isfinite(d).sum(axis=0)
-    rigid = (spread < tol_m) & (seen >= 3)
-    np.fill_diagonal(rigid, False)
-    spread = np.where(rigid, spread, np.inf)
-    # greedy cliques: seed with the steadiest remaining pair, add every marker steady with all
-    # members (steadiest first), take the group out, repeat
-    left = set(range(x.shape[1]))
-    groups = []
-    while True:
-        cand = [(spread[a, b], a, b) for a in left for b in left if a < b and rigid[a, b]]
-        if not cand:
-            break
-        _, a, b = min(cand)
-        group = [a, b]
-        others = sorted(left - {a, b}, key=lambda k: max(spread[k, g] for g in group))
-        for k in others:
-            if all(rigid[k, g] for g in group):
-                group.append(k)
-        left -= set(group)
-        if len(group) >= min_size:
-            groups.append(sorted(group))
-    return sorted(groups, key=lambda g: (-len(g), g[0]))
+    spread = distance_spread(x)
+    everyone = np.arange(x.shape[1])
+    first, cut1 = _largest_gap_groups(spread, everyone)
+    still, left_out, stats = [], {}, {}
+    for g in first:
+        if len(g) < min_size:
+            continue
+        try:
+            stats[tuple(g)] = _rotation_deg(x[:, g])
+        except CalibrationError:
+            continue
+        if stats[tuple(g)][1] < still_deg:
+            still.append(g)
+    pool = np.setdiff1d(everyone, np.concatenate(still)) if still else everyone
+    second, cut2 = _largest_gap_groups(spread, pool) if len(pool) >= 2 * min_size else ([pool], np.inf)
+    clusters = []
+    for g in second:
+        if len(g) < min_size:
+            for k in g:
+                left_out[int(k)] = f"moves, but steady with only {len(g) - 1} other marker(s)"
+            continue
+        try:
+            stats[tuple(g)] = _rotation_deg(x[:, g])
+        except CalibrationError:
+            for k in g:
+                left_out[int(k)] = "its cluster is never seen whole in one frame"
+            continue
+        clusters.append(g)
+    order = lambda gs: sorted((sorted(int(k) for k in g) for g in gs), key=lambda g: (-len(g), g[0]))  # noqa: E731
+    clusters, still = order(clusters), order(still)
+    groups = clusters + still
+    return MarkerGroups(
+        clusters=clusters,
+        still=still,
+        left_out=dict(sorted(left_out.items())),
+        residual_m=[stats[tuple(g)][0] for g in groups],
+        rotation_deg=[stats[tuple(g)][1] for g in groups],
+        cut_m=(cut1, cut2),
+    )
+
+
+def group_markers(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int = 3) -> list[list[int]]:
+    """The moving rigid clusters of :func:`find_clusters`: marker index lists, largest first."""
+    return find_clusters(markers, still_deg=still_deg, min_size=min_size).clusters

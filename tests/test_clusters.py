@@ -63,7 +63,7 @@ def test_reference_shape_and_grouping_on_simulated_markers():
     x = np.concatenate([*parts, loose], axis=1)
     order = rng.permutation(x.shape[1])
     x = x[:, order]
-    groups = group_markers(x, tol_m=0.001)
+    groups = group_markers(x)
     truth = [
         sorted(np.flatnonzero(np.isin(order, range(a, a + k))).tolist()) for a, k in ((7, 5), (3, 4), (0, 3))
     ]
@@ -104,7 +104,7 @@ def test_bad_c3d_input(tmp_path):
     write_c3d_markers(path, ["A", "B", "C"], np.random.default_rng(4).normal(size=(20, 3, 3)), 50.0)
     truncated = tmp_path / "t.c3d"
     truncated.write_bytes(path.read_bytes()[:700])
-    with pytest.raises(InputError, match=r"not a readable C3D file|no frames"):
+    with pytest.raises(InputError, match=r"t\.c3d: (truncated|not a C3D file|not a readable C3D file)"):
         read_c3d_markers(truncated)
     spec = tmp_path / "s.toml"
     spec.write_text('[clusters]\nx = ["A", "B", "Z"]\n')
