@@ -12,21 +12,23 @@ Stacked over frames this is the linear system ``A x = b`` of O'Brien eqs. 9-13 w
 
 **Conditioning and single-axis joints.** ``A`` holds only rotations, so its singular values are
 dimensionless and do not depend on the length unit of the positions: metres or centimetres give
-the same singular values and the same verdicts. Its Gram matrix is
-``F [[I, -M], [-M^T, I]]`` with ``M`` the mean relative rotation ``R_w_p^T R_w_c`` over the
-frames, so the singular values are ``sqrt(F (1 +- sigma_k(M)))``: all equal when the joint turns
-through large angles in every direction, one near zero when the relative motion is about a
-single axis (section 3.2), three near zero when the sensors do not rotate relative to each other.
-The ratio ``s_min / s_max`` is about half the rms rotation angle (rad) off the weakest axis.
+the same singular values. Its Gram matrix is ``F [[I, -M], [-M^T, I]]`` with ``M`` the mean
+relative rotation ``R_w_p^T R_w_c`` over the frames, so the singular values are
+``sqrt(F (1 +- sigma_k(M)))``: all equal when the joint turns through large angles in every
+direction, one near zero when the relative motion is about a single axis (section 3.2), three
+near zero when the sensors do not rotate relative to each other. The ratio ``s_min / s_max``
+(:attr:`JointFit.weak_ratio`) is about half the rms rotation angle (rad) off the weakest axis; it
+is reported, but the verdict does not rest on it.
 
-A direction whose singular value is below ``single_axis_ratio * s_max`` (default 0.01, about
-1.1 degrees rms of rotation off the weakest axis, averaged over *all* frames -- a joint exercised
-during a tenth of the recording needs about 3.6 degrees rms while it moves) is treated as not
-determined by the motion:
-it is left out of the solution, which then is the minimum-norm one along it -- the point closest
-to the origins of both sensor frames, as the paper chooses -- instead of an arbitrary point
-driven by noise. One such direction marks a single-axis joint, and its right singular vector
-gives the axis in both frames (section 3.2).
+Whether a weak direction is determined is decided by a test against the residual's own noise
+(:mod:`calibration.hinge`): the rise of the residual when the centre is held at the minimum-norm
+point along that direction, against the batch-means variance of the residual's projection (the
+residual is autocorrelated). Undetermined directions are left out of the solution, which then is
+the minimum-norm one along them -- the point closest to the origins of both sensor frames, as
+the paper chooses -- instead of an arbitrary point driven by noise. One such direction marks a
+single-axis joint, and its right singular vector gives the axis in both frames (section 3.2).
+Directions with ``s < single_axis_ratio * s_max`` (default :data:`SINGLE_AXIS_RATIO`, a hard
+floor) are undetermined whatever the test says.
 """
 
 from __future__ import annotations
@@ -36,9 +38,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.hinge import (
+    block_of_frame,
+    critical_t,
+    hinge_verdict,
+    precise_directions,
+    score_t,
+    score_variance,
+    testable_directions,
+)
 
-#: Default threshold on ``s / s_max`` below which a direction of the joint fit is undetermined.
-SINGLE_AXIS_RATIO = 0.01
+#: Hard floor on ``s / s_max`` below which a direction is undetermined whatever the test says:
+#: 1e-4 is about 0.2 mrad (0.01 degree) rms off the axis, finer than any tracker resolves, so
+#: below it the statistical test (:mod:`calibration.hinge`) would compare rounding errors.
+SINGLE_AXIS_RATIO = 1e-4
 
 #: Fewest frames a joint fit accepts (two frames give 6 equations for 6 unknowns).
 MIN_FRAMES = 3
@@ -65,6 +78,8 @@ class JointFit:
         n_frames: frames used in the fit.
         n_dropped: frames dropped because a pose of either sensor was not finite or was marked
             invalid.
+        weakest_t: ``|t|`` of the single-axis test of the weakest direction
+            (:mod:`calibration.hinge`, dimensionless); NaN when it was not tested.
     """
 
     joint_in_parent: np.ndarray
@@ -78,6 +93,7 @@ class JointFit:
     axis_in_child: np.ndarray | None
     n_frames: int
     n_dropped: int
+    weakest_t: float = float("nan")
 
     @property
     def condition(self) -> float:
@@ -112,10 +128,11 @@ class Spectrum:
 
 
 def determined_directions(singular_values: np.ndarray, single_axis_ratio: float) -> np.ndarray:
-    """The single-axis rule (O'Brien 3.2): which directions of joint fits the motion determines.
+    """The hard floor of the single-axis rule (O'Brien 3.2): directions not below it.
 
-    A direction is determined when its singular value is at least ``single_axis_ratio * s_max``
-    (and not zero); the others are left out of the solution (module docstring).
+    A direction passes the floor when its singular value is at least ``single_axis_ratio * s_max``
+    (and not zero); the others are left out of the solution whatever the statistical test of
+    :mod:`calibration.hinge` says (module docstring).
 
     Args:
         singular_values: ``(..., 6)`` singular values of ``A`` per fit, descending (``s_max``
@@ -130,21 +147,28 @@ def determined_directions(singular_values: np.ndarray, single_axis_ratio: float)
 
 
 def read_spectrum(
-    singular_values: np.ndarray, right_vectors: np.ndarray, single_axis_ratio: float
+    singular_values: np.ndarray,
+    right_vectors: np.ndarray,
+    single_axis_ratio: float,
+    keep: np.ndarray | None = None,
 ) -> Spectrum:
-    """Decide which directions a joint fit determines, and the joint axis if there is one.
+    """Read which directions a joint fit determines, and the joint axis if there is one.
 
     Args:
         singular_values: ``(6,)`` singular values of ``A``, descending.
         right_vectors: ``(6, 6)`` right singular vectors as columns, in the same order.
-        single_axis_ratio: directions with ``s < single_axis_ratio * s_max`` are undetermined
-            (:func:`determined_directions`).
+        single_axis_ratio: the hard floor (:func:`determined_directions`), used when ``keep``
+            is not given.
+        keep: ``(6,)`` bool, the determined directions as the test of :mod:`calibration.hinge`
+            found them; ``None`` applies the floor alone.
 
     Returns:
         The kept directions, the rank and, for a single-axis joint, the axis in both frames
         (sign chosen so that the parent-frame axis has a positive largest component).
     """
-    keep = determined_directions(singular_values, single_axis_ratio)
+    if keep is None:
+        keep = determined_directions(singular_values, single_axis_ratio)
+    keep = np.asarray(keep, dtype=bool)
     rank = int(np.count_nonzero(keep))
     single_axis = rank == 5
     axis_p = axis_c = None
@@ -251,9 +275,10 @@ def fit_joint(
     A = np.concatenate([Rp, -Rc], axis=2).reshape(3 * n_used, 6)  # O'Brien eq. 12-13
     b = (p_w_c[ok] - p_w_p[ok]).reshape(3 * n_used)  # O'Brien eq. 11
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
-    spectrum = read_spectrum(s, Vt.T, single_axis_ratio)
-    k = spectrum.keep
-    x = Vt[k].T @ ((U[:, k].T @ b) / s[k])  # minimum-norm solution over kept directions
+    floor_keep = determined_directions(s, single_axis_ratio)
+    keep, t = _tested_directions(A, b, U, s, Vt, floor_keep, block_of_frame(n_total)[ok])
+    spectrum = read_spectrum(s, Vt.T, single_axis_ratio, keep)
+    x = _min_norm(U, s, Vt, b, keep)
     residual = np.full(n_total, np.nan)
     residual[ok] = np.linalg.norm((A @ x - b).reshape(n_used, 3), axis=1)
     return JointFit(
@@ -268,4 +293,40 @@ def fit_joint(
         axis_in_child=spectrum.axis_in_child,
         n_frames=n_used,
         n_dropped=n_total - n_used,
+        weakest_t=float(t[5]),
     )
+
+
+def _min_norm(U: np.ndarray, s: np.ndarray, Vt: np.ndarray, b: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``(6,)`` the least-squares solution over the kept directions, zero along the others."""
+    return Vt[keep].T @ ((U[:, keep].T @ b) / s[keep])
+
+
+def _tested_directions(
+    A: np.ndarray,
+    b: np.ndarray,
+    U: np.ndarray,
+    s: np.ndarray,
+    Vt: np.ndarray,
+    floor_keep: np.ndarray,
+    block: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(6,)`` bool, the directions the data determine (:func:`calibration.hinge.hinge_verdict`),
+    and ``(6,)`` the ``|t|`` of every direction's test.
+
+    ``A`` is ``(3 n, 6)``, ``b`` ``(3 n,)`` and ``block`` ``(n,)`` the block of each used frame.
+    """
+    r = (A @ _min_norm(U, s, Vt, b, floor_keep) - b).reshape(-1, 3)  # the ball model's residual
+    per_frame = np.einsum("fij,fi->fj", (A @ Vt.T).reshape(-1, 3, 6), r)  # (n, 6) scores
+    n_blocks = int(block.max()) + 1 if block.size else 0
+    scores = np.zeros((n_blocks, 6))
+    np.add.at(scores, block, per_frame)
+    counts = np.bincount(block, minlength=n_blocks)
+    proj = s * (U.T @ b)  # v_j . A^T b
+    var = score_variance(scores, counts)
+    t_crit = critical_t(counts)
+    rms = np.sqrt(np.mean(np.sum(r * r, axis=1)))
+    precise = precise_directions(var, s * s, t_crit, rms)
+    testable = testable_directions(s, block.size)
+    t = score_t(proj, var)
+    return hinge_verdict(floor_keep, t, t_crit, testable, precise), t

@@ -29,7 +29,17 @@ from typing import Any
 
 import numpy as np
 
+from calibration.hinge import (
+    block_edges,
+    critical_t,
+    hinge_verdict,
+    precise_directions,
+    score_t,
+    score_variance,
+    testable_directions,
+)
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
+from calibration.pair_sums import PairSums
 from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
@@ -47,6 +57,9 @@ class PairStatistics:
         sq_dist: ``(N, N)`` ``sum w_i w_j |p_j - p_i|^2``, square metres.
         count: ``(N, N)`` frames where both sensors are valid.
         n_frames: frames in the recording.
+        block_gram, block_cross, block_self_cross, block_count: ``(B, ...)`` the same sums over
+            each of the ``B`` blocks of :func:`calibration.hinge.block_edges` (for the
+            batch-means variance of the single-axis test).
     """
 
     gram: np.ndarray
@@ -55,29 +68,15 @@ class PairStatistics:
     sq_dist: np.ndarray
     count: np.ndarray
     n_frames: int
+    block_gram: np.ndarray
+    block_cross: np.ndarray
+    block_self_cross: np.ndarray
+    block_count: np.ndarray
 
     @property
     def n_sensors(self) -> int:
         """Number of sensors ``N``."""
         return int(self.count.shape[0])
-
-
-_ROW = np.dtype((np.void, 24))  # one row of a 3x3 float64 matrix, moved as a unit
-
-
-def _rows_by_world_axis(R: np.ndarray, out: np.ndarray) -> None:
-    """Copy ``R[f, i, a, :]`` to ``out[f, a, i, :]`` (``(c, n, 3, 3) -> (c, 3, n, 3)``).
-
-    Moving each 24-byte matrix row as one item is about twice as fast as numpy's element-wise
-    strided copy; arrays whose rows are not contiguous take the plain path.
-    """
-    try:
-        src = R.view(_ROW)[..., 0]
-        dst = out.view(_ROW)[..., 0]
-    except ValueError:
-        np.copyto(out, R.transpose(0, 2, 1, 3))
-        return
-    np.copyto(dst, src.transpose(0, 2, 1))
 
 
 def pair_statistics(
@@ -88,7 +87,8 @@ def pair_statistics(
     Chunks where every pose is valid take a fast path: one Gram matrix of ``[X | P]``, where
     the rows of ``X`` are the world-axis rows of every sensor's rotation and ``P`` the centred
     positions, holds all of ``G``, ``C``, ``D`` and ``b^T b``. Chunks with missing poses add
-    the 0/1 weights of the module docstring.
+    the 0/1 weights of the module docstring. The sums are kept per block of frames
+    (:func:`calibration.hinge.block_edges`) for the single-axis test; the products are the same.
 
     Args:
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world (ndarray, h5py dataset or
@@ -101,58 +101,27 @@ def pair_statistics(
         The statistics of all pairs.
     """
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
-    m = 4 * n
-    full = np.zeros((m, m))  # Gram of [X | P] over the chunks with every pose valid
-    n_full = 0
-    gram = np.zeros((3 * n, 3 * n))
-    cross = np.zeros((3 * n, n))
-    weighted_self = np.zeros((n, 3 * n))
-    dot = np.zeros((n, n))
-    weighted_sq = np.zeros((n, n))
-    count = np.zeros((n, n))
-    buf = np.empty((min(chunk_frames, max(n_frames, 1)), 3, m))
-    mean_of_sensors = np.kron(np.ones((n, 1)) / n, np.eye(3))  # (3n, 3)
-    for _, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
-        c = R.shape[0]
-        XP = buf[:c]
-        _rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
-        if ok.all():
-            centre = p.reshape(c, 3 * n) @ mean_of_sensors  # (c, 3) mean sensor position
-            np.subtract(p.transpose(0, 2, 1), centre[:, :, None], out=XP[:, :, 3 * n :])
-            flat = XP.reshape(3 * c, m)
-            full += flat.T @ flat
-            n_full += c
-            continue
-        w = ok.astype(float)
-        centre = p.sum(axis=1) / np.maximum(w.sum(axis=1), 1.0)[:, None]
-        pc = (p - centre[:, None, :]) * w[:, :, None]
-        X = XP[:, :, : 3 * n].reshape(3 * c, 3 * n)
-        P = pc.transpose(0, 2, 1).reshape(3 * c, n)
-        gram += X.T @ X
-        cross += X.T @ P
-        Rtp = np.einsum("fiab,fia->fib", R, pc)  # R_i^T p_i per frame, (c, n, 3)
-        weighted_self += w.T @ Rtp.reshape(c, 3 * n)
-        dot += P.T @ P
-        weighted_sq += w.T @ np.einsum("fia,fia->fi", pc, pc)
-        count += w.T @ w
-    if n_full:
-        fx = full[: 3 * n, 3 * n :]
-        gram += full[: 3 * n, : 3 * n]
-        cross += fx
-        own = fx.reshape(n, 3, n)[np.arange(n), :, np.arange(n)]  # (n, 3): sum R_i^T p_i
-        weighted_self += own.reshape(1, 3 * n)
-        fp = full[3 * n :, 3 * n :]
-        dot += fp
-        weighted_sq += np.diagonal(fp)[None, :]
-        count += n_full
-    sq_i = weighted_sq.T  # [i, j] = sum w_i w_j |p_i|^2
+    edges = block_edges(n_frames)
+    sums = [PairSums(n) for _ in range(len(edges) - 1)]
+    buf = np.empty((min(chunk_frames, max(n_frames, 1)), 3, 4 * n))
+    for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        cuts = np.clip(edges, frames.start, frames.stop) - frames.start
+        for k in np.flatnonzero(np.diff(cuts) > 0):
+            lo, hi = cuts[k], cuts[k + 1]
+            sums[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
+    blocks = [acc.result() for acc in sums]
+    gram, cross, self_cross, sq_dist, count = (np.stack(x) for x in zip(*blocks, strict=True))
     return PairStatistics(
-        gram=gram.reshape(n, 3, n, 3).transpose(0, 2, 1, 3),
-        cross=cross.reshape(n, 3, n).transpose(0, 2, 1),
-        self_cross=weighted_self.reshape(n, n, 3).transpose(1, 0, 2),
-        sq_dist=sq_i + sq_i.T - 2.0 * dot,
-        count=np.rint(count).astype(np.int64),
+        gram=gram.sum(axis=0),
+        cross=cross.sum(axis=0),
+        self_cross=self_cross.sum(axis=0),
+        sq_dist=sq_dist.sum(axis=0),
+        count=count.sum(axis=0),
         n_frames=n_frames,
+        block_gram=gram,
+        block_cross=cross,
+        block_self_cross=self_cross,
+        block_count=count,
     )
 
 
@@ -169,6 +138,8 @@ class PairSolutions:
         singular_values: ``(P, 6)`` descending, as the SVD of ``A`` would give them.
         right_vectors: ``(P, 6, 6)`` right singular vectors as columns.
         n_frames: ``(P,)`` frames both sensors are valid.
+        keep: ``(P, 6)`` bool, the directions the data determine (:mod:`calibration.hinge`).
+        t_statistic: ``(P, 6)`` ``|t|`` of each direction's test (NaN when untestable).
     """
 
     parent: np.ndarray
@@ -179,6 +150,8 @@ class PairSolutions:
     singular_values: np.ndarray
     right_vectors: np.ndarray
     n_frames: np.ndarray
+    keep: np.ndarray
+    t_statistic: np.ndarray
 
 
 def solve_pairs(
@@ -190,15 +163,16 @@ def solve_pairs(
 ) -> PairSolutions:
     """Solve the joint fits of the given pairs from their normal equations (batched).
 
-    Gives the same joint, residual and singular values as :func:`calibration.joint.fit_joint`
-    on the same frames (the same truncation of undetermined directions), without touching the
-    data again.
+    Gives the same joint, residual, singular values and single-axis verdict as
+    :func:`calibration.joint.fit_joint` on the same frames (the test of :mod:`calibration.hinge`
+    takes its block scores from the per-block normal equations), without touching the data
+    again.
 
     Args:
         stats: from :func:`pair_statistics`.
         parent: ``(P,)`` parent sensor indices.
         child: ``(P,)`` child sensor indices.
-        single_axis_ratio: see :mod:`calibration.joint`.
+        single_axis_ratio: the hard floor of :mod:`calibration.joint`.
     """
     parent = np.asarray(parent, dtype=np.int64)
     child = np.asarray(child, dtype=np.int64)
@@ -221,12 +195,20 @@ def solve_pairs(
     eigval, eigvec = np.linalg.eigh(normal)
     eigval, eigvec = eigval[:, ::-1], eigvec[:, :, ::-1]  # descending, like the SVD
     s = np.sqrt(np.clip(eigval, 0.0, None))
-    keep = determined_directions(s, single_axis_ratio)  # O'Brien 3.2
     proj = np.einsum("pki,pk->pi", eigvec, rhs)  # V^T (A^T b)
-    safe = np.where(keep, eigval, 1.0)
-    coef = np.where(keep, proj / safe, 0.0)
-    x = np.einsum("pik,pk->pi", eigvec, coef)
-    sq_res = stats.sq_dist[parent, child] - np.sum(np.where(keep, proj * proj / safe, 0.0), axis=1)
+    floor_keep = determined_directions(s, single_axis_ratio)  # O'Brien 3.2, hard floor
+    scores = _block_scores(stats, parent, child, eigvec, _min_norm(eigvec, eigval, proj, floor_keep))
+    block_counts = stats.block_count[:, parent, child].T  # (P, B)
+    var = score_variance(scores, block_counts)
+    t, t_crit = score_t(proj, var), critical_t(block_counts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ball_rms = np.sqrt(
+            np.clip(_sq_residual(stats, parent, child, eigval, proj, floor_keep), 0, None) / counts
+        )
+    precise = precise_directions(var, eigval, t_crit, ball_rms)
+    keep = hinge_verdict(floor_keep, t, t_crit, testable_directions(s, counts), precise)
+    x = _min_norm(eigvec, eigval, proj, keep)
+    sq_res = _sq_residual(stats, parent, child, eigval, proj, keep)
     usable = counts >= MIN_FRAMES
     rms = np.full(n_pairs, np.inf)
     rms[usable] = np.sqrt(np.clip(sq_res[usable], 0.0, None) / counts[usable])
@@ -239,7 +221,45 @@ def solve_pairs(
         singular_values=s,
         right_vectors=eigvec,
         n_frames=stats.count[parent, child],
+        keep=keep,
+        t_statistic=t,
     )
+
+
+def _sq_residual(
+    stats: PairStatistics,
+    parent: np.ndarray,
+    child: np.ndarray,
+    eigval: np.ndarray,
+    proj: np.ndarray,
+    keep: np.ndarray,
+) -> np.ndarray:
+    """``(P,)`` sum of squared residuals of the solutions over the kept directions (``b^T b`` minus
+    the explained part), length squared."""
+    explained = np.where(keep, proj * proj / np.where(keep, eigval, 1.0), 0.0)
+    return stats.sq_dist[parent, child] - np.sum(explained, axis=1)
+
+
+def _min_norm(eigvec: np.ndarray, eigval: np.ndarray, proj: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``(P, 6)`` least-squares solutions over the kept directions, zero along the others."""
+    coef = np.where(keep, proj / np.where(keep, eigval, 1.0), 0.0)
+    return np.einsum("pik,pk->pi", eigvec, coef)
+
+
+def _block_scores(
+    stats: PairStatistics, parent: np.ndarray, child: np.ndarray, eigvec: np.ndarray, x: np.ndarray
+) -> np.ndarray:
+    """``(P, B, 6)`` per block, ``v_j . A_b^T (A_b x - b_b)``: the normal equations' gradient of
+    each block along each direction (:func:`calibration.hinge.score_t`)."""
+    cnt = stats.block_count[:, parent, child].astype(float)[..., None]  # (B, P, 1)
+    g = stats.block_gram[:, parent, child]  # (B, P, 3, 3)
+    xp, xc = x[:, :3], x[:, 3:]
+    top = cnt * xp - np.einsum("bpij,pj->bpi", g, xc)
+    top -= stats.block_cross[:, parent, child] - stats.block_self_cross[:, parent, child]
+    bottom = cnt * xc - np.einsum("bpji,pj->bpi", g, xp)
+    bottom -= stats.block_cross[:, child, parent] - stats.block_self_cross[:, child, parent]
+    grad = np.concatenate([top, bottom], axis=2)  # (B, P, 6)
+    return np.einsum("pkj,bpk->pbj", eigvec, grad)
 
 
 def pair_residual_matrix(
@@ -333,5 +353,6 @@ def frame_residuals(
 
 
 def pair_fit_spectrum(sol: PairSolutions, k: int, single_axis_ratio: float = SINGLE_AXIS_RATIO) -> Spectrum:
-    """The :class:`calibration.joint.Spectrum` of pair ``k`` of a batch solution."""
-    return read_spectrum(sol.singular_values[k], sol.right_vectors[k], single_axis_ratio)
+    """The :class:`calibration.joint.Spectrum` of pair ``k`` of a batch solution (the verdict
+    was made in :func:`solve_pairs`; ``single_axis_ratio`` is kept for callers)."""
+    return read_spectrum(sol.singular_values[k], sol.right_vectors[k], single_axis_ratio, sol.keep[k])

@@ -92,7 +92,9 @@ def test_weak_ratio_is_half_the_off_axis_angle():
         pc = pp + np.einsum("fij,j->fi", Rp, [0.1, 0.2, 0.3]) - np.einsum("fij,j->fi", Rc, [0.0, 0.1, 0.0])
         fit = fit_joint(Rp, pp, Rc, pc)
         assert fit.weak_ratio == pytest.approx(theta / 2, rel=0.1)
-        assert fit.single_axis == (theta / 2 < SINGLE_AXIS_RATIO)
+        # exact positions: even 0.3 degrees off the axis pin the centre along it (the ratio is
+        # reported, the verdict comes from the residual's noise, calibration.hinge)
+        assert theta / 2 > SINGLE_AXIS_RATIO and not fit.single_axis and fit.rank == 6
 
 
 def test_error_shrinks_as_frames_grow():
@@ -122,7 +124,7 @@ def test_single_axis_rule_is_vectorised(batch):
     rng = np.random.default_rng(3)
     s = -np.sort(-rng.uniform(0.0, 1.0, (*batch, 6)), axis=-1)
     flat = s.reshape(-1, 6)
-    flat[::2, 5] = 0.004 * flat[::2, 0]  # a single-axis fit in every other row
+    flat[::2, 5] = 0.4 * SINGLE_AXIS_RATIO * flat[::2, 0]  # below the floor in every other row
     if flat.shape[0] > 1:
         flat[1] = 0.0  # a fit with no determined direction at all
     keep = determined_directions(s, SINGLE_AXIS_RATIO)

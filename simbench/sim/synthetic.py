@@ -328,3 +328,64 @@ def random_tree(n: int, rng: np.random.Generator) -> Skeleton:
             )
         )
     return Skeleton(tuple(segs))
+
+
+def messy_joint(
+    joint_amplitude_rad: Sequence[float],
+    *,
+    n_frames: int,
+    rate_hz: float,
+    rng: np.random.Generator,
+    sensor_offsets: Sequence[Sequence[float]] = ((0.28, 0.05, -0.03), (0.20, 0.04, 0.03)),
+    play_m: float = 0.002,
+    skin_m: float = 0.005,
+    position_noise_m: float = 0.002,
+    rotation_noise_rad: float = 0.01,
+) -> SyntheticCapture:
+    """Two sensors across one imperfect joint, as a real rig or limb records it.
+
+    The parent segment runs along its body x axis to the joint at ``(0.35, 0, 0)``; the child
+    continues along x. The joint turns by a rotation vector whose components about the parent's
+    body x, y, z axes are smooth seeded signals of amplitude ``joint_amplitude_rad``: a hinge
+    with wobble is ``(0.04, 0.04, 0.8)`` (a few degrees about the other axes), a ball joint moved
+    in flexion and abduction with little twist ``(0.04, 0.8, 0.8)``. On top: play (the child's
+    joint point wanders by ``play_m`` in the parent frame), soft-tissue-like slow offsets of each
+    sensor on its segment (``skin_m``; the child's half of it follows the largest joint angle),
+    and white tracker noise on every position component (``position_noise_m``, m) and
+    rotation-vector component (``rotation_noise_rad``). ``sensor_offsets`` are the nominal sensor
+    origins in the parent's and the child's body frames, m. The skeleton's joint is the nominal
+    one: a hinge about the axis whose amplitude is tenfold the others', else a ball.
+    """
+    amp = np.asarray(joint_amplitude_rad, dtype=float)
+    if amp.shape != (3,) or n_frames < 1 or rate_hz <= 0:
+        raise ValueError(f"need 3 amplitudes, n_frames >= 1, rate_hz > 0; got {amp}, {n_frames}, {rate_hz}")
+    main = int(np.argmax(amp))
+    kind = HINGE if amp[main] >= 10.0 * np.max(np.delete(amp, main)) else BALL
+    off = [tuple(float(v) for v in o) for o in sensor_offsets]
+    skeleton = Skeleton(
+        (
+            Segment("parent", None, sensor_offset=off[0], sensor_rotvec=(0.2, -0.3, 0.1)),
+            Segment(
+                "child", "parent", (0.35, 0.0, 0.0), kind, tuple(np.eye(3)[main]), off[1], (-0.4, 0.1, 0.3)
+            ),
+        )
+    )
+    t = np.arange(n_frames) / rate_hz
+    R_w_p = rotvec_to_matrix(_smooth(rng, t, 3, 1.2))
+    p_w_p = np.array([0.0, 0.0, 1.0]) + _smooth(rng, t, 3, 0.4)
+    rotvec = np.concatenate([_smooth(rng, t, 1, a) for a in amp], axis=1)
+    R_w_c = R_w_p @ rotvec_to_matrix(rotvec)
+    joint_b = np.array(skeleton.segments[1].joint_in_parent_body) + _smooth(rng, t, 3, play_m)
+    p_w_joint = p_w_p + np.einsum("fij,fj->fi", R_w_p, joint_b)
+    direction = rng.normal(size=3)
+    follow = 0.5 * skin_m * (rotvec[:, main : main + 1] / amp[main]) * direction / np.linalg.norm(direction)
+    off_p = np.array(off[0]) + _smooth(rng, t, 3, skin_m)
+    off_c = np.array(off[1]) + _smooth(rng, t, 3, 0.5 * skin_m) + follow
+    R_b_s = rotvec_to_matrix(np.array([s.sensor_rotvec for s in skeleton.segments]))
+    R_true = np.stack([R_w_p @ R_b_s[0], R_w_c @ R_b_s[1]], axis=1)
+    at_p = p_w_p + np.einsum("fij,fj->fi", R_w_p, off_p)
+    p_true = np.stack([at_p, p_w_joint + np.einsum("fij,fj->fi", R_w_c, off_c)], axis=1)
+    R_meas = rotvec_to_matrix(rng.normal(0.0, rotation_noise_rad, size=(n_frames, 2, 3))) @ R_true
+    p_meas = p_true + rng.normal(0.0, position_noise_m, size=p_true.shape)
+    joint_w = np.stack([p_w_p, p_w_joint], axis=1)
+    return SyntheticCapture(skeleton.names, t, R_meas, p_meas, R_true, p_true, joint_w, skeleton)

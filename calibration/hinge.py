@@ -1,0 +1,162 @@
+"""The single-axis (hinge) verdict: does the data determine the joint centre along the weakest axis?
+
+A joint fit (O'Brien eqs. 9-13, ``A x = b``) has six directions, the right singular vectors
+``v_j`` of ``A``. Along the weakest one, ``v_6``, a hinge leaves the centre undetermined: the
+hinge model puts it at the minimum-norm point (``v_6 . x = 0``), the ball model fits it. The
+residual rises by ``(u_6 . b)^2`` when the hinge model is imposed, and the verdict asks whether
+that rise stands out from the residual's own noise (O'Brien section 3.2 made statistical).
+
+**The test.** The fitted coefficient along ``v_j`` is ``c_j = (v_j . A^T b) / s_j^2`` and its
+t statistic against ``c_j = 0`` is ``t_j = (v_j . A^T b) / sqrt(var)``, where ``var`` is the
+variance of the score ``v_j . A^T e`` (``e`` the residual). Residuals of real joints are
+strongly autocorrelated (soft tissue, play, tracker distortion that follow the motion), so the
+variance is not ``sigma^2 s_j^2`` but is estimated by batch means: the recording is cut into
+:data:`N_BLOCKS` consecutive blocks of frames, each block's score
+``g_b = sum_{f in b} (A_f v_j) . r_f`` is summed from the full model's residual ``r``, and
+``var = B / (B - 1) sum_b g_b^2`` over the ``B`` blocks that hold frames (the scores sum to
+zero by the normal equations). With correlation shorter than a block, ``t_j`` follows Student's
+t with ``B - 1`` degrees of freedom (the effective number of independent samples is ``B``, not
+the frame count). A direction is undetermined when ``|t_j|`` is below the two-sided critical
+value at :data:`TEST_LEVEL`.
+
+Only the three directions along which the relative rotation varies (``s_j^2 < n``, see
+:func:`testable_directions`) may be dropped. A direction is also kept when it is *precise*: the
+confidence interval of the centre along it is narrower than the joint's own rms residual
+(:func:`precise_directions`) -- the centre is then measured to lie at the minimum-norm point,
+which happens for a ball joint whose centre lies midway between the sensors along its weakest
+direction. Directions are dropped from the weakest up while not significant and not precise; a
+fit with exactly one dropped direction is single-axis.
+
+Both numerator and denominator are lengths, so ``t``, the interval and the residual scale
+together and the verdict is the same in m, mm or inches.
+
+**Hard floor.** Directions with ``s_j < floor * s_max`` are undetermined whatever the test says
+(:func:`calibration.joint.determined_directions`): below :data:`calibration.joint.SINGLE_AXIS_RATIO`
+(1e-4: about 0.2 mrad, 0.01 degree, rms off the axis, finer than any tracker resolves) the test
+would only compare rounding errors.
+
+**What the test cannot tell.** It asks whether the data place the centre along the weakest
+direction, not whether the joint is mechanically a hinge: a hinge that wobbles a few degrees
+about a fixed centre, with sensors offset along its axis, does reveal that centre given enough
+clean frames, and is then called a ball joint (studies/hinge_verdict.py measures how often).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats as _stats
+
+#: Consecutive blocks of frames for the batch-means variance of the scores.
+N_BLOCKS = 16
+
+#: Two-sided level of the test: the chance that a true hinge (noise only along its axis) is
+#: called a ball joint, when the residual's correlation is shorter than a block.
+TEST_LEVEL = 1e-3
+
+
+def block_edges(n_frames: int) -> np.ndarray:
+    """``(B + 1,)`` frame indices cutting ``n_frames`` frames into ``B = min(N_BLOCKS, n_frames)``
+    consecutive blocks of (nearly) equal length."""
+    n_blocks = max(1, min(N_BLOCKS, int(n_frames)))
+    return np.rint(np.linspace(0, n_frames, n_blocks + 1)).astype(np.int64)
+
+
+def block_of_frame(n_frames: int) -> np.ndarray:
+    """``(n_frames,)`` the block index of every frame (see :func:`block_edges`)."""
+    edges = block_edges(n_frames)
+    return np.searchsorted(edges, np.arange(n_frames), side="right") - 1
+
+
+def score_variance(block_scores: np.ndarray, block_counts: np.ndarray) -> np.ndarray:
+    """Batch-means variance of every direction's score.
+
+    Args:
+        block_scores: ``(..., B, 6)`` ``sum_{f in b} (A_f v_j) . r_f`` per block and direction,
+            with ``r`` the full model's residual (length units).
+        block_counts: ``(..., B)`` frames in each block.
+
+    Returns:
+        ``(..., 6)`` ``B / (B - 1) sum_b g_b^2`` over the ``B`` blocks holding frames (length
+        squared); NaN where fewer than two blocks hold frames.
+    """
+    n_blocks = np.count_nonzero(np.asarray(block_counts) > 0, axis=-1)[..., None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        var = np.sum(np.square(block_scores), axis=-2) * n_blocks / (n_blocks - 1)
+    return np.where(n_blocks >= 2, var, np.nan)
+
+
+def score_t(proj: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """``(..., 6)`` ``|t_j| = |v_j . A^T b| / sqrt(var_j)`` (dimensionless).
+
+    ``proj`` is ``(..., 6)`` ``v_j . A^T b``, ``var`` from :func:`score_variance`. ``inf`` where
+    the variance is zero (exact data); NaN where it is NaN (no test possible).
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.abs(proj) / np.sqrt(var)
+    return np.where(var == 0.0, np.inf, t)
+
+
+def precise_directions(
+    var: np.ndarray, eigval: np.ndarray, t_crit: np.ndarray, rms_residual: np.ndarray
+) -> np.ndarray:
+    """``(..., 6)`` bool: directions along which the data place the centre within its own scatter.
+
+    A centre moved by ``d`` along a hinge axis moves ``x`` by ``d [a_p; a_c]``, i.e. by
+    ``sqrt(2) d`` along the unit direction ``v_6``. The coefficient ``c_j`` has standard error
+    ``sqrt(var_j) / s_j^2``; the direction is *precise* when the half-width of its confidence
+    interval, as a move of the joint, ``t_crit sqrt(var_j) / (sqrt(2) s_j^2)``, is below the rms
+    residual (the joint's own scatter). A precise direction is determined even when its
+    coefficient is not significant: the centre then is measured to lie at the minimum-norm point.
+
+    Args:
+        var: ``(..., 6)`` from :func:`score_variance`.
+        eigval: ``(..., 6)`` ``s_j^2``.
+        t_crit: ``(...,)`` from :func:`critical_t`.
+        rms_residual: ``(...,)`` rms residual of the full (ball) model, same length unit.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        half_width = t_crit[..., None] * np.sqrt(var) / (np.sqrt(2.0) * eigval)
+    return half_width < np.asarray(rms_residual)[..., None]
+
+
+def critical_t(block_counts: np.ndarray) -> np.ndarray:
+    """``(...,)`` two-sided critical ``|t|`` at :data:`TEST_LEVEL` with ``B - 1`` degrees of freedom."""
+    n_blocks = np.count_nonzero(np.asarray(block_counts) > 0, axis=-1)
+    dof = np.maximum(n_blocks - 1, 1)
+    return _stats.t.ppf(1.0 - TEST_LEVEL / 2.0, dof)
+
+
+def testable_directions(singular_values: np.ndarray, n_frames: np.ndarray) -> np.ndarray:
+    """``(..., 6)`` bool: the directions the test may drop, ``s_j^2 < n_frames``.
+
+    The Gram matrix ``A^T A`` has ``n I`` on its diagonal blocks, so its eigenvalues are
+    ``n (1 +- sigma_k(M))`` (:mod:`calibration.joint`): the three below ``n`` are the directions
+    along which the relative rotation varies, the ones a hinge or a still pair leaves weak. The
+    three others are fixed by any motion and are never dropped, even when the centre's component
+    along them happens to be zero.
+    """
+    s = np.asarray(singular_values, dtype=float)
+    return np.square(s) < np.asarray(n_frames, dtype=float)[..., None]
+
+
+def hinge_verdict(
+    floor_keep: np.ndarray, t: np.ndarray, t_crit: np.ndarray, testable: np.ndarray, precise: np.ndarray
+) -> np.ndarray:
+    """Directions the data determine: the floor's, minus the weakest ones whose test fails.
+
+    Args:
+        floor_keep: ``(..., 6)`` bool, directions above the hard floor (descending order).
+        t: ``(..., 6)`` ``|t_j|`` from :func:`score_t` (NaN: no test possible, keep).
+        t_crit: ``(...,)`` critical values from :func:`critical_t`.
+        testable: ``(..., 6)`` bool, from :func:`testable_directions`.
+        precise: ``(..., 6)`` bool, from :func:`precise_directions`.
+
+    Returns:
+        ``(..., 6)`` bool: directions dropped from the weakest kept one upward while they are
+        testable, not precise and their test is not significant (stopping at the first kept).
+    """
+    insignificant = floor_keep & testable & ~precise & (t < t_crit[..., None])  # NaN: kept
+    # a kept direction survives when it, or a weaker kept direction, is significant
+    significant = floor_keep & ~insignificant
+    weaker_or_self = np.flip(np.cumsum(np.flip(significant, axis=-1), axis=-1), axis=-1) > 0
+    return floor_keep & weaker_or_self
