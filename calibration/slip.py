@@ -3,21 +3,49 @@
 When a sensor moves on the body, the joint centre it was fitted with is no longer fixed in its
 frame: from that moment the joint residual carries a new constant offset *in the frame of the
 sensor that moved* (``r[f] = R_w_s[f] @ delta`` for a shift ``delta``). The residual's norm is a
-poor detector -- a fit over the whole recording splits the shift between before and after, so
-the norm may not change at all -- but the residual vector expressed in the moved sensor's frame
-jumps by the full ``|delta|``.
+poor detector -- a fit over the whole recording splits the shift between before and after -- but
+the residual vector expressed in the moved sensor's frame jumps by the full ``|delta|``.
 
-**Detector** (sliding window of ``w`` frames): the residual vector of the fitted joint is
-expressed in the parent's and in the child's frame (``e = R_w_s^T r``); at every frame ``t`` the
-mean of ``e`` over the ``w`` frames before ``t`` is compared with the mean over the ``w`` frames
-from ``t`` on, ``D[t] = |mean_after - mean_before|`` (metres), in whichever sensor frame gives
-the larger jump. The noise ``sigma`` of ``e`` per component is estimated robustly from its
-first differences (``1.4826 * MAD / sqrt(2)``); a difference of two ``w``-frame means then has
-standard deviation ``sigma * sqrt(2 / w)`` per component, and ``z[t] = D[t] / (sigma sqrt(2/w))``.
-Frames with ``z > z_threshold`` *and* ``D > min_jump`` are candidates; candidate runs closer
-than ``w`` frames are merged and each run gives one slip event, at its largest ``D``. The
-recording is cut at the events; every piece whose mean residual offset differs from the first
-piece's (the sensors as placed) by more than ``min_jump`` is reported as a slipped interval.
+**Statistic.** The residual is expressed in the parent's and in the child's frame
+(``e = R_w_s^T r``). At every frame ``t``, ``d[t]`` is the mean of ``e`` over the ``w`` frames
+from ``t`` on minus the mean over the ``w`` frames before (:func:`~calibration.slip_stats.
+window_difference`); ``D[t] = |d[t]|`` in the data's length unit.
+
+**Noise model, from the same recording.** On real and skin-mounted data ``e`` is dominated by
+slow, motion-correlated soft-tissue error, not by white noise, so the noise is taken from the
+distribution of ``d`` itself over the recording, which holds every such part: each component is
+divided by its robust scale (``1.4826 * MAD`` of ``d`` over the recording) and
+``z[t] = |d[t] / scale|``. The tail of ``z`` above its upper quartile is modelled as exponential
+(extreme-value law of the Gumbel domain) with its scale from the mean excess; values of ``d``
+a correlation time ``tau`` apart (the integrated autocorrelation time of ``d``) count as
+independent, so ``2 * 3600 * rate_hz / tau`` tests are made per hour of joint time (2: the
+parent's and the child's frame). The threshold is the level of ``z`` expected to be exceeded
+``false_alarms_per_hour`` times an hour (:func:`~calibration.slip_stats.tail_threshold`, with
+an upper confidence bound on the tail's scale: a recording of a few seconds holds few independent
+values and gets a higher threshold).
+
+**Leave the candidate out, refit around it.** A slip's own jump would inflate the noise
+estimate, and so would the misfit it causes (a joint fitted across a slip is wrong on both sides,
+which adds motion-correlated error to the whole recording). The candidate (the largest ``z`` not
+yet explained, either frame) is therefore tested against a noise model estimated from the
+residual with the joint *refitted on each side of it* (and of every event already found), over
+the frames farther than ``w`` from them. A candidate above its threshold becomes an event; its
+frame is refined to the least-squares single change of mean of ``e`` within ``w`` of it; it is
+attributed to the frame where the jump is largest (the moved sensor's frame holds the step
+steady, the other frame turns it); the search repeats with the events as cuts. A slip undone
+later (the sensor put back) hides behind its partner, so a failed candidate is retried once with
+the next peak as a cut, and kept if the two pass together (each tested with the other as a
+cut). Every quantity is a ratio of lengths or a quantile of such ratios, so scaling positions by
+any factor leaves the decision unchanged.
+
+**Why not ``ruptures``.** Its penalised segmentation (PELT, binary segmentation) needs a penalty
+per change that has no stated false-alarm rate on autocorrelated, heavy-tailed residuals; the one
+thing it would add here, a single change point's least-squares location, is a few lines of
+numpy (:func:`~calibration.slip_stats.change_point`).
+
+The recording is cut at the events; every piece whose mean offset differs from the first piece's
+(the sensors as placed) by more than ``min_jump`` -- the threshold times the noise scale, the
+smallest jump the test detects, in the data's unit -- is reported as a slipped interval.
 
 Frames where a pose is missing are left out of the window means.
 """
@@ -29,14 +57,21 @@ from itertools import pairwise
 
 import numpy as np
 
-from calibration.errors import CalibrationInputError
-from calibration.joint import check_pair, joint_residual_vectors
+from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.joint import check_pair, fit_joint, joint_residual_vectors
+from calibration.slip_stats import (
+    change_point,
+    correlation_frames,
+    robust_scale,
+    tail_threshold,
+    whitened_norm,
+    window_difference,
+)
 
-#: Default z threshold: far in the tail of the chi distribution with 3 degrees of freedom.
-Z_THRESHOLD = 8.0
+#: Default expected false alarms per hour of joint time.
+FALSE_ALARMS_PER_HOUR = 1.0
 
-#: Default smallest offset change reported as slip, metres (below a real sensor's shift).
-MIN_JUMP = 0.01
+_FRAMES = ("parent", "child")
 
 
 @dataclass(frozen=True)
@@ -45,16 +80,20 @@ class SlipEvent:
 
     Attributes:
         frame: the first frame after the jump.
-        jump: size of the change of the mean residual vector, metres.
+        jump: ``D`` at ``frame``: size of the change of the mean residual vector, the data's
+            length unit.
         sensor_frame: ``"parent"`` or ``"child"``: the frame in which the jump is largest (the
-            sensor that most likely moved).
-        z: the jump over its noise standard deviation.
+            sensor that most likely moved: its frame holds the step steady).
+        z: the whitened jump ``z`` (module docstring) at the candidate, in the frame where it
+            is most significant.
+        threshold: the threshold ``z`` was tested against (its leave-out noise model).
     """
 
     frame: int
     jump: float
     sensor_frame: str
     z: float
+    threshold: float = float("nan")
 
 
 @dataclass(frozen=True)
@@ -65,10 +104,16 @@ class SlipReport:
         events: the detected jumps, in time order.
         intervals: ``[start, stop)`` frame ranges whose residual offset differs from the
             start of the recording's.
-        jump: ``(frames,)`` ``D[t]`` of the module docstring, metres (NaN within ``w`` of the
-            ends).
-        noise: ``sigma``, metres.
+        jump: ``(frames,)`` ``D[t]`` in the frame of the largest event (else the child's), the
+            data's length unit (NaN within ``w`` of the ends).
+        noise: the robust scale of ``d`` (norm of its per-component scales) over the
+            recording, the data's length unit.
         window: ``w``, frames.
+        threshold: the threshold on ``z`` over the whole recording (no frames left out).
+        min_jump: ``threshold * noise``: about the smallest jump the test detects, the data's
+            length unit.
+        false_alarms_per_hour: the rate the threshold was set for.
+        tests_per_hour: effectively independent tests per hour of joint time.
     """
 
     events: tuple[SlipEvent, ...]
@@ -76,33 +121,139 @@ class SlipReport:
     jump: np.ndarray
     noise: float
     window: int
+    threshold: float = float("nan")
+    min_jump: float = float("nan")
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR
+    tests_per_hour: float = float("nan")
 
 
-def _window_means(e: np.ndarray, ok: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Means of ``e`` over the ``w`` valid-weighted frames before and from each frame."""
-    n = e.shape[0]
-    cs = np.zeros((n + 1, 3))
-    cs[1:] = np.cumsum(np.where(ok[:, None], e, 0.0), axis=0)
-    cn = np.zeros(n + 1)
-    cn[1:] = np.cumsum(ok)
-    before = np.full((n, 3), np.nan)
-    after = np.full((n, 3), np.nan)
-    t = np.arange(w, n - w + 1)
-    nb = cn[t] - cn[t - w]
-    na = cn[t + w] - cn[t]
-    enough = (nb >= w / 2) & (na >= w / 2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        before[t] = np.where(enough[:, None], (cs[t] - cs[t - w]) / nb[:, None], np.nan)
-        after[t] = np.where(enough[:, None], (cs[t + w] - cs[t]) / na[:, None], np.nan)
-    return before, after
+def _check_options(n: int, window: int, rate_hz: float, false_alarms_per_hour: float) -> None:
+    if not 2 <= window <= n // 2:
+        raise CalibrationInputError(f"window must be between 2 and frames/2 = {n // 2}, got {window}")
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise CalibrationInputError(f"rate_hz must be a positive finite number, got {rate_hz}")
+    if not (np.isfinite(false_alarms_per_hour) and false_alarms_per_hour > 0):
+        raise CalibrationInputError(
+            f"false_alarms_per_hour must be a positive finite number, got {false_alarms_per_hour}"
+        )
 
 
-def _robust_sigma(e: np.ndarray, ok: np.ndarray) -> float:
-    both = ok[1:] & ok[:-1]
-    d = (e[1:] - e[:-1])[both]
-    if d.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d, axis=0))) / np.sqrt(2.0))
+@dataclass(frozen=True)
+class _Pair:
+    """The two sensors' poses and the residual series of the joint as fitted."""
+
+    poses: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    ok: np.ndarray
+    r: np.ndarray
+    window: int
+    rate_hz: float
+    rate: float
+
+    def frames(self, r: np.ndarray) -> list[np.ndarray]:
+        """``e = R_w_s^T r`` in the parent's and the child's frame, ``(frames, 3)`` each."""
+        rot = (self.poses[0], self.poses[2])
+        okr = np.where(self.ok[:, None], r, 0.0)
+        return [np.einsum("fji,fj->fi", np.where(self.ok[:, None, None], R, 0.0), okr) for R in rot]
+
+    def piecewise(self, cuts: list[int]) -> np.ndarray:
+        """``(frames, 3)`` residuals with the joint refitted on each piece between ``cuts``.
+
+        A piece shorter than the window, or that cannot be fitted, keeps the whole fit's residual.
+        """
+        r = self.r.copy()
+        for a, b in pairwise([0, *sorted(cuts), self.ok.size]):
+            if b - a < self.window:
+                continue
+            sl = [x[a:b] for x in self.poses]
+            try:
+                fit = fit_joint(*sl, valid=self.ok[a:b])
+            except CalibrationError:
+                continue
+            r[a:b] = joint_residual_vectors(*sl, fit.joint_in_parent, fit.joint_in_child)
+        return r
+
+
+def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """``(scale, threshold, tests per hour)`` of one sensor frame's ``d``, from the frames ``use``."""
+    scale = robust_scale(d, use)
+    z = whitened_norm(d, scale)
+    tau = max(correlation_frames(d[:, k], use) for k in range(3))
+    tests_per_hour = len(_FRAMES) * 3600.0 * pair.rate_hz / tau
+    return scale, tail_threshold(z[use], tests_per_hour, pair.rate, tau), tests_per_hour
+
+
+def _test(pair: _Pair, free: np.ndarray, cuts: list[int], k: int, i: int) -> tuple[float, float]:
+    """``(z, threshold)`` of a jump at frame ``k`` in sensor frame ``i``.
+
+    ``cuts`` are the events already found (and a tentative one, see :func:`_search`). The jump is
+    measured on the residual with the joint refitted between the ``cuts``; its noise model comes
+    from the residual refitted on each side of ``k`` too (a slip's misfit spreads
+    motion-correlated error over the whole recording), over the frames of ``free`` farther than
+    the window from ``k`` and from the ``cuts``.
+    """
+    w = pair.window
+    frames = np.arange(free.size)
+    d_k = window_difference(pair.frames(pair.piecewise(cuts))[i], pair.ok, w)[k : k + 1]
+    d = window_difference(pair.frames(pair.piecewise([*cuts, k]))[i], pair.ok, w)
+    rest = free & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
+    for c in cuts:
+        rest &= np.abs(frames - c) > w
+    if rest.sum() < 4 or not np.isfinite(d_k).all():
+        return 0.0, float("inf")
+    scale, thr, _ = _noise_model(pair, d, rest)
+    return float(whitened_norm(d_k, scale)[0]), thr
+
+
+def _peak(d: np.ndarray, free: np.ndarray) -> int | None:
+    """The frame of ``free`` with the largest whitened ``d``; ``None`` when there is none."""
+    zc = np.where(free, whitened_norm(d, robust_scale(d, free)), -np.inf)
+    k = int(np.argmax(zc))
+    return k if np.isfinite(zc[k]) else None
+
+
+def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, float]], np.ndarray]:
+    """``(frame, sensor frame index, z, threshold)`` of the events, strongest first; frames left.
+
+    Forward selection: the strongest remaining peak of either sensor frame is tested
+    (:func:`_test`) with the events found so far as cuts. A slip that is undone later (the sensor
+    put back) hides behind its partner, which spreads error over the other's noise model, so a
+    candidate that fails is tested once more with the next strongest peak as a cut, and is kept
+    only if that peak passes its own test with the candidate as a cut as well (the pair stands
+    together).
+    """
+    w = pair.window
+    free = free.copy()
+    frames = np.arange(free.size)
+    found: list[tuple[int, int, float, float]] = []
+    for _ in range(free.size // (2 * w) + 1):
+        cuts = [f[0] for f in found]
+        ds = [window_difference(e, pair.ok, w) for e in pair.frames(pair.piecewise(cuts))]
+        best = None
+        for i, d in enumerate(ds):
+            k = _peak(d, free)
+            if k is None:
+                continue
+            z, thr = _test(pair, free, cuts, k, i)
+            if best is None or z / thr > best[2] / best[3]:
+                best = (k, i, z, thr)
+        if best is None:
+            break
+        if not best[2] > best[3]:
+            k, i = best[0], best[1]
+            k2 = _peak(ds[i], free & (np.abs(frames - k) > w))
+            if k2 is None:
+                break
+            z, thr = _test(pair, free & (np.abs(frames - k2) > w), [*cuts, k2], k, i)
+            z2, thr2 = _test(pair, free & (np.abs(frames - k) > w), [*cuts, k], k2, i)
+            if not (z > thr and z2 > thr2):
+                break
+            best = (k, i, z, thr)
+        # attribution: the moved sensor's frame holds the step steady, the other's turns it
+        k = best[0]
+        i_moved = int(np.argmax([np.nan_to_num(np.linalg.norm(d[k])) for d in ds]))
+        found.append((k, i_moved, best[2], best[3]))
+        free &= np.abs(frames - k) > w
+    return found, free
 
 
 def detect_slip(
@@ -114,54 +265,77 @@ def detect_slip(
     joint_in_child: np.ndarray,
     *,
     window: int,
-    z_threshold: float = Z_THRESHOLD,
-    min_jump: float = MIN_JUMP,
+    rate_hz: float,
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
 ) -> SlipReport:
     """Find the frames where a joint's residual offset jumps (a sensor moved on the body).
 
     Args:
         R_w_p, R_w_c: ``(frames, 3, 3)`` parent and child rotations, sensor to world.
-        p_w_p, p_w_c: ``(frames, 3)`` parent and child positions in world, metres.
-        joint_in_parent, joint_in_child: ``(3,)`` the fitted joint, metres.
+        p_w_p, p_w_c: ``(frames, 3)`` parent and child positions in world, any length unit.
+        joint_in_parent, joint_in_child: ``(3,)`` the fitted joint, the same unit.
         window: ``w`` of the module docstring, frames (at least 2, at most half the frames).
-        z_threshold: see the module docstring.
-        min_jump: see the module docstring, metres.
+        rate_hz: frames per second (turns the rate per hour into a rate per frame).
+        false_alarms_per_hour: expected false alarms per hour of this joint's recording when
+            no sensor moves (module docstring).
+
+    Raises:
+        CalibrationInputError: shapes that do not match, a window out of range, a rate or a
+            false-alarm rate that is not positive and finite.
     """
     R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
     n = R_w_p.shape[0]
-    if not 2 <= window <= n // 2:
-        raise CalibrationInputError(f"window must be between 2 and frames/2 = {n // 2}, got {window}")
+    _check_options(n, window, rate_hz, false_alarms_per_hour)
     r = joint_residual_vectors(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child)
     ok = np.isfinite(r).all(axis=1)
-    best = None
-    for label, R in (("parent", R_w_p), ("child", R_w_c)):
-        e = np.einsum("fji,fj->fi", np.where(ok[:, None, None], R, 0.0), np.where(ok[:, None], r, 0.0))
-        before, after = _window_means(e, ok, window)
-        d = np.linalg.norm(after - before, axis=1)
-        peak = np.nanmax(d) if np.isfinite(d).any() else -np.inf
-        if best is None or peak > best[0]:
-            best = (peak, label, e, d)
-    assert best is not None
-    _, label, e, d = best
-    sigma = _robust_sigma(e, ok)
-    scale = sigma * np.sqrt(2.0 / window)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        z = np.where(scale > 0, d / scale, np.where(d > 0, np.inf, 0.0))
-    cand = np.flatnonzero(np.nan_to_num(z) > z_threshold)
-    cand = cand[d[cand] > min_jump]
-    events: list[SlipEvent] = []
-    if cand.size:
-        breaks = np.flatnonzero(np.diff(cand) >= window) + 1
-        for run in np.split(cand, breaks):
-            k = int(run[np.argmax(d[run])])
-            events.append(SlipEvent(frame=k, jump=float(d[k]), sensor_frame=label, z=float(z[k])))
+    pair = _Pair((R_w_p, p_w_p, R_w_c, p_w_c), ok, r, window, float(rate_hz), float(false_alarms_per_hour))
+    es = pair.frames(r)
+    ds = [window_difference(e, ok, window) for e in es]
+    valid = np.isfinite(ds[0]).all(axis=1) & np.isfinite(ds[1]).all(axis=1)
+    found, rest = _search(pair, valid)
+    events = []
+    for k, i, z, thr in found:
+        frame = change_point(es[i], ok, max(0, k - window), min(n, k + window))
+        d_at = ds[i][frame] if np.isfinite(ds[i][frame]).all() else ds[i][k]
+        jump = float(np.linalg.norm(d_at))
+        events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
+    events.sort(key=lambda ev: ev.frame)
+    shown = found[0][1] if found else 1
+    d_clean = window_difference(pair.frames(pair.piecewise([f[0] for f in found]))[shown], ok, window)
+    rest = rest & np.isfinite(d_clean).all(axis=1)
+    rest = rest if rest.sum() >= 4 else valid
+    scale, thr_all, tests_per_hour = _noise_model(pair, d_clean, rest)
+    noise = float(np.linalg.norm(scale))
+    min_jump = thr_all * noise / np.sqrt(3.0)
+    return SlipReport(
+        events=tuple(events),
+        intervals=_intervals(es, ok, events, n, min_jump),
+        jump=np.linalg.norm(ds[shown], axis=1),
+        noise=noise,
+        window=window,
+        threshold=thr_all,
+        min_jump=min_jump,
+        false_alarms_per_hour=false_alarms_per_hour,
+        tests_per_hour=tests_per_hour,
+    )
+
+
+def _intervals(
+    es: list[np.ndarray], ok: np.ndarray, events: list[SlipEvent], n: int, min_jump: float
+) -> tuple[tuple[int, int], ...]:
+    """Pieces between events whose mean offset (in the moved frame) differs from the first's."""
     cuts = [0, *(ev.frame for ev in events), n]
     pieces = list(pairwise(cuts))
-    first_ok = ok[: pieces[0][1]]
-    ref = np.mean(e[: pieces[0][1]][first_ok], axis=0) if first_ok.any() else np.zeros(3)
-    intervals = []
+    out = []
     for a, b in pieces[1:]:
-        seg_ok = ok[a:b]
-        if seg_ok.any() and np.linalg.norm(np.mean(e[a:b][seg_ok], axis=0) - ref) > min_jump:
-            intervals.append((a, b))
-    return SlipReport(events=tuple(events), intervals=tuple(intervals), jump=d, noise=sigma, window=window)
+        seg = ok[a:b]
+        moved = False
+        for e in es:
+            first = ok[: pieces[0][1]]
+            if not (seg.any() and first.any()):
+                continue
+            ref = np.mean(e[: pieces[0][1]][first], axis=0)
+            moved |= bool(np.linalg.norm(np.mean(e[a:b][seg], axis=0) - ref) > min_jump)
+        if moved:
+            out.append((a, b))
+    return tuple(out)

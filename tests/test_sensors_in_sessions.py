@@ -106,6 +106,7 @@ def test_slip_event_found_by_the_detector(tmp_path):
         j.fit.joint_in_parent,
         j.fit.joint_in_child,
         window=120,
+        rate_hz=rec.rate_hz,
     )
     assert len(rep.events) == 1 and abs(ds.time_s[rep.events[0].frame] - 6.0) < 0.1
     assert rep.events[0].sensor_frame == "child"

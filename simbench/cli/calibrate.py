@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from calibration import SINGLE_AXIS_RATIO, Calibration, SlipReport, detect_slip
+from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
 from simbench.cli.table import format_table
 from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
@@ -46,20 +47,37 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=float,
         default=SINGLE_AXIS_RATIO,
         metavar="R",
-        help=f"s_min/s_max below which a joint is single-axis (default {SINGLE_AXIS_RATIO})",
+        help=(
+            f"hard floor of s_min/s_max below which a direction is always undetermined (default "
+            f"{SINGLE_AXIS_RATIO:g}); above it the single-axis verdict is a statistical test "
+            "(calibration.hinge)"
+        ),
     )
     cal.add_argument(
-        "--slip-window", type=float, default=1.0, metavar="SECONDS", help="slip detector window (default 1 s)"
+        "--slip-window", type=float, default=2.0, metavar="SECONDS", help="slip detector window (default 2 s)"
+    )
+    cal.add_argument(
+        "--slip-false-alarms-per-hour",
+        type=float,
+        default=FALSE_ALARMS_PER_HOUR,
+        metavar="RATE",
+        help=f"expected slip false alarms per hour of joint time (default {FALSE_ALARMS_PER_HOUR:g})",
     )
     cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
     cal.set_defaults(func=cmd_calibrate)
 
 
-def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list[tuple[str, SlipReport]]:
+def _slip_reports(
+    rec: PoseRecording,
+    cal: Calibration,
+    window_s: float,
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+) -> list[tuple[str, SlipReport]]:
     """Slip detection on every calibrated joint; ``[]`` when the recording is too short.
 
     The window of ``window_s`` seconds becomes frames at the recording's rate (at least 2, at
-    most half the recording; 0 when the rate is unknown, which skips detection).
+    most half the recording; 0 when the rate is unknown, which skips detection). The detector's
+    threshold is set for ``false_alarms_per_hour`` per joint (:mod:`calibration.slip`).
     """
     window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
     window = min(max(window, 2), rec.n_frames // 2)
@@ -69,7 +87,12 @@ def _slip_reports(rec: PoseRecording, cal: Calibration, window_s: float) -> list
     for j in cal.joints:
         fit = j.fit
         report = detect_slip(
-            *rec.pair(j.parent, j.child), fit.joint_in_parent, fit.joint_in_child, window=window
+            *rec.pair(j.parent, j.child),
+            fit.joint_in_parent,
+            fit.joint_in_child,
+            window=window,
+            rate_hz=rec.rate_hz,
+            false_alarms_per_hour=false_alarms_per_hour,
         )
         out.append((j.name, report))
     return out
@@ -80,7 +103,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
     cal = calibrate(rec, hierarchy=parent_of, root=args.root, single_axis_ratio=args.single_axis_ratio)
-    slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window)
+    slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
     if args.json:
         doc = calibration_to_dict(
@@ -100,6 +123,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "root": args.root,
                 "single_axis_ratio": args.single_axis_ratio,
                 "slip_window_s": None if args.no_slip else args.slip_window,
+                "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,
             },
         )
         write_calibration_json(args.json, doc)

@@ -260,15 +260,21 @@ def _slip(plan: Plan) -> dict[str, Any]:
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
     j = next(j for j in cal.joints if j.child == "forearm_l")
-    window = round(rec.rate_hz)
+    window = min(round(2.0 * rec.rate_hz), rec.n_frames // 4)  # 2 s, the CLI's default
     rep = detect_slip(
-        *rec.pair(j.parent, j.child), j.fit.joint_in_parent, j.fit.joint_in_child, window=window
+        *rec.pair(j.parent, j.child),
+        j.fit.joint_in_parent,
+        j.fit.joint_in_child,
+        window=window,
+        rate_hz=rec.rate_hz,
     )
     return {
         "joint": j.name,
         "true_slip_s": t_slip,
         "events_s": [float(ds.time_s[e.frame]) for e in rep.events],
         "jumps_mm": [e.jump * 1e3 for e in rep.events],
+        "false_alarms_per_hour": rep.false_alarms_per_hour,
+        "min_jump_mm": rep.min_jump * 1e3,
         "intervals_s": [[float(ds.time_s[a]), float(ds.time_s[b - 1])] for a, b in rep.intervals],
         "time_s": np.asarray(ds.time_s).tolist(),
         "residual_mm": (np.asarray(j.fit.frame_residual) * 1e3).tolist(),

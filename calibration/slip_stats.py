@@ -1,0 +1,155 @@
+"""The statistics behind slip detection: window means, a robust noise scale, a tail threshold.
+
+Everything here is unit-free in the sense the detector needs: scaling the input series by any
+factor scales :func:`window_difference` and :func:`robust_scale` by that factor and leaves
+:func:`whitened_norm`, :func:`correlation_frames` and :func:`tail_threshold` unchanged.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import chi2
+
+#: Quantile of the statistic above which its tail is modelled (the exponential tail's origin).
+TAIL_QUANTILE = 0.75
+
+#: Confidence of the upper bound on the tail's scale used for the threshold (short recordings hold
+#: few independent exceedances; the bound keeps the stated rate with this confidence).
+TAIL_CONFIDENCE = 0.75
+
+#: ``1 / Phi^-1(3/4)``: a normal variable's standard deviation over its median absolute deviation.
+MAD_TO_SIGMA = 1.4826
+
+
+def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
+    """``(frames, 3)`` mean of ``e`` over the ``w`` frames from ``t`` minus over the ``w`` before.
+
+    Args:
+        e: ``(frames, 3)`` a series (any unit); rows where ``ok`` is false are ignored.
+        ok: ``(frames,)`` valid rows.
+        w: window, frames.
+
+    Returns NaN within ``w`` of the ends and where fewer than ``w / 2`` valid rows fall in
+    either window.
+    """
+    n = e.shape[0]
+    cs = np.zeros((n + 1, 3))
+    cs[1:] = np.cumsum(np.where(ok[:, None], e, 0.0), axis=0)
+    cn = np.zeros(n + 1)
+    cn[1:] = np.cumsum(ok)
+    out = np.full((n, 3), np.nan)
+    t = np.arange(w, n - w + 1)
+    nb = cn[t] - cn[t - w]
+    na = cn[t + w] - cn[t]
+    enough = (nb >= w / 2) & (na >= w / 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        diff = (cs[t + w] - cs[t]) / na[:, None] - (cs[t] - cs[t - w]) / nb[:, None]
+    out[t] = np.where(enough[:, None], diff, np.nan)
+    return out
+
+
+def robust_scale(d: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """``(3,)`` per-component robust standard deviation of ``d[use]`` (``1.4826 * MAD``).
+
+    A component with no spread gets a floor of ``1e-12`` times the largest ``|d|`` (so that an
+    exactly constant series yields zeros, not infinities); all zeros when ``d[use]`` is.
+    """
+    x = d[use]
+    if x.shape[0] == 0:
+        return np.zeros(3)
+    s = MAD_TO_SIGMA * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+    top = float(np.max(np.abs(x)))
+    return np.maximum(s, 1e-12 * top)
+
+
+def whitened_norm(d: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """``(frames,)`` ``|d / scale|`` (components divided by their scale); 0 where ``scale`` is 0."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = np.where(scale > 0, d / np.where(scale > 0, scale, 1.0), 0.0)
+    return np.linalg.norm(z, axis=1)
+
+
+def correlation_frames(x: np.ndarray, use: np.ndarray | None = None) -> float:
+    """Integrated autocorrelation time of ``x`` (``(samples,)``) over the samples ``use``, frames.
+
+    ``1 + 2 sum_k rho_k`` up to the first negative ``rho_k`` (the initial-positive-sequence
+    truncation), with ``rho_k`` from the pairs of used samples ``k`` apart (gaps are left out,
+    not bridged); samples a distance ``tau`` apart count as about independent. At least 1.
+    """
+    x = np.asarray(x, dtype=float)
+    m = np.isfinite(x) if use is None else (np.asarray(use, dtype=bool) & np.isfinite(x))
+    n = x.size
+    if m.sum() < 3:
+        return 1.0
+    xc = np.where(m, x - x[m].mean(), 0.0)
+    mf = m.astype(float)
+    fx = np.fft.rfft(xc, 2 * n)
+    fm = np.fft.rfft(mf, 2 * n)
+    num = np.fft.irfft(fx * np.conj(fx))[:n]
+    pairs = np.round(np.fft.irfft(fm * np.conj(fm))[:n])
+    if num[0] <= 0:
+        return 1.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cov = np.where(pairs > 0, num / np.maximum(pairs, 1.0), np.nan)
+    rho = cov / cov[0]
+    stop = np.flatnonzero(~(rho > 0))
+    k = int(stop[0]) if stop.size else n
+    return max(1.0, float(1.0 + 2.0 * rho[1:k].sum()))
+
+
+def tail_threshold(
+    z: np.ndarray,
+    tests_per_hour: float,
+    false_alarms_per_hour: float,
+    correlation: float = 1.0,
+    confidence: float = TAIL_CONFIDENCE,
+) -> float:
+    """The level of ``z`` exceeded ``false_alarms_per_hour`` times an hour under an exponential tail.
+
+    The tail above ``u``, the :data:`TAIL_QUANTILE` quantile of ``z``, is modelled as
+    exponential (the generalized Pareto tail with shape 0, the extreme-value law of the Gumbel
+    domain, which holds Gaussian, chi and exponential-like statistics), with the maximum
+    likelihood scale ``beta = mean(z - u | z > u)``: ``P(z > u + x) = (1 - q) exp(-x / beta)``.
+    The exceedances hold about ``m = count / correlation`` independent values, so ``2 m beta /
+    beta_true`` is chi-square with ``2 m`` degrees of freedom; ``beta`` is replaced by its upper
+    confidence bound ``2 m beta / chi2_{2m}^{-1}(1 - confidence)`` (a recording of a few seconds
+    gets a high threshold rather than a confident false alarm).
+    With ``tests_per_hour`` effectively independent tests, the level with the expected
+    ``false_alarms_per_hour`` exceedances is ``u + beta ln((1 - q) tests_per_hour / rate)``.
+
+    Args:
+        z: ``(samples,)`` the statistic under no change (NaN ignored).
+        tests_per_hour: effectively independent values of ``z`` per hour.
+        false_alarms_per_hour: the rate, > 0.
+        correlation: the correlation time of ``z``, samples (at least 1).
+        confidence: of the upper bound on ``beta`` (0.5: about the point estimate).
+    """
+    z = z[np.isfinite(z)]
+    if z.size < 4:
+        return float("inf")
+    u = float(np.quantile(z, TAIL_QUANTILE))
+    above = z[z > u] - u
+    beta = float(above.mean()) if above.size else 0.0
+    m = max(above.size / max(correlation, 1.0), 0.5)
+    beta *= 2.0 * m / float(chi2.ppf(1.0 - confidence, 2.0 * m))
+    expected = (1.0 - TAIL_QUANTILE) * tests_per_hour / false_alarms_per_hour
+    return u + beta * max(0.0, float(np.log(expected)))
+
+
+def change_point(e: np.ndarray, ok: np.ndarray, lo: int, hi: int) -> int:
+    """The least-squares single change of mean of ``e[lo:hi]`` (``(frames, 3)``): its first frame.
+
+    Minimises the sum of squared deviations from a two-piece constant fit, i.e. maximises
+    ``j (m - j) / m |mean(e[:j]) - mean(e[j:])|^2`` over splits ``j`` of the ``m`` valid rows.
+    """
+    idx = np.arange(lo, hi)[ok[lo:hi]]
+    m = idx.size
+    if m < 2:
+        return (lo + hi) // 2
+    x = e[idx]
+    cs = np.cumsum(x, axis=0)
+    j = np.arange(1, m)
+    left = cs[:-1] / j[:, None]
+    right = (cs[-1] - cs[:-1]) / (m - j)[:, None]
+    gain = j * (m - j) / m * np.sum((left - right) ** 2, axis=1)
+    return int(idx[int(np.argmax(gain)) + 1])
