@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.diagnostics import motion_warnings, outlier_warnings
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import (
     LOOP_FACTOR,
@@ -192,6 +193,7 @@ def calibrate(
         (names[a], names[b], r) for a, b, r in loop_candidates(residual, tree, loop_factor=loop_factor)
     )
     warnings = _warnings(joints, names, missing, loops, n_frames)
+    warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames)
     lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
     t4 = time.perf_counter()
     seconds = {"pair_statistics": t1 - t0, "hierarchy": t2 - t1, "joints": t3 - t2, "skeleton": t4 - t3}
@@ -329,6 +331,7 @@ def _joint(
         axis_in_child=spec.axis_in_child,
         n_frames=int(sol.n_frames[k]),
         n_dropped=n_frames - int(sol.n_frames[k]),
+        weakest_t=float(sol.t_statistic[k, 5]),
     )
     return Joint(names[sol.parent[k]], names[sol.child[k]], fit)
 
@@ -340,7 +343,8 @@ def _warnings(
     loops: Sequence[tuple[str, str, float]],
     n_frames: int,
 ) -> list[str]:
-    """Plain-language notes: undetermined joints, dropped frames, missing poses, loop joints."""
+    """Plain-language notes: single-axis joints, dropped frames, missing poses, loop joints (joints
+    the motion hardly determines: :func:`_diagnostic_warnings`)."""
     warnings: list[str] = []
     for joint in joints:
         fit = joint.fit
@@ -349,11 +353,6 @@ def _warnings(
                 f"joint {joint.name}: single-axis in this motion (axis in {joint.parent} frame "
                 f"{np.round(fit.axis_in_parent, 3).tolist()}); its location along the axis is the "
                 "minimum-norm point, not a measured one"
-            )
-        elif fit.rank < 5:
-            warnings.append(
-                f"joint {joint.name}: the sensors hardly rotate relative to each other "
-                f"(rank {fit.rank} of 6); the motion does not determine this joint"
             )
         if fit.n_dropped:
             warnings.append(
@@ -368,3 +367,26 @@ def _warnings(
             f"(rms {r * 1e3:.3g} mm): a loop joint, or sensors the motion does not tell apart"
         )
     return warnings
+
+
+def _diagnostic_warnings(  # positional: one private caller
+    R_w_s: Any,
+    p_w_s: Any,
+    valid: Any,
+    stats: PairStatistics,
+    names: tuple[str, ...],
+    pairs: Sequence[tuple[int, int]],
+    joints: Sequence[Joint],
+    chunk_frames: int,
+) -> list[str]:
+    """Joints the motion hardly determines, and residuals far above the others'
+    (:mod:`calibration.diagnostics`); the sensors' rms distance comes from the statistics."""
+    pairs = [(int(p), int(c)) for p, c in pairs]
+    count = np.array([stats.count[p, c] for p, c in pairs], dtype=float)
+    sq = np.array([stats.sq_dist[p, c] for p, c in pairs], dtype=float)
+    separation = np.sqrt(sq / np.maximum(count, 1.0))
+    fits = [j.fit for j in joints]
+    warnings = motion_warnings(
+        R_w_s, p_w_s, names, pairs, fits, separation, valid=valid, chunk_frames=chunk_frames
+    )
+    return warnings + outlier_warnings(names, pairs, np.array([f.rms_residual for f in fits]), separation)

@@ -115,3 +115,45 @@ def test_frames_sorted_by_time(tmp_path):
     rec = read_pose_csv(write(tmp_path, text))
     assert rec.time_s.tolist() == [0.1, 0.2]
     assert rec.p_w_s[:, 0, 0].tolist() == [1.0, 2.0]
+
+
+def stamped_csv(tmp_path, times, name="stamps.csv"):
+    """Two sensors at the given frame times, standing still."""
+    rows = [HEADER]
+    for t in times:
+        rows.append(f"{float(t)!r},a,0,0,0,1,0,0,0\n{float(t)!r},b,1,0,0,1,0,0,0\n")
+    return write(tmp_path, "".join(rows), name)
+
+
+def test_bursty_time_stamps_give_the_rate_from_count_over_span(tmp_path):
+    # a 240 Hz tracker whose logger stamps four samples 2 microseconds apart, then waits: the
+    # median step is 2 us (500 kHz), the true rate 240 Hz
+    k = np.arange(960)
+    times = (k // 4) * (4 / 240.0) + (k % 4) * 2e-6
+    rec = read_pose_csv(stamped_csv(tmp_path, times))
+    span = times[-1] - times[0]
+    assert rec.rate_hz == pytest.approx((times.size - 1) / span, rel=1e-12)
+    assert rec.rate_hz == pytest.approx(240.0, rel=0.01)  # 959 steps over 239 bursts of 4/240 s
+    note = next(n for n in rec.notes if "bursts" in n)
+    assert "720 of 959 steps" in note and "count over the span" in note
+
+
+def test_regular_time_stamps_keep_the_median_step(tmp_path):
+    rng = np.random.default_rng(3)
+    times = np.arange(600) / 120.0 + rng.uniform(-1e-3, 1e-3, 600)  # 120 Hz with 1 ms jitter
+    times[300:] += 2.0  # and a 2 s gap, which the median step ignores
+    rec = read_pose_csv(stamped_csv(tmp_path, times))
+    assert rec.rate_hz == pytest.approx(1.0 / np.median(np.diff(times)), rel=1e-12)
+    assert rec.rate_hz == pytest.approx(120.0, rel=0.02)
+    assert not [n for n in rec.notes if "bursts" in n]
+
+
+def test_bursty_note_reaches_every_recording_once():
+    k = np.arange(40)
+    t = (k // 4) * 0.1 + (k % 4) * 1e-6
+    R = np.tile(np.eye(3), (40, 1, 1, 1))
+    p = np.zeros((40, 1, 3))
+    rec = PoseRecording(("a",), t, R, p, np.ones((40, 1), bool), notes=("read by hand",))
+    assert rec.notes[0] == "read by hand" and sum("bursts" in n for n in rec.notes) == 1
+    again = PoseRecording(rec.names, rec.time_s, rec.R_w_s, rec.p_w_s, rec.valid, notes=rec.notes)
+    assert again.notes == rec.notes  # built from a bursty recording's notes: not repeated

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from calibration import Calibration, SlipReport
-from simbench.io.poses import PoseRecording
+from simbench.io.poses import PoseRecording, sample_rate
 
 
 def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str, SlipReport]]) -> str:
@@ -19,9 +19,11 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
         slips: ``(joint name, slip report)`` per joint checked; empty when slip detection was
             skipped (then the table has no slip section).
     """
+    rate_hz, bursty = sample_rate(rec.time_s)
+    how = " (count over span: bursty time stamps)" if bursty else ""
     lines = [
         f"simbench calibrate: {rec.source}",
-        f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   rate: {rec.rate_hz:.4g} Hz   "
+        f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   rate: {rate_hz:.4g} Hz{how}   "
         f"time: {cal.seconds.get('total', float('nan')):.3f} s",
         f"  hierarchy: {'given' if cal.hierarchy_given else 'inferred'}, root {cal.root}",
         "",

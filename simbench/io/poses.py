@@ -13,6 +13,14 @@ Reading is strict about what cannot be guessed and explicit about what it repair
 - repaired and reported in ``notes``: a sensor missing from some frames, and rows with NaN or
   inf values (both become missing poses, which each pair of sensors drops), quaternions off
   unit norm by more than 1e-3 (normalised).
+
+**Sample rate.** Some tracker loggers stamp samples in bursts: many consecutive samples a few
+microseconds apart, then a long step. The smallest or median step then gives a rate orders of
+magnitude too high (12.7 kHz printed for a 240 Hz tracker). :func:`sample_rate` calls time
+stamps bursty when at least :data:`BURST_FRACTION` of the steps are shorter than
+:data:`BURST_STEP` of the mean step (span over steps; unit-free), and then takes the rate from the
+sample count over the span; otherwise from the median step (robust to gaps in the recording).
+A :class:`PoseRecording` with bursty times says so in its ``notes``, whichever reader made it.
 """
 
 from __future__ import annotations
@@ -31,6 +39,40 @@ from simbench.io.atomic import atomic_open
 from simbench.units import metres_per_unit
 
 CSV_COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
+
+#: A step shorter than this fraction of the mean step is part of a burst.
+BURST_STEP = 0.1
+
+#: Time stamps are bursty when at least this fraction of the steps are part of bursts.
+BURST_FRACTION = 0.1
+
+
+def sample_rate(time_s: np.ndarray) -> tuple[float, str | None]:
+    """The sample rate of strictly increasing times, and a note when the stamps come in bursts.
+
+    Args:
+        time_s: ``(frames,)`` times, seconds.
+
+    Returns:
+        ``(rate_hz, note)``: the rate from the median step, or from the sample count over the
+        span when the stamps are bursty (module docstring; the note then says so and why); NaN
+        and ``None`` with fewer than 2 frames.
+    """
+    t = np.asarray(time_s, dtype=float)
+    if t.size < 2:
+        return float("nan"), None
+    step = np.diff(t)
+    mean_step = (t[-1] - t[0]) / step.size
+    short = step < BURST_STEP * mean_step
+    if np.mean(short) < BURST_FRACTION:
+        return float(1.0 / np.median(step)), None
+    rate = 1.0 / mean_step
+    note = (
+        f"time stamps come in bursts: {int(short.sum())} of {step.size} steps are shorter than "
+        f"{BURST_STEP:g} of the mean step (median step {np.median(step):.3g} s, which would give "
+        f"{1.0 / np.median(step):.4g} Hz); rate taken from the sample count over the span: {rate:.4g} Hz"
+    )
+    return float(rate), note
 
 
 def open_csv(path: Path) -> TextIO:
@@ -72,6 +114,9 @@ class PoseRecording:
                 raise InputError(f"Expected {name} to have shape {shape}, got {got}")
         if f > 1 and not np.all(np.diff(self.time_s) > 0):
             raise InputError("times must be strictly increasing")
+        _, note = sample_rate(self.time_s)
+        if note is not None and note not in self.notes:  # every reader's recording says so
+            object.__setattr__(self, "notes", (*self.notes, note))
 
     @property
     def n_frames(self) -> int:
@@ -85,10 +130,9 @@ class PoseRecording:
 
     @property
     def rate_hz(self) -> float:
-        """Median sample rate, Hz (NaN with fewer than 2 frames)."""
-        if self.n_frames < 2:
-            return float("nan")
-        return float(1.0 / np.median(np.diff(self.time_s)))
+        """Sample rate, Hz: from the median step, or from the sample count over the span when
+        the time stamps come in bursts (:func:`sample_rate`); NaN with fewer than 2 frames."""
+        return sample_rate(self.time_s)[0]
 
 
 def _fail(path: str | os.PathLike[str], line: int | None, message: str) -> InputError:

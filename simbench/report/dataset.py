@@ -42,12 +42,15 @@ class ReportedCalibration:
         lengths: limb lengths, in the recording's units.
         parent_of: ``{child: parent}`` of the hierarchy.
         source: where the joints came from, for the reader.
+        warnings: the calibration's warnings (what the data could not determine, joints that
+            are probably not neighbours), in plain language.
     """
 
     joints: tuple[Joint, ...]
     lengths: tuple[SegmentLength, ...]
     parent_of: dict[str, str]
     source: str
+    warnings: tuple[str, ...] = ()
 
 
 def _read_input(
@@ -64,7 +67,11 @@ def _calibrated_here(rec: PoseRecording) -> ReportedCalibration:
     """Calibrate the recording, hierarchy inferred."""
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
     return ReportedCalibration(
-        tuple(cal.joints), tuple(cal.lengths), cal.parent_of, "calibrated here (hierarchy inferred)"
+        tuple(cal.joints),
+        tuple(cal.lengths),
+        cal.parent_of,
+        "calibrated here (hierarchy inferred)",
+        tuple(cal.warnings),
     )
 
 
@@ -74,7 +81,8 @@ def _from_file(rec: PoseRecording, calibration_file: str | os.PathLike[str]) -> 
     The file's joint locations are taken to be in the recording's units. Its hierarchy must be a
     tree over the recording's sensors.
     """
-    located = calibration_joints(read_calibration_json(calibration_file), rec.names, source=calibration_file)
+    doc = read_calibration_json(calibration_file)
+    located = calibration_joints(doc, rec.names, source=calibration_file)
     hierarchy_from_parents(located.parent_of, rec.names)  # checks the names and the tree
     rms, per_frame = frame_residuals(
         rec.R_w_s,
@@ -107,7 +115,9 @@ def _from_file(rec: PoseRecording, calibration_file: str | os.PathLike[str]) -> 
     )
     pairs = list(zip(located.parent_index.tolist(), located.child_index.tolist(), strict=True))
     lengths = segment_lengths(rec.names, pairs, located.joint_in_parent, located.joint_in_child)
-    return ReportedCalibration(joints, tuple(lengths), located.parent_of, f"from {calibration_file}")
+    warnings = tuple(str(w) for w in doc.get("warnings", []) or [])  # as the file states them
+    source = f"from {calibration_file}"
+    return ReportedCalibration(joints, tuple(lengths), located.parent_of, source, warnings)
 
 
 def _lengths(
@@ -182,6 +192,7 @@ def dataset_report(
         "versions": software_versions(),
         "meta": {} if ds is None else {k: ds.meta.get(k) for k in META_KEYS},
         "read": list(rec.notes),
+        "warnings": list(cal.warnings),
     }
     lines = [
         f"# simbench report: {dataset}",
@@ -196,6 +207,8 @@ def dataset_report(
     ]
     if rec.notes:
         lines += ["What was read:", "", *[f"- {note}" for note in rec.notes], ""]
+    if cal.warnings:
+        lines += ["## Warnings", "", *[f"- {w}" for w in cal.warnings], ""]
     lines += _lengths(cal, ds, scale, results)
     lines += ["## Residual norms per joint", "", "![residual norms](residual_histograms.png)", ""]
     return write_report_files(out, "\n".join(lines), results)

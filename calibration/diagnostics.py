@@ -1,0 +1,318 @@
+"""Checks of a calibration that a user can act on: joints the motion hardly determines, and
+joints whose residual stands far above the others' (sensors that are probably not neighbours).
+
+Both decisions are unit-free: the same recording in mm, cm, m or inches gives the same verdicts.
+
+**Motion too small to locate a centre.** The joint fit ``A x = b`` (O'Brien eqs. 9-13) is only
+as good as the relative rotation of the two sensors: a hip moved a few degrees gets a centre
+decimetres off with a small residual, because residual errors that move with the joint (soft
+tissue) shift the solution along the weakly determined directions. The white-noise covariance of
+the normal equations misses that (the frames are not independent), so the standard error of the
+centre is measured by the delete-one-block jackknife (:func:`block_jackknife`): the recording is
+cut into :data:`JACKKNIFE_BLOCKS` contiguous blocks and the joint refitted without each in turn.
+The error is compared with the rms distance between the two sensors (the scale of the segments
+the joint links): a standard error above :data:`UNCERTAIN_FRACTION` of it (a 95 % interval
+spanning most of that distance) is reported, with the range of relative rotation along each
+principal axis in degrees and the fit's condition number. A noise-free joint has no spread
+between blocks and is never reported, however small its motion. A fit that kept fewer than five
+directions (the single-axis test of :mod:`calibration.joint` found the rotation too small for
+more) has no located centre and is always reported, with the same figures.
+
+**Residual far above the others.** A tree joint between two sensors that are not neighbours
+(a hierarchy given wrong, or a sensor whose true neighbour is missing) leaves a residual many
+times that of the real joints, whose residuals share the recording's noise. On the logarithm of
+the rms residuals (a ratio test, so unit-free) each joint is compared with the median of the
+*other* joints and their median absolute deviation: the modified z-score of Iglewicz and Hoaglin
+(1993), ``0.6745 (x - median) / MAD``, flags values above 3.5. The log-MAD is floored at
+``0.6745 log(RATIO_FLOOR) / 3.5`` so that joints of near-identical residuals (noise-free
+simulation) do not make a small difference an outlier: a flagged joint always exceeds the
+others' median by :data:`RATIO_FLOOR` or more. Residuals below :data:`NOISE_FREE_FRACTION` of
+the sensors' median distance count as that much (noise-free data: 1e-15 m and 1e-13 m are both
+exact, not a hundred times apart). With fewer than three other joints there is no spread to
+measure; then a residual :data:`FEW_JOINTS_RATIO` times the largest other one is reported.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from calibration.poses import CHUNK_FRAMES, iter_chunks
+from calibration.rotations import matrix_to_rotvec
+
+#: Report a joint whose centre's standard error exceeds this fraction of the sensors' distance.
+UNCERTAIN_FRACTION = 0.2
+
+#: Modified z-score (Iglewicz and Hoaglin 1993) above which a joint's log residual is an outlier.
+OUTLIER_Z = 3.5
+
+#: A flagged residual is at least this many times the median of the other joints' residuals.
+RATIO_FLOOR = 3.0
+
+#: With fewer than three other joints: ratio to the largest other residual that is reported.
+FEW_JOINTS_RATIO = 10.0
+
+#: Contiguous blocks of frames of the jackknife that measures a centre's standard error.
+JACKKNIFE_BLOCKS = 20
+
+#: Residuals below this fraction of the median sensor distance count as noise-free (0.3 mm at
+#: 30 cm): far above rounding, below any tracker's noise.
+NOISE_FREE_FRACTION = 1e-3
+
+#: Percentiles bounding the reported range of relative rotation (robust to a few bad frames).
+RANGE_PERCENTILES = (2.5, 97.5)
+
+
+def fit_condition(singular_values: np.ndarray, rank: int) -> float:
+    """``s_max / s_min`` of a joint fit over its ``rank`` kept directions (``inf`` if none)."""
+    s = np.asarray(singular_values, dtype=float)
+    if rank < 1 or not np.all(np.isfinite(s[:rank])) or s[rank - 1] <= 0.0:
+        return float("inf")
+    return float(s[0]) / float(s[rank - 1])
+
+
+def block_jackknife(
+    R_w_s: Any,
+    p_w_s: Any,
+    parent: np.ndarray,
+    child: np.ndarray,
+    rank: np.ndarray,
+    *,
+    valid: Any = None,
+    n_blocks: int = JACKKNIFE_BLOCKS,
+    chunk_frames: int = CHUNK_FRAMES,
+) -> np.ndarray:
+    """Standard error of each joint's centre by the delete-one-block jackknife.
+
+    The recording is cut into ``n_blocks`` contiguous blocks of frames; each joint is fitted
+    again without each block in turn (O'Brien eq. 13 from the blocks' normal equations, keeping
+    the ``rank`` strongest directions of the full fit), and the spread of those fits gives the
+    standard error. Errors correlated over times shorter than a block (soft tissue moving with
+    the joint) enter it, unlike the white-noise covariance of the normal equations.
+
+    Args:
+        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world (sliceable along frames).
+        p_w_s: ``(frames, sensors, 3)`` positions in world, any length unit.
+        parent, child: ``(J,)`` sensor indices of the joints.
+        rank: ``(J,)`` directions each joint's fit keeps.
+        valid: optional ``(frames, sensors)`` bool.
+        n_blocks: number of blocks.
+        chunk_frames: frames per chunk.
+
+    Returns:
+        ``(J,)`` rms standard error of the centre, the larger of its location in the parent and
+        in the child frame, in the positions' unit.
+    """
+    parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
+    n_frames, n_j = int(R_w_s.shape[0]), parent.size
+    ata = np.zeros((n_blocks, n_j, 6, 6))
+    atb = np.zeros((n_blocks, n_j, 6))
+    for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        block = np.arange(frames.start, frames.stop) * n_blocks // n_frames
+        onehot = (block[:, None] == np.arange(n_blocks)).astype(float)
+        w = (ok[:, parent] & ok[:, child]).astype(float)  # (c, J)
+        A = np.concatenate([R[:, parent], -R[:, child]], axis=-1) * w[..., None, None]  # (c, J, 3, 6)
+        b = p[:, child] - p[:, parent]
+        ata += np.einsum("fb,fjki,fjkl->bjil", onehot, A, A)
+        atb += np.einsum("fb,fjki,fjk->bji", onehot, A, b)
+    full_ata, full_atb = ata.sum(axis=0), atb.sum(axis=0)
+    out = np.full(n_j, np.nan)
+    for k in range(n_j):
+        _, vecs = np.linalg.eigh(full_ata[k])
+        keep = vecs[:, ::-1][:, : int(rank[k])]  # the strongest directions of the full fit
+        fits = []
+        for blk in range(n_blocks):
+            m = keep.T @ (full_ata[k] - ata[blk, k]) @ keep
+            v = keep.T @ (full_atb[k] - atb[blk, k])
+            fits.append(keep @ np.linalg.lstsq(m, v, rcond=None)[0])
+        x = np.array(fits)
+        dev = x - x.mean(axis=0)
+        var = (n_blocks - 1) / n_blocks * np.sum(dev**2, axis=0)  # jackknife variance per coordinate
+        out[k] = float(np.sqrt(max(var[:3].sum(), var[3:].sum())))
+    return out
+
+
+def rotation_ranges(
+    R_w_s: Any,
+    parent: np.ndarray,
+    child: np.ndarray,
+    *,
+    valid: Any = None,
+    chunk_frames: int = CHUNK_FRAMES,
+) -> np.ndarray:
+    """Range of relative rotation of each given sensor pair along its principal axes.
+
+    Two passes of chunks: the first sums the relative rotations ``R_w_p^T R_w_c``, the second
+    takes the rotation vector of each frame's relative rotation about their chordal mean (the
+    sum projected onto the rotations).
+
+    Args:
+        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world (sliceable along frames;
+            non-finite entries are missing poses).
+        parent, child: ``(J,)`` sensor indices of the pairs.
+        valid: optional ``(frames, sensors)`` bool; each pair uses the frames where both are.
+        chunk_frames: frames per chunk.
+
+    Returns:
+        ``(J, 3)`` extent of the relative rotation (parent to child) about its mean along its
+        principal axes, largest first: the spread between the 2.5th and 97.5th percentiles of the
+        rotation vectors' components, degrees; NaN for a pair with no common frame.
+    """
+    parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
+    n_frames, n = int(R_w_s.shape[0]), int(R_w_s.shape[1])
+    p_w_s = np.zeros((n_frames, n, 3))  # positions play no part; iter_chunks wants them
+    total = np.zeros((parent.size, 3, 3))
+    used = np.zeros((n_frames, parent.size), dtype=bool)
+    for frames, R, _, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        used[frames] = ok[:, parent] & ok[:, child]
+        rel = np.einsum("fjki,fjkl->fjil", R[:, parent], R[:, child])  # R_p^T R_c
+        total += np.einsum("fj,fjil->jil", used[frames], rel)
+    u, _, vt = np.linalg.svd(total)
+    u[np.linalg.det(u @ vt) < 0.0, :, 2] *= -1.0  # the nearest rotation, not a reflection
+    mean = u @ vt
+    vectors = np.zeros((n_frames, parent.size, 3))
+    for frames, R, _, _ in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        rel = np.einsum("fjki,fjkl->fjil", R[:, parent], R[:, child])
+        off_mean = np.einsum("jki,fjkl->fjil", mean, rel)  # mean^T R_p^T R_c
+        vectors[frames] = matrix_to_rotvec(_nearest_rotation(off_mean))
+    ranges = np.full((parent.size, 3), np.nan)
+    for k in range(parent.size):
+        if used[:, k].any():
+            ranges[k] = _principal_ranges(np.rad2deg(vectors[used[:, k], k]))
+    return ranges
+
+
+def _nearest_rotation(R: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)`` rotations; zeroed (invalid) entries become the identity."""
+    zero = ~np.any(R.reshape(*R.shape[:-2], 9) != 0.0, axis=-1)
+    return np.where(zero[..., None, None], np.eye(3), R)
+
+
+def _principal_ranges(vectors: np.ndarray) -> np.ndarray:
+    """``(3,)`` percentile extent of ``(frames, 3)`` vectors along their principal axes, descending."""
+    centred = vectors - np.median(vectors, axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    along = centred @ vt.T
+    lo, hi = np.percentile(along, RANGE_PERCENTILES, axis=0)
+    return np.sort(hi - lo)[::-1]
+
+
+def residual_outliers(rms_residual: np.ndarray, floor: float = 0.0) -> list[tuple[int, float, float]]:
+    """Joints whose rms residual stands far above the other joints' (module docstring).
+
+    Args:
+        rms_residual: ``(J,)`` rms residual of each joint, any length unit (non-negative).
+        floor: residuals below it count as equal to it (the precision of the data, same unit).
+
+    Returns:
+        ``(joint index, modified z-score, ratio to the others' median)`` of each flagged joint;
+        the z-score is NaN where fewer than three other joints leave no spread to measure (the
+        ratio is then to the largest other residual).
+    """
+    r = np.asarray(rms_residual, dtype=float)
+    finite = np.isfinite(r) & (r >= 0.0)
+    if r.size < 2 or not finite.any() or np.max(r[finite]) == 0.0:
+        return []
+    floor = max(floor, np.max(r[finite]) * 1e-12)  # exact zeros (noise-free joints) stay comparable
+    logr = np.log(np.maximum(np.where(finite, r, np.nan), floor))
+    out = []
+    for k in np.flatnonzero(finite):
+        others = np.delete(logr, k)
+        others = others[np.isfinite(others)]
+        if others.size == 0:
+            continue
+        if others.size < 3:
+            ratio = float(np.exp(logr[k] - np.max(others)))
+            if ratio > FEW_JOINTS_RATIO:
+                out.append((int(k), float("nan"), ratio))
+            continue
+        med = float(np.median(others))
+        mad = max(float(np.median(np.abs(others - med))), 0.6745 * np.log(RATIO_FLOOR) / OUTLIER_Z)
+        z = 0.6745 * (logr[k] - med) / mad
+        ratio = float(np.exp(logr[k] - med))
+        if z > OUTLIER_Z and ratio > RATIO_FLOOR:
+            out.append((int(k), float(z), ratio))
+    return out
+
+
+def motion_warnings(
+    R_w_s: Any,
+    p_w_s: Any,
+    names: tuple[str, ...],
+    pairs: list[tuple[int, int]],
+    fits: list[Any],
+    separation: np.ndarray,
+    *,
+    valid: Any = None,
+    chunk_frames: int = CHUNK_FRAMES,
+) -> list[str]:
+    """Warnings for joints whose centre the motion hardly determines (module docstring).
+
+    Args:
+        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
+        p_w_s: ``(frames, sensors, 3)`` positions in world, metres.
+        names: sensor names.
+        pairs: ``(parent, child)`` sensor indices of the joints.
+        fits: their :class:`calibration.joint.JointFit` (singular values, rank, residual). A
+            fit that kept fewer than 5 directions is always reported (its centre is not located).
+        separation: ``(J,)`` typical distance between each joint's sensors, metres.
+        valid, chunk_frames: as for :func:`rotation_ranges`.
+    """
+    par = np.array([p for p, _ in pairs], dtype=np.int64)
+    chi = np.array([c for _, c in pairs], dtype=np.int64)
+    rank = np.array([fit.rank for fit in fits])
+    unc = np.full(len(fits), np.inf)  # fewer than 5 directions kept: the centre is not located
+    checked = np.flatnonzero(rank >= 5)
+    if checked.size:
+        unc[checked] = block_jackknife(
+            R_w_s, p_w_s, par[checked], chi[checked], rank[checked], valid=valid, chunk_frames=chunk_frames
+        )
+    flagged = [k for k in range(len(fits)) if unc[k] > UNCERTAIN_FRACTION * float(separation[k])]
+    if not flagged:
+        return []
+    ranges = rotation_ranges(R_w_s, par[flagged], chi[flagged], valid=valid, chunk_frames=chunk_frames)
+    out = []
+    for k, rng in zip(flagged, ranges, strict=True):
+        fit, sep = fits[k], float(separation[k])
+        how = (
+            f"the data determine only {fit.rank} of its 6 directions (condition "
+            f"{fit_condition(fit.singular_values, 6):.3g})"
+            if fit.rank < 5
+            else f"fit condition {fit_condition(fit.singular_values, fit.rank):.3g}, centre standard "
+            f"error {unc[k] * 1e3:.3g} mm by block jackknife ({100 * unc[k] / sep:.0f} % of the "
+            f"{sep * 1e3:.3g} mm between the sensors)"
+        )
+        out.append(
+            f"joint {names[par[k]]}-{names[chi[k]]}: the motion hardly determines its centre: relative "
+            f"rotation range {', '.join(f'{x:.1f}' for x in rng)} deg along its principal axes; "
+            f"{how}; residual {fit.rms_residual * 1e3:.3g} mm rms. Record this joint moving through "
+            "tens of degrees in two or more directions"
+        )
+    return out
+
+
+def outlier_warnings(
+    names: tuple[str, ...], pairs: list[tuple[int, int]], rms_residual: np.ndarray, separation: np.ndarray
+) -> list[str]:
+    """Warnings for joints whose residual stands far above the others' (module docstring).
+
+    Args:
+        names: sensor names.
+        pairs: ``(parent, child)`` sensor indices of the joints.
+        rms_residual: ``(J,)`` their rms residuals, metres.
+        separation: ``(J,)`` typical distance between each joint's sensors, metres.
+    """
+    out = []
+    floor = NOISE_FREE_FRACTION * float(np.nanmedian(separation)) if np.size(separation) else 0.0
+    for k, z, ratio in residual_outliers(rms_residual, floor if np.isfinite(floor) else 0.0):
+        p, c = pairs[k]
+        test = "the largest other joint's"
+        if not np.isnan(z):
+            test = f"the other joints' median (modified z {z:.3g})"
+        out.append(
+            f"joint {names[p]}-{names[c]}: residual {rms_residual[k] * 1e3:.3g} mm rms is {ratio:.3g} "
+            f"times {test}: {names[p]} and {names[c]} are probably not neighbours (check the "
+            "hierarchy, or a sensor between them that is missing)"
+        )
+    return out
