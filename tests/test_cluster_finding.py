@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-import runpy
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from calibration.clusters import find_clusters
-
-STUDY = runpy.run_path(str(Path(__file__).resolve().parents[1] / "studies" / "cluster_finding.py"))
-simulate_marker_chain = STUDY["simulate_marker_chain"]
+from simbench.sim.markers import simulate_marker_chain, smooth_noise
 
 
 @pytest.mark.parametrize("seed", [100, 101, 102])
@@ -33,7 +28,7 @@ def test_same_grouping_in_any_unit():
 def test_loose_marker_left_out_with_a_reason():
     rng = np.random.default_rng(104)
     x, truth, static = simulate_marker_chain(rng)
-    loose = x[:, truth[0][0]] + 0.05 * STUDY["smooth_noise"](rng, x.shape[0], (3,), 2.0)
+    loose = x[:, truth[0][0]] + 0.05 * smooth_noise(rng, x.shape[0], (3,), 2.0)
     found = find_clusters(np.concatenate([x, loose[:, None]], axis=1))
     assert sorted(found.clusters) == truth and found.still == [static]
     assert list(found.left_out) == [x.shape[1]] and "steady with only 0 other" in found.left_out[x.shape[1]]
