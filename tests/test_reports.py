@@ -28,6 +28,7 @@ def test_quick_validate_writes_a_complete_report(quick_report):
         "Human subject",
         "Slip detection",
         "Sourceless orientation",
+        "Decisions against their targets",
     ):
         assert heading in md
     for row in ("Neck - Left Shoulder", "Between Shoulders", "Right Lower Leg", "Left Upper Arm"):
@@ -40,6 +41,20 @@ def test_quick_validate_writes_a_complete_report(quick_report):
     assert set(results["versions"]) >= {"simbench", "numpy", "mujoco"} and results["run_time_s"] > 0
     for table in results["linkage"]["sets"]:
         assert len(table["rows"]) == 5 and all(np.isfinite(r["computed_cm"]) for r in table["rows"].values())
+    d = results["decisions"]
+    cases = d["false_alarms"]["cases"]
+    assert set(cases) == {
+        "linkage exercise, ascension-flock",
+        "humanoid exercise, skin-paper-human",
+        "humanoid walk, skin-paper-human",
+    }
+    assert cases["linkage exercise, ascension-flock"]["joint_hours"] == pytest.approx(2 * 5 * 12.0 / 3600)
+    assert [r["sessions"] for r in d["detection"]["by_motion"]["exercise"].values()] == [1, 1, 1]
+    assert (
+        d["hinge"]["hinge (2 deg wobble)"]["single_axis"] == 3
+        and d["hinge"]["ball, 3 axes"]["single_axis"] == 0
+    )
+    assert d["clusters"] == {"seeds": 5, "right": 5, "target": 5}
 
 
 def test_report_images_are_real_pictures(quick_report):

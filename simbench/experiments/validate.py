@@ -14,7 +14,10 @@ report module turns it into tables, plots and pictures):
 - **slip**: a linkage set with a 3 cm slip of the left forearm's sensor at mid-session, the joint
   residual over time and the intervals the detector finds;
 - **orientation**: a humanoid exercise with the ``mems-industrial`` preset, the orientation error
-  over time of the sourceless estimators and the gyro-aided reference.
+  over time of the sourceless estimators and the gyro-aided reference;
+- **decisions** (:mod:`simbench.experiments.decisions`): slip alarms per hour on the sessions
+  above (none has a slip), detection of 1-3 cm slips, hinge verdicts, cluster grouping, each
+  against its target.
 
 ``quick=True`` shortens everything (CI); the full run takes a few minutes on 2 cores. Seeds are
 fixed: the same version gives the same figures.
@@ -31,6 +34,7 @@ import numpy as np
 
 from calibration import calibrate, detect_slip, unit_scale
 from calibration.rotations import matrix_to_quat, rotvec_to_matrix
+from simbench.experiments.decisions import clean_alarms, run_decisions
 from simbench.orient import estimate
 from simbench.score import compare_trees, estimated_lengths, length_of, score_orientation, truth_lengths
 from simbench.sim.sensor_config import load_sensor_config, parse_sensor_config
@@ -84,6 +88,7 @@ STEPS = (
     "humanoid trials",
     "slip detection",
     "sourceless orientation",
+    "decisions: slip alarms and detection, hinge verdicts, cluster grouping",
 )
 
 
@@ -195,6 +200,7 @@ def linkage_experiment(plan: Plan, scale: float, keep: dict[str, Any] | None = N
                 "max_abs_error_cm": max(abs(r["difference_cm"]) for r in rows.values()),
                 "hierarchy_correct": compare_trees(cal.parent_of, ds.truth.parent_of).correct,
                 "rms_residual_mm": {j.name: j.fit.rms_residual * scale * 1e3 for j in cal.joints},
+                "slip_alarms": clean_alarms(rec, cal),
             }
         )
         if s == 1 and keep is not None:
@@ -235,6 +241,7 @@ def _humanoid(plan: Plan, scale: float) -> dict[str, Any]:
                 "hierarchy_correct": compare_trees(cal.parent_of, ds.truth.parent_of).correct,
                 "thigh_parents": {t: cal.parent_of.get(t) for t in ("thigh_l", "thigh_r")},
                 "wrong_joints": list(compare_trees(cal.parent_of, ds.truth.parent_of).wrong_edges),
+                "slip_alarms": clean_alarms(rec, given),
                 "inferred_lengths_cm": {
                     label: length_of(got, key) * scale * 100 for label, key in HUMANOID_ROWS.items()
                 },
@@ -310,6 +317,16 @@ def _orientation(plan: Plan) -> dict[str, Any]:
     return out
 
 
+def _clean_sessions(linkage: dict[str, Any], humanoid: dict[str, Any]) -> dict[str, list[dict[str, Any]]]:
+    """The slip alarms of the sessions without slip, by case."""
+    out = {f"linkage exercise, {linkage['preset']}": [s["slip_alarms"] for s in linkage["sets"]]}
+    for motion in ("exercise", "walk"):
+        runs = [t["slip_alarms"] for t in humanoid["trials"] if t["motion"] == motion]
+        if runs:
+            out[f"humanoid {motion}, {humanoid['preset']}"] = runs
+    return out
+
+
 def run_validation(
     *, quick: bool = False, progress: Callable[[str], None] | None = None
 ) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -334,6 +351,8 @@ def run_validation(
     slip = _slip(plan)
     say(STEPS[4])
     orientation = _orientation(plan)
+    say(STEPS[5])
+    decisions = run_decisions(quick, _clean_sessions(linkage, humanoid))
     results = {
         "quick": quick,
         "plan": plan.__dict__,
@@ -343,6 +362,7 @@ def run_validation(
         "humanoid": humanoid,
         "slip": slip,
         "orientation": orientation,
+        "decisions": decisions,
         "summary": {
             "linkage_max_error_cm": max(s["max_abs_error_cm"] for s in linkage["sets"]),
             "linkage_hierarchy_correct": sum(s["hierarchy_correct"] for s in linkage["sets"]),

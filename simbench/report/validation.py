@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from simbench.report.decisions import decisions_markdown
 from simbench.report.markdown import markdown_table
 from simbench.report.output import write_report_files
 from simbench.report.pictures import render_joint_centres
@@ -159,7 +160,7 @@ def _figures_and_provenance(results: dict[str, Any], images: dict[str, str]) -> 
         f"- plan: `{json.dumps(results['plan'])}`",
         f"- versions: `{json.dumps(results['versions'])}`",
         "- seeds: linkage sets 1..N, humanoid trials 101.. (exercise and walk), slip 21, "
-        "orientation 31, unit scale 7",
+        "orientation 31, unit scale 7, decisions: slips 1000.., hinges and clusters 0..",
         "- every figure is in `results.json`",
         "",
     ]
@@ -185,6 +186,7 @@ def validation_markdown(results: dict[str, Any], images: dict[str, str]) -> str:
         *_linkage(results["linkage"]),
         *_humanoid(results["humanoid"]),
         *_slip_and_orientation(results["slip"], results["orientation"]),
+        *decisions_markdown(results["decisions"]),
         *_figures_and_provenance(results, images),
     ]
     return "\n".join(out)
