@@ -21,10 +21,11 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
     """
     rate_hz, bursty = sample_rate(rec.time_s)
     how = " (count over span: bursty time stamps)" if bursty else ""
+    span_s = float(rec.time_s[-1] - rec.time_s[0]) if rec.n_frames else 0.0
     lines = [
         f"simbench calibrate: {rec.source}",
-        f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   rate: {rate_hz:.4g} Hz{how}   "
-        f"time: {cal.seconds.get('total', float('nan')):.3f} s",
+        f"  sensors: {len(rec.names)}   frames: {rec.n_frames} over {span_s:.4g} s   "
+        f"rate: {rate_hz:.4g} Hz{how}   calibrated in {cal.seconds.get('total', float('nan')):.3f} s",
         f"  hierarchy: {'given' if cal.hierarchy_given else 'inferred'}, root {cal.root}",
         "",
         f"  {'joint (parent -> child)':<34}{'rms mm':>9}{'max mm':>9}{'cond':>8}  {'axis':<12}{'frames':>8}",
