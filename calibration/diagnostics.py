@@ -313,6 +313,7 @@ def outlier_warnings(
         out.append(
             f"joint {names[p]}-{names[c]}: residual {rms_residual[k] * 1e3:.3g} mm rms is {ratio:.3g} "
             f"times {test}: {names[p]} and {names[c]} are probably not neighbours (check the "
-            "hierarchy, or a sensor between them that is missing)"
+            "hierarchy, or a sensor between them that is missing), or one of them moved on the body "
+            "(see the slip events)"
         )
     return out
