@@ -35,8 +35,20 @@ attributed to the frame where the jump is largest (the moved sensor's frame hold
 steady, the other frame turns it); the search repeats with the events as cuts. A slip undone
 later (the sensor put back) hides behind its partner, so a failed candidate is retried once with
 the next peak as a cut, and kept if the two pass together (each tested with the other as a
-cut). Every quantity is a ratio of lengths or a quantile of such ratios, so scaling positions by
-any factor leaves the decision unchanged.
+cut).
+
+**A slip and its return are at least a window apart.** On skin the residual moves away and
+back while one joint after another moves (a few millimetres for a second or two), which window
+means see as a step out and a step back, and which the pair retry above would report as a slip
+and its return. Window means cannot resolve two steps closer than ``w``, so the pair stands only
+if the two least-squares change points are at least ``w`` apart (:func:`_closer_than_window`).
+Tried and measured on the humanoid's exercise sessions, and left out: regressing ``e`` on the
+pair's relative rotation per piece, or weighting ``d`` by the tracker's local white noise (at
+most a quarter fewer false alarms than without the rule, no better detection), and also
+requiring an event to pass at twice the window (fewer false alarms, but 2 of 10 2 cm slips lost).
+
+Every quantity is a ratio of lengths or a quantile of such ratios, so scaling positions by any
+factor leaves the decision unchanged.
 
 **Why not ``ruptures``.** Its penalised segmentation (PELT, binary segmentation) needs a penalty
 per change that has no stated false-alarm rate on autocorrelated, heavy-tailed residuals; the one
@@ -149,6 +161,10 @@ class _Pair:
     rate_hz: float
     rate: float
 
+    def diffs(self, cuts: list[int]) -> list[np.ndarray]:
+        """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``."""
+        return [window_difference(e, self.ok, self.window) for e in self.frames(self.piecewise(cuts))]
+
     def frames(self, r: np.ndarray) -> list[np.ndarray]:
         """``e = R_w_s^T r`` in the parent's and the child's frame, ``(frames, 3)`` each."""
         rot = (self.poses[0], self.poses[2])
@@ -193,8 +209,8 @@ def _test(pair: _Pair, free: np.ndarray, cuts: list[int], k: int, i: int) -> tup
     """
     w = pair.window
     frames = np.arange(free.size)
-    d_k = window_difference(pair.frames(pair.piecewise(cuts))[i], pair.ok, w)[k : k + 1]
-    d = window_difference(pair.frames(pair.piecewise([*cuts, k]))[i], pair.ok, w)
+    d_k = pair.diffs(cuts)[i][k : k + 1]
+    d = pair.diffs([*cuts, k])[i]
     rest = free & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
     for c in cuts:
         rest &= np.abs(frames - c) > w
@@ -211,6 +227,16 @@ def _peak(d: np.ndarray, free: np.ndarray) -> int | None:
     return k if np.isfinite(zc[k]) else None
 
 
+def _closer_than_window(pair: _Pair, i: int, k: int, k2: int) -> bool:
+    """Whether the steps near ``k`` and ``k2`` (least-squares change points) are closer than ``w``."""
+    w = pair.window
+    n = pair.ok.size
+    e = pair.frames(pair.r)[i]
+    a = change_point(e, pair.ok, max(0, k - w), min(n, k + w))
+    b = change_point(e, pair.ok, max(0, k2 - w), min(n, k2 + w))
+    return abs(a - b) < w
+
+
 def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, float]], np.ndarray]:
     """``(frame, sensor frame index, z, threshold)`` of the events, strongest first; frames left.
 
@@ -219,7 +245,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
     put back) hides behind its partner, which spreads error over the other's noise model, so a
     candidate that fails is tested once more with the next strongest peak as a cut, and is kept
     only if that peak passes its own test with the candidate as a cut as well (the pair stands
-    together).
+    together) and the two are at least ``w`` apart.
     """
     w = pair.window
     free = free.copy()
@@ -227,7 +253,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
     found: list[tuple[int, int, float, float]] = []
     for _ in range(free.size // (2 * w) + 1):
         cuts = [f[0] for f in found]
-        ds = [window_difference(e, pair.ok, w) for e in pair.frames(pair.piecewise(cuts))]
+        ds = pair.diffs(cuts)
         best = None
         for i, d in enumerate(ds):
             k = _peak(d, free)
@@ -245,7 +271,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
                 break
             z, thr = _test(pair, free & (np.abs(frames - k2) > w), [*cuts, k2], k, i)
             z2, thr2 = _test(pair, free & (np.abs(frames - k) > w), [*cuts, k], k2, i)
-            if not (z > thr and z2 > thr2):
+            if not (z > thr and z2 > thr2) or _closer_than_window(pair, i, k, k2):
                 break
             best = (k, i, z, thr)
         # attribution: the moved sensor's frame holds the step steady, the other's turns it
@@ -301,7 +327,7 @@ def detect_slip(
         events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
     events.sort(key=lambda ev: ev.frame)
     shown = found[0][1] if found else 1
-    d_clean = window_difference(pair.frames(pair.piecewise([f[0] for f in found]))[shown], ok, window)
+    d_clean = pair.diffs([f[0] for f in found])[shown]
     rest = rest & np.isfinite(d_clean).all(axis=1)
     rest = rest if rest.sum() >= 4 else valid
     scale, thr_all, tests_per_hour = _noise_model(pair, d_clean, rest)

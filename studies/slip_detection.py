@@ -20,23 +20,22 @@ from __future__ import annotations
 import argparse
 import json
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from calibration import calibrate, detect_slip
+from calibration import calibrate
+from simbench.experiments.decisions import DETECTION_TOLERANCE_S, SLIP_WINDOW_S, joint_slips, slip_trial
 from simbench.io.read import read_poses
-from simbench.sim.sensor_config import PRESETS_DIR, parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
 HERE = Path(__file__).resolve().parent
 C3D = HERE.parents[1] / "shared" / "data" / "biobuddy_right_hip.c3d"
 OUT = HERE / "results" / "slip_detection.json"
 DURATION_S = 30.0
-WINDOW_S = 2.0
+WINDOW_S = SLIP_WINDOW_S
 CLEAN = [
     ("linkage", "walk", "ascension-flock"),
     ("linkage", "exercise", "ascension-flock"),
@@ -45,33 +44,8 @@ CLEAN = [
     ("humanoid", "walk", "skin-paper-human"),
     ("humanoid", "exercise", "skin-paper-human"),
 ]
-SKIN_SENSORS = [
-    "thigh_l",
-    "thigh_r",
-    "shank_l",
-    "shank_r",
-    "upper_arm_l",
-    "upper_arm_r",
-    "forearm_l",
-    "forearm_r",
-]
 SLIP_CM = (1, 2, 3)
-TOLERANCE_S = 0.5
-
-
-def _detect_all(rec, cal) -> list[tuple[Any, Any]]:
-    window = round(WINDOW_S * rec.rate_hz)
-    out = []
-    for j in cal.joints:
-        rep = detect_slip(
-            *rec.pair(j.parent, j.child),
-            j.fit.joint_in_parent,
-            j.fit.joint_in_child,
-            window=window,
-            rate_hz=rec.rate_hz,
-        )
-        out.append((j, rep))
-    return out
+TOLERANCE_S = DETECTION_TOLERANCE_S
 
 
 def _session(model: str, motion: str, sensors: Any, seed: int):
@@ -79,7 +53,7 @@ def _session(model: str, motion: str, sensors: Any, seed: int):
     ds = run_session(config, load_session_model(config))
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
-    return ds, rec, _detect_all(rec, cal)
+    return ds, rec, joint_slips(rec, cal)
 
 
 def clean_case(args: tuple[str, str, str, int]) -> dict[str, Any]:
@@ -101,41 +75,10 @@ def clean_case(args: tuple[str, str, str, int]) -> dict[str, Any]:
     }
 
 
-def _slip_sensors(sensor: str, t_s: float, offset_m: list[float]):
-    doc = tomllib.loads((PRESETS_DIR / "skin-paper-human.toml").read_text())
-    doc.setdefault("skin", {})["slip"] = [{"sensor": sensor, "time_s": t_s, "offset_m": offset_m}]
-    return parse_sensor_config(doc, "skin-paper-human with one slip")
-
-
 def slip_case(args: tuple[str, int, int]) -> dict[str, Any]:
-    """One injected slip: was it found within the tolerance, in the right sensor's frame."""
+    """One injected slip (:func:`simbench.experiments.decisions.slip_trial`)."""
     motion, cm, seed = args
-    rng = np.random.default_rng([12, cm, seed, motion == "walk"])
-    sensor = SKIN_SENSORS[int(rng.integers(len(SKIN_SENSORS)))]
-    t_slip = float(rng.uniform(10.0, 20.0))
-    direction = rng.normal(size=3)
-    offset = (cm / 100.0 * direction / np.linalg.norm(direction)).tolist()
-    ds, _, found = _session("humanoid", motion, _slip_sensors(sensor, t_slip, offset), seed)
-    hits, others = [], []
-    for j, rep in found:
-        for ev in rep.events:
-            t = float(ds.time_s[ev.frame])
-            moved = j.parent if ev.sensor_frame == "parent" else j.child
-            if sensor in (j.parent, j.child) and abs(t - t_slip) <= TOLERANCE_S:
-                hits.append({"joint": j.name, "error_s": t - t_slip, "right_frame": moved == sensor})
-            else:
-                others.append({"joint": j.name, "time_s": t})
-    return {
-        "motion": motion,
-        "slip_cm": cm,
-        "seed": seed,
-        "sensor": sensor,
-        "time_s": t_slip,
-        "hits": hits,
-        "detected": bool(hits),
-        "detected_right_frame": any(h["right_frame"] for h in hits),
-        "other_alarms": others,
-    }
+    return slip_trial(motion, cm, seed, DURATION_S)
 
 
 def hip_case() -> dict[str, Any]:
@@ -143,7 +86,7 @@ def hip_case() -> dict[str, Any]:
     rec = read_poses(C3D, clusters=HERE / "hip_c3d.toml")
     parent_of = {"thigh_r": "pelvis", "shank_r": "thigh_r"}
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=parent_of)
-    found = _detect_all(rec, cal)
+    found = joint_slips(rec, cal)
     return {
         "joint_hours": len(found) * rec.n_frames / rec.rate_hz / 3600.0,
         "alarms": [
@@ -184,7 +127,7 @@ def summarise(clean: list[dict], slips: list[dict], hip: dict) -> dict[str, Any]
                 "rate_right_frame": float(np.mean([s["detected_right_frame"] for s in runs])),
                 "median_abs_time_error_s": float(np.median(np.abs(errors))) if errors else None,
                 "max_abs_time_error_s": float(np.max(np.abs(errors))) if errors else None,
-                "other_alarms": sum(len(s["other_alarms"]) for s in runs),
+                "other_alarms": sum(s["other_alarms"] for s in runs),
             }
     return out
 
