@@ -7,6 +7,7 @@ with its sample size, its target and whether the target is met.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from simbench.report.markdown import markdown_table
@@ -14,6 +15,16 @@ from simbench.report.markdown import markdown_table
 
 def _met(ok: bool) -> str:
     return "met" if ok else "NOT met"
+
+
+def _rate_met(detected: int, sessions: int, target: float) -> str:
+    """Whether a detection rate meets ``target``, and whether the sample could show it: with no
+    miss, ``n`` sessions show a rate of at least ``target`` at 95 % confidence once
+    ``target**n <= 0.05``."""
+    if detected < target * sessions:
+        return "NOT met"
+    needed = math.ceil(math.log(0.05) / math.log(target))
+    return "met" if sessions >= needed else f"met in this sample (n >= {needed} shows it)"
 
 
 def _alarm_rows(false_alarms: dict[str, Any]) -> list[list[Any]]:
@@ -43,7 +54,7 @@ def _detection_rows(detection: dict[str, Any]) -> list[list[Any]]:
                     f"{r['right_frame']} of {r['sessions']}",
                     "-" if err is None else f"{err * 1e3:.0f}",
                     r["other_alarms"],
-                    f">= {r['target']:.0%}: {_met(r['rate'] >= r['target'])}",
+                    f">= {r['target']:.0%}: {_rate_met(r['detected'], r['sessions'], r['target'])}",
                 ]
             )
     return rows
