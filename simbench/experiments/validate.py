@@ -35,6 +35,7 @@ import numpy as np
 from calibration import calibrate, detect_slip, unit_scale
 from calibration.rotations import matrix_to_quat, rotvec_to_matrix
 from simbench.experiments.decisions import clean_alarms, run_decisions
+from simbench.experiments.paper_tables import TABLE_1
 from simbench.orient import estimate
 from simbench.score import compare_trees, estimated_lengths, length_of, score_orientation, truth_lengths
 from simbench.sim.sensor_config import load_sensor_config, parse_sensor_config
@@ -50,13 +51,7 @@ PAPER = {
     "exercise_hierarchy": "correct in every exercise trial",
     "unit_scale": 0.94,
     "scaled_std_cm": 0.7,
-    "linkage_cm": {
-        "Neck - Left Shoulder": 39.0,
-        "Neck - Right Shoulder": 39.7,
-        "Between Shoulders": 34.3,
-        "Right Upper Arm": 28.6,
-        "Left Upper Arm": 31.4,
-    },
+    "linkage_cm": dict(TABLE_1.measured_cm),
 }
 
 #: Table 1's rows as (segment, joint a, joint b) of the linkage model.
