@@ -135,8 +135,8 @@ class SlipReport:
             recording, the data's length unit.
         window: ``w``, frames.
         threshold: the threshold on ``z`` over the whole recording (no frames left out).
-        min_jump: ``threshold * noise``: about the smallest jump the test detects, the data's
-            length unit.
+        min_jump: ``threshold * noise / sqrt(3)``: about the smallest jump the test detects,
+            the data's length unit; every event is at least this large.
         false_alarms_per_hour: the rate the threshold was set for.
         tests_per_hour: effectively independent tests per hour of joint time.
     """
@@ -211,18 +211,21 @@ def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarra
     return scale, tail_threshold(z[use], tests_per_hour, pair.rate, tau), tests_per_hour
 
 
-def _test(pair: _Pair, free: np.ndarray, cuts: list[int], k: int, i: int) -> tuple[float, float]:
+def _test(
+    pair: _Pair, free: np.ndarray, cuts: list[int], k: int, i: int, d_now: np.ndarray | None = None
+) -> tuple[float, float]:
     """``(z, threshold)`` of a jump at frame ``k`` in sensor frame ``i``.
 
     ``cuts`` are the events already found (and a tentative one, see :func:`_search`). The jump is
     measured on the residual with the joint refitted between the ``cuts``; its noise model comes
     from the residual refitted on each side of ``k`` too (a slip's misfit spreads
     motion-correlated error over the whole recording), over the frames of ``free`` farther than
-    the window from ``k`` and from the ``cuts``.
+    the window from ``k`` and from the ``cuts``. ``d_now``: ``pair.diffs(cuts)[i]`` when the
+    caller has it already (saves the refit).
     """
     w = pair.window
     frames = np.arange(free.size)
-    d_k = pair.diffs(cuts)[i][k : k + 1]
+    d_k = (pair.diffs(cuts)[i] if d_now is None else d_now)[k : k + 1]
     d = pair.diffs([*cuts, k])[i]
     rest = free & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
     for c in cuts:
@@ -272,7 +275,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
             k = _peak(d, free)
             if k is None:
                 continue
-            z, thr = _test(pair, free, cuts, k, i)
+            z, thr = _test(pair, free, cuts, k, i, d)
             if best is None or z / thr > best[2] / best[3]:
                 best = (k, i, z, thr)
         if best is None:
