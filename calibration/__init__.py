@@ -6,8 +6,16 @@ vectors into world, quaternions are scalar-first ``(w, x, y, z)``.
 """
 
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.hierarchy import Hierarchy, hierarchy_from_parents, loop_candidates, spanning_tree
+from calibration.hierarchy import (
+    HIERARCHY_METHODS,
+    Hierarchy,
+    hierarchy_from_parents,
+    loop_candidates,
+    misfit_weights,
+    spanning_tree,
+)
 from calibration.joint import SINGLE_AXIS_RATIO, JointFit, fit_joint, joint_residual_vectors
+from calibration.pair_noise import pair_noise_variance
 from calibration.pairs import (
     PairStatistics,
     frame_residuals,
@@ -22,6 +30,7 @@ from calibration.skeleton import SegmentLength, SensorPlacement, segment_lengths
 from calibration.slip import SlipEvent, SlipReport, detect_slip
 
 __all__ = [
+    "HIERARCHY_METHODS",
     "SINGLE_AXIS_RATIO",
     "Calibration",
     "CalibrationError",
@@ -42,6 +51,8 @@ __all__ = [
     "hierarchy_from_parents",
     "joint_residual_vectors",
     "loop_candidates",
+    "misfit_weights",
+    "pair_noise_variance",
     "pair_residual_matrix",
     "pair_statistics",
     "remove_residual",

@@ -280,6 +280,37 @@ def pair_residual_matrix(
     return out
 
 
+def residual_operators(
+    n: int, parent: np.ndarray, child: np.ndarray, joint_in_parent: np.ndarray, joint_in_child: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The two matrices that give the residual vectors of ``J`` joints from a chunk of poses.
+
+    With ``R`` the ``(c, N, 3, 3)`` rotations and ``p`` the ``(c, N, 3)`` positions of ``c``
+    frames, ``R.reshape(c, 9 N) @ rot + p.reshape(c, 3 N) @ pos`` is ``(c, 3 J)``: for each joint
+    ``k`` the residual ``R_p l_p + p_p - R_c l_c - p_c`` (O'Brien eq. 8) in columns ``3k..3k+2``.
+
+    Args:
+        n: number of sensors ``N``.
+        parent, child: ``(J,)`` sensor indices of each joint.
+        joint_in_parent, joint_in_child: ``(J, 3)`` joint centres in each sensor frame, metres.
+
+    Returns:
+        ``rot`` ``(9 N, 3 J)`` (lengths) and ``pos`` ``(3 N, 3 J)`` (+1 / -1 selections).
+    """
+    lp = np.asarray(joint_in_parent, dtype=float).reshape(-1, 3)
+    lc = np.asarray(joint_in_child, dtype=float).reshape(-1, 3)
+    n_joints = len(parent)
+    rot = np.zeros((n, 3, 3, n_joints, 3))  # [sensor, a, b, joint, a']: R[a, b] l[b] into row a
+    pos = np.zeros((n, 3, n_joints, 3))  # +1 / -1 selection of the two sensors' positions
+    for k in range(n_joints):
+        for a in range(3):
+            rot[parent[k], a, :, k, a] += lp[k]
+            rot[child[k], a, :, k, a] -= lc[k]
+            pos[parent[k], a, k, a] += 1.0
+            pos[child[k], a, k, a] -= 1.0
+    return rot.reshape(9 * n, 3 * n_joints), pos.reshape(3 * n, 3 * n_joints)
+
+
 def frame_residuals(
     R_w_s: Any,
     p_w_s: Any,
@@ -315,19 +346,8 @@ def frame_residuals(
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
     parent = np.asarray(parent, dtype=np.int64)
     child = np.asarray(child, dtype=np.int64)
-    lp = np.asarray(joint_in_parent, dtype=float).reshape(-1, 3)
-    lc = np.asarray(joint_in_child, dtype=float).reshape(-1, 3)
     n_joints = parent.shape[0]
-    rot = np.zeros((n, 3, 3, n_joints, 3))  # [sensor, a, b, joint, a']: R[a, b] l[b] into row a
-    pos = np.zeros((n, 3, n_joints, 3))  # +1 / -1 selection of the two sensors' positions
-    for k in range(n_joints):
-        for a in range(3):
-            rot[parent[k], a, :, k, a] += lp[k]
-            rot[child[k], a, :, k, a] -= lc[k]
-            pos[parent[k], a, k, a] += 1.0
-            pos[child[k], a, k, a] -= 1.0
-    rot = rot.reshape(9 * n, 3 * n_joints)
-    pos = pos.reshape(3 * n, 3 * n_joints)
+    rot, pos = residual_operators(n, parent, child, joint_in_parent, joint_in_child)
     sum_xyz = np.kron(np.eye(n_joints), np.ones((3, 1)))  # (3J, J): adds each joint's x, y, z
     total = np.zeros(n_joints)
     used = np.zeros(n_joints)

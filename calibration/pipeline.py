@@ -5,7 +5,9 @@ Steps (O'Brien et al. 2000):
 1. one pass over the data accumulates the normal equations of every sensor pair
    (:func:`calibration.pairs.pair_statistics`);
 2. every pair's joint fit and residual follow from those (section 3.1);
-3. the hierarchy is the minimum spanning tree of the residuals, unless one is given (3.3);
+3. the hierarchy is the minimum spanning tree of the pairs' misfits (residuals less their noise,
+   :mod:`calibration.hierarchy`; ``hierarchy_method="mst"``: of the residuals, as in section 3.3),
+   unless one is given;
 4. the tree's joints are solved with single-axis detection (3.2), and their residuals are
    recomputed exactly from the data in a second pass (unless per-frame residuals are not
    wanted);
@@ -27,13 +29,16 @@ import numpy as np
 from calibration.diagnostics import motion_warnings, outlier_warnings
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import (
+    HIERARCHY_METHODS,
     LOOP_FACTOR,
     Hierarchy,
     hierarchy_from_parents,
     loop_candidates,
+    misfit_weights,
     spanning_tree,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit
+from calibration.pair_noise import pair_noise_variance
 from calibration.pairs import (
     PairSolutions,
     PairStatistics,
@@ -93,6 +98,8 @@ class Calibration:
         n_frames: frames in the input.
         missing: ``(N,)`` frames where each sensor's pose was missing or not finite.
         seconds: wall time of each step.
+        hierarchy_method: how the tree was inferred (:data:`calibration.hierarchy.HIERARCHY_METHODS`;
+            unused when the hierarchy was given).
     """
 
     names: tuple[str, ...]
@@ -107,6 +114,7 @@ class Calibration:
     n_frames: int
     missing: np.ndarray
     seconds: dict[str, float] = field(default_factory=dict)
+    hierarchy_method: str = HIERARCHY_METHODS[0]
 
     @property
     def root(self) -> str:
@@ -140,6 +148,7 @@ def calibrate(
     valid: Any = None,
     parent_of: Mapping[str, str] | None = None,
     root: str | None = None,
+    hierarchy_method: str = HIERARCHY_METHODS[0],
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
     loop_factor: float = LOOP_FACTOR,
     chunk_frames: int = CHUNK_FRAMES,
@@ -158,6 +167,9 @@ def calibrate(
         parent_of: a known hierarchy ``{child: parent}``; inferred when ``None``.
         root: root sensor name; with no hierarchy given, chosen by the rule of
             :mod:`calibration.hierarchy` when ``None``.
+        hierarchy_method: with no hierarchy given, the edge weights of the spanning tree:
+            ``"misfit"`` (residual less its noise) or ``"mst"`` (O'Brien's residual); see
+            :mod:`calibration.hierarchy`.
         single_axis_ratio: see :mod:`calibration.joint`.
         loop_factor: see :func:`calibration.hierarchy.loop_candidates`.
         chunk_frames: frames per chunk.
@@ -175,11 +187,22 @@ def calibrate(
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
     names = _checked_names(names, n)
     _check_options(names, n_frames, single_axis_ratio=single_axis_ratio, root=root)
+    if hierarchy_method not in HIERARCHY_METHODS:
+        raise CalibrationInputError(
+            f"hierarchy_method must be one of {list(HIERARCHY_METHODS)}, got {hierarchy_method!r}"
+        )
     stats, missing = _pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
     t1 = time.perf_counter()
 
     residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio)
-    tree = _hierarchy(residual, names, parent_of, root)
+    if parent_of is not None:
+        tree = hierarchy_from_parents(parent_of, names, root=root)
+    else:
+        weights = residual
+        if hierarchy_method == "misfit":
+            noise = _pair_noise_matrix(R_w_s, p_w_s, valid, stats, single_axis_ratio, chunk_frames)
+            weights = misfit_weights(residual, noise)
+        tree = spanning_tree(weights, root=None if root is None else names.index(root), names=names)
     t2 = time.perf_counter()
 
     sol, rms, per_frame = _solve_joints(
@@ -211,6 +234,7 @@ def calibrate(
         n_frames=n_frames,
         missing=missing,
         seconds=seconds,
+        hierarchy_method=hierarchy_method,
     )
 
 
@@ -258,13 +282,21 @@ def _pair_statistics(
     return stats, missing
 
 
-def _hierarchy(
-    residual: np.ndarray, names: tuple[str, ...], parent_of: Mapping[str, str] | None, root: str | None
-) -> Hierarchy:
-    """The given hierarchy, or the minimum spanning tree of the pair residuals."""
-    if parent_of is not None:
-        return hierarchy_from_parents(parent_of, names, root=root)
-    return spanning_tree(residual, root=None if root is None else names.index(root), names=names)
+def _pair_noise_matrix(  # positional: one private caller
+    R_w_s: Any, p_w_s: Any, valid: Any, stats: PairStatistics, single_axis_ratio: float, chunk_frames: int
+) -> np.ndarray:
+    """``(N, N)`` noise variance of every pair's residual (:mod:`calibration.pair_noise`), square
+    metres: each pair's joint solved from the statistics, then one more pass over the data."""
+    n = stats.n_sensors
+    i, j = np.triu_indices(n, k=1)
+    sol = solve_pairs(stats, i, j, single_axis_ratio=single_axis_ratio)
+    nu = pair_noise_variance(
+        R_w_s, p_w_s, i, j, sol.joint_in_parent, sol.joint_in_child, valid=valid, chunk_frames=chunk_frames
+    )
+    out = np.zeros((n, n))
+    out[i, j] = nu
+    out[j, i] = nu
+    return out
 
 
 def _solve_joints(  # positional: one private caller, whose call then fits on a line

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration import SINGLE_AXIS_RATIO, Calibration
+from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset
@@ -83,6 +83,7 @@ def calibrate(
     *,
     hierarchy: Mapping[str, str] | None = None,
     root: str | None = None,
+    hierarchy_method: str = HIERARCHY_METHODS[0],
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
 ) -> Calibration:
     """Joint centres, hierarchy, limb lengths and sensor placement from a recording's poses
@@ -92,6 +93,8 @@ def calibrate(
         data: a Dataset (simulated or read with :func:`read`) or a pose recording.
         hierarchy: a known hierarchy ``{child: parent}``; inferred when ``None``.
         root: root sensor (default: the tree's centre).
+        hierarchy_method: how an inferred tree weighs the pairs: ``"misfit"`` (residual less its
+            noise) or ``"mst"`` (O'Brien's residual); see :mod:`calibration.hierarchy`.
         single_axis_ratio: see :mod:`calibration.joint`.
 
     Returns:
@@ -107,6 +110,7 @@ def calibrate(
         valid=rec.valid,
         parent_of=hierarchy,
         root=root,
+        hierarchy_method=hierarchy_method,
         single_axis_ratio=single_axis_ratio,
     )
 

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from calibration import SINGLE_AXIS_RATIO, Calibration, SlipReport, detect_slip
+from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration, SlipReport, detect_slip
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
 from simbench.cli.table import format_table
@@ -31,6 +31,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
+    cal.add_argument(
+        "--hierarchy-method",
+        choices=HIERARCHY_METHODS,
+        default=HIERARCHY_METHODS[0],
+        help=(
+            "how an inferred tree weighs each pair: misfit = the joint-fit residual less its "
+            "measurement noise, mst = the residual itself, O'Brien et al.'s minimum spanning tree "
+            f"(default {HIERARCHY_METHODS[0]})"
+        ),
+    )
     cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
     cal.add_argument(
         "--clusters",
@@ -102,7 +112,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
-    cal = calibrate(rec, hierarchy=parent_of, root=args.root, single_axis_ratio=args.single_axis_ratio)
+    cal = calibrate(
+        rec,
+        hierarchy=parent_of,
+        root=args.root,
+        hierarchy_method=args.hierarchy_method,
+        single_axis_ratio=args.single_axis_ratio,
+    )
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
     if args.json:
@@ -121,6 +137,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             options={
                 "hierarchy_file": args.hierarchy,
                 "root": args.root,
+                "hierarchy_method": None if args.hierarchy else args.hierarchy_method,
                 "single_axis_ratio": args.single_axis_ratio,
                 "slip_window_s": None if args.no_slip else args.slip_window,
                 "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,

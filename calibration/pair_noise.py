@@ -1,0 +1,88 @@
+"""How much of each pair's joint-fit residual is measurement noise (for the misfit hierarchy).
+
+A pair's residual (O'Brien eq. 13) mixes two things: the *misfit* of the joint model -- zero for
+an ideal joint, centimetres between two bodies that share no joint -- and the *noise* of both
+sensors. Trackers are not equally noisy everywhere: a magnetic tracker's position noise grows as
+about the fourth power of the distance to its transmitter (DESIGN.md), so in a walk the sensors
+furthest out carry several times the noise of the others. A minimum spanning tree of raw residuals
+then favours the quiet sensors: their pairs fit "well" whether or not they are joints.
+
+The noise is read off the residual itself. A joint's misfit follows the motion, which is smooth at
+the capture rate; the noise changes from frame to frame. The third difference of the residual
+series, ``e[f+3] - 3 e[f+2] + 3 e[f+1] - e[f]``, is zero for anything quadratic over four frames
+and keeps ``1 + 9 + 9 + 1 = 20`` times the variance of white noise, so
+
+    noise variance  =  mean over frames of |third difference of e|^2  /  20,
+
+in the same unit as the mean square residual (length squared): the two compare without any
+scale. Noise that is correlated from frame to frame (a tracker's own filter, a tracker sampling
+slower than the capture) is underestimated; the misfit then keeps part of it, and the misfit tree
+moves towards O'Brien's tree, never past it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from calibration.pairs import residual_operators
+from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
+
+#: The sum of the third difference's squared coefficients (1, -3, 3, -1): the variance of the
+#: third difference of white noise over the noise's own variance.
+THIRD_DIFFERENCE_GAIN = 20.0
+
+
+def pair_noise_variance(
+    R_w_s: Any,
+    p_w_s: Any,
+    parent: np.ndarray,
+    child: np.ndarray,
+    joint_in_parent: np.ndarray,
+    joint_in_child: np.ndarray,
+    *,
+    valid: Any = None,
+    chunk_frames: int = CHUNK_FRAMES,
+) -> np.ndarray:
+    """The white-noise variance of each given joint's residual, from its third differences.
+
+    One pass over the data, chunk by chunk (the last three frames of a chunk carry over to the
+    next); a third difference is used where both sensors are valid in all four of its frames.
+
+    Args:
+        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
+        p_w_s: ``(frames, sensors, 3)`` positions in world, metres (any length unit).
+        parent, child: ``(P,)`` sensor indices of each pair.
+        joint_in_parent, joint_in_child: ``(P, 3)`` each pair's fitted joint centre in both sensor
+            frames, in the unit of ``p_w_s``.
+        valid: optional ``(frames, sensors)`` bool mask; non-finite poses are always invalid.
+        chunk_frames: frames per chunk.
+
+    Returns:
+        ``(P,)`` noise variance of the 3-D residual (the expected ``|e|^2`` noise adds), in the
+        unit of ``p_w_s`` squared; 0 for a pair with no four consecutive valid frames.
+    """
+    _, n = check_poses(R_w_s, p_w_s, valid)
+    parent = np.asarray(parent, dtype=np.int64)
+    child = np.asarray(child, dtype=np.int64)
+    n_pairs = parent.shape[0]
+    rot, pos = residual_operators(n, parent, child, joint_in_parent, joint_in_child)
+    sum_xyz = np.kron(np.eye(n_pairs), np.ones((3, 1)))  # (3P, P): adds each pair's x, y, z
+    total = np.zeros(n_pairs)
+    used = np.zeros(n_pairs)
+    carry: tuple[np.ndarray, np.ndarray] | None = None  # residuals and validity of the last 3 frames
+    for _, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        c = R.shape[0]
+        e = R.reshape(c, 9 * n) @ rot + p.reshape(c, 3 * n) @ pos  # (c, 3P)
+        both = ok[:, parent] & ok[:, child]  # (c, P)
+        if carry is not None:
+            e, both = np.concatenate([carry[0], e]), np.concatenate([carry[1], both])
+        if e.shape[0] >= 4:
+            d3 = np.diff(e, n=3, axis=0)
+            sq = np.square(d3, out=d3) @ sum_xyz  # (c - 3, P)
+            usable = both[:-3] & both[1:-2] & both[2:-1] & both[3:]
+            total += np.where(usable, sq, 0.0).sum(axis=0)
+            used += usable.sum(axis=0)
+        carry = (e[-3:], both[-3:])
+    return np.where(used > 0, total / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0)
