@@ -3,6 +3,8 @@
 The built-in models ship with the package in ``simbench/models/<name>/`` (``scene.xml`` includes
 ``<name>.xml`` and adds floor and light). ``dm_control:NAME`` names a model of dm_control's suite
 (``dm_control`` is imported only then). Any other name must be a path to an ``.xml`` file.
+Variants of the built-in models (:mod:`simbench.sim.variants`: ``humanoid-female``) are the
+built-in file edited after reading.
 """
 
 from __future__ import annotations
@@ -12,10 +14,11 @@ from pathlib import Path
 import mujoco
 
 from simbench.errors import InputError
+from simbench.sim.variants import VARIANTS, set_limb_lengths
 
 #: Where the built-in models lie: the package's ``simbench/models/``.
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
-BUILTIN = ("linkage", "humanoid")
+BUILTIN = ("linkage", "humanoid", *VARIANTS)
 
 
 def _dm_control_suite_path(source: str) -> Path:
@@ -40,7 +43,8 @@ def resolve_model_path(source: str) -> Path:
         InputError: naming what was expected.
     """
     if source in BUILTIN:
-        path = MODELS_DIR / source / "scene.xml"
+        folder = VARIANTS[source][0] if source in VARIANTS else source
+        path = MODELS_DIR / folder / "scene.xml"
         if not path.is_file():
             raise InputError(f"built-in model {source!r} not found at {path} (is the package complete?)")
         return path
@@ -65,9 +69,12 @@ def read_spec(source: str) -> mujoco.MjSpec:
     """
     path = resolve_model_path(source)
     try:
-        return mujoco.MjSpec.from_file(str(path))
+        spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:  # mujoco raises ValueError with the parser's message
         raise InputError(f"model {source}: MuJoCo could not read {path}: {exc}") from None
+    if source in VARIANTS:
+        set_limb_lengths(spec, VARIANTS[source][1])
+    return spec
 
 
 def compile_spec(spec: mujoco.MjSpec, source: str) -> mujoco.MjModel:

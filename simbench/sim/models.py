@@ -15,6 +15,8 @@ a dm_control suite model as ``dm_control:NAME``, or a path to an ``.xml`` file:
   components of the joint's rotation vector). The gains track at 2 Hz, damping ratio 2:
   ``kp = I (2 pi 2 Hz)^2`` with ``I`` the joint-space inertia at the reference pose (see
   :data:`~simbench.sim.instrument.TRACKING_HZ`).
+- **play** (optional): each joint body gets free play, three limited slides
+  (:mod:`simbench.sim.play`), so that the ball shifts in its socket under load;
 - **root**: if the root sensor body has a free joint it is welded (a stiff soft constraint) to
   a mocap body that the motion program moves -- the linkage carried by hand, a person's pelvis
   moving through the room -- so the root moves by physics, not by a kinematic replay.
@@ -47,6 +49,7 @@ from simbench.sim.instrument import (
 )
 from simbench.sim.mjcf import BUILTIN, MODELS_DIR, compile_spec, read_spec, resolve_model_path
 from simbench.sim.mounts import Mount
+from simbench.sim.play import add_play
 
 __all__ = [
     "BUILTIN",
@@ -115,6 +118,7 @@ class CaptureModel:
         body_ids: ``(N,)`` body id of each sensor body.
         mocap_id: mocap index driving the root, or -1 when the root is fixed or not free.
         mount: the soft-tissue mount the sensors sit on, or ``None`` (rigid on the bone).
+        joint_play_m: free play of every joint (:mod:`simbench.sim.play`), m; 0 = none.
         adr: sensordata address of each of our sensor kinds: ``{"site_pos": (N,), ...}``;
             ``site_*``, ``acc``, ``gyro``, ``mag`` are the worn sensor (on its mount, if any),
             ``bone_*`` its bone placement, ``body_*`` the segment frame.
@@ -130,6 +134,7 @@ class CaptureModel:
     body_ids: np.ndarray
     mocap_id: int
     mount: Mount | None
+    joint_play_m: float
     adr: dict[str, np.ndarray]
     clock_adr: int
 
@@ -295,6 +300,7 @@ def load_capture_model(
     sensor_bodies: Sequence[str] | None = None,
     mount: Mount | None = None,
     placement: Mapping[str, Sequence[float]] | None = None,
+    joint_play_m: float = 0.0,
 ) -> CaptureModel:
     """Load a model and equip it for capture sessions (see the module docstring).
 
@@ -306,10 +312,14 @@ def load_capture_model(
             The bone placement is still recorded (``bone_pos``/``bone_quat``).
         placement: ``{sensor body: (dx, dy, dz)}`` shifts of sensors from their default place,
             in the body frame, m (placement studies).
+        joint_play_m: free play of every joint between sensor bodies, m (half the clearance
+            per axis; 0 = none): :mod:`simbench.sim.play`.
 
     Raises:
         InputError: unknown model or body names, bodies not joined by single joints.
     """
+    if not (np.isfinite(joint_play_m) and joint_play_m >= 0):
+        raise InputError(f"joint play must be a finite number >= 0 m, got {joint_play_m!r}")
     spec = read_spec(source)
     base = compile_spec(spec, source)
     names = list(sensor_bodies) if sensor_bodies is not None else _default_sensor_bodies(base)
@@ -329,6 +339,8 @@ def load_capture_model(
     free_root = _free_root(base, root)
     if free_root:
         add_root_driver(spec, base, root)
+    if joint_play_m > 0:
+        add_play(spec, [_body_name(base, tree.joint_body[b]) for b in tree.bodies[1:]], joint_play_m)
     add_actuators(spec, base, [j for b in tree.bodies[1:] for j in tree.joints[tree.joint_body[b]]])
     set_tracking_gains(spec, compile_spec(spec, source))
     model = compile_spec(spec, source)
@@ -344,6 +356,7 @@ def load_capture_model(
         body_ids=np.array([mujoco.mj_name2id(model, _BODY, name) for name in sensors]),
         mocap_id=int(model.body_mocapid[driver]) if free_root else -1,
         mount=mount,
+        joint_play_m=float(joint_play_m),
         adr=reading_addresses(model, sensors),
         clock_adr=clock_address(model),
     )

@@ -138,6 +138,7 @@ def load_session_model(config: SessionConfig) -> CaptureModel:
         sensor_bodies=config.sensor_bodies,
         mount=_mount_of(sensor_config),
         placement=dict(config.placement),
+        joint_play_m=sensor_config.joints.play_m,
     )
 
 
@@ -148,6 +149,11 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
         raise InputError(
             f"sensors {config.sensors!r} need mount {_mount_of(sensor_config)}; the model was loaded with "
             f"{cm.mount} (load it with load_session_model)"
+        )
+    if sensor_config.joints.play_m != cm.joint_play_m:
+        raise InputError(
+            f"sensors {config.sensors!r} need joint play {sensor_config.joints.play_m} m; the model was "
+            f"loaded with {cm.joint_play_m} m (load it with load_session_model)"
         )
     k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
     n_samples = math.floor(config.duration_s * config.rate_hz + 1e-9)

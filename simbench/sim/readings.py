@@ -3,8 +3,8 @@
 MuJoCo's sensors give, at every sample, each sensor's pose, specific force and angular velocity
 at its bone placement and where it is worn (on its sprung mount, if any), and each segment's
 pose. The kinematic skin models of :mod:`simbench.sim.skin` then move them: joint laxity moves
-joint centres (and everything below them), soft-tissue artefact and slip move the worn sensors
-off their bone placement. Last, the magnetic field is the Earth's plus dipole disturbances at
+joint centres (and everything below them), soft-tissue artefact, slip and a pushed pack move the
+worn sensors off their bone placement. Last, the magnetic field is the Earth's plus dipole disturbances at
 each sensor's place.
 """
 
@@ -22,7 +22,9 @@ from simbench.sim.models import CaptureModel, joint_sensor_indices
 from simbench.sim.sensor_config import FieldConfig, SkinConfig
 from simbench.sim.sensor_models import dipole_field, earth_field
 from simbench.sim.skin import (
+    girdle_offsets,
     laxity_offsets,
+    pack_offsets,
     per_sensor,
     relative_rotvecs,
     second_derivative,
@@ -89,13 +91,14 @@ def readings_at_samples(cm: CaptureModel, sensordata: np.ndarray) -> Readings:
 def _laxity_shift_w(
     cm: CaptureModel, R_w_b: np.ndarray, phi: np.ndarray, skin: SkinConfig, rng: np.random.Generator
 ) -> np.ndarray:
-    """``(F, N, 3)`` world shift of every segment from joint laxity, m.
+    """``(F, N, 3)`` world shift of every segment from joint laxity and girdles, m.
 
     A joint centre moves in its parent's frame; the child's subtree moves with it.
     """
     parent, child = joint_sensor_indices(cm)
     laxity_m = per_sensor(skin.laxity_by_joint, cm.sensors, 0.0, "skin.laxity_by_joint")[child]
     laxity_in_parent = laxity_offsets(phi, laxity_m, rng)
+    laxity_in_parent += girdle_offsets(R_w_b, cm.sensors, parent, child, skin.girdle)
     laxity_w = np.einsum("fjab,fjb->fja", R_w_b[:, parent], laxity_in_parent)
     below = subtree_masks(len(cm.sensors), parent, child).astype(float)
     return np.einsum("fja,js->fsa", laxity_w, below)
@@ -109,11 +112,13 @@ def _skin_offset_w(
     skin: SkinConfig,
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """``(F, N, 3)`` world offset of every worn sensor from its bone placement: artefact and slip, m."""
+    """``(F, N, 3)`` world offset of every worn sensor from its bone placement: artefact, slip and a
+    pushed pack, m."""
     parent, child = joint_sensor_indices(cm)
     sta_m = per_sensor(skin.sta_by_sensor, cm.sensors, skin.sta_amplitude_m, "skin.sta_by_sensor")
     offset_b = soft_tissue_offsets(phi, parent, child, sta_m, rng)
     offset_b += slip_offsets(time_s, cm.sensors, skin.slip)
+    offset_b += pack_offsets(R_w_b, cm.sensors, skin.pack)
     return np.einsum("fsab,fsb->fsa", R_w_b, offset_b)
 
 
@@ -133,10 +138,11 @@ def _shifted(motion: SensorMotion, time_s: np.ndarray, *shifts_w: np.ndarray) ->
 
 
 def wear(readings: Readings, cm: CaptureModel, skin: SkinConfig, rng: np.random.Generator) -> Readings:
-    """The readings with joint laxity, soft-tissue artefact and slip applied (:mod:`simbench.sim.skin`).
+    """The readings with joint laxity, soft-tissue artefact, slip and a pushed pack applied
+    (:mod:`simbench.sim.skin`).
 
     Joint laxity moves the segments below a joint, their bone placements and worn sensors; the
-    artefact and slip move the worn sensors on their segments. Orientations do not change.
+    artefact, slip and pack move the worn sensors on their segments. Orientations do not change.
 
     Args:
         readings: MuJoCo's readings (:func:`readings_at_samples`).

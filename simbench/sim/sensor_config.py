@@ -1,6 +1,6 @@
 """Sensor configurations: TOML files and named presets, into frozen dataclasses.
 
-A configuration has up to five tables; every key is optional (default: ideal) and every
+A configuration has up to six tables; every key is optional (default: ideal) and every
 unknown key or out-of-range value is an error naming the file and key::
 
     name = "my-rig"
@@ -28,10 +28,26 @@ unknown key or out-of-range value is an error naming the file and key::
     sensor = "forearm_l"
     time_s = 10.0
     offset_m = [0.0, 0.03, 0.0]
+    [skin.pack]                     # simbench.sim.skin.SkinPack: a sensor on a pushed pack
+    sensor = "pelvis"
+    pushed_by = "thigh_r"
+    flexion_axis = [0.0, -1.0, 0.0]
+    threshold_rad = 0.5
+    gain_m_per_rad = 0.05
+    direction = [0.0, 0.0, 1.0]
+    [[skin.girdle]]                 # simbench.sim.skin.SkinGirdle: a shoulder girdle
+    joint = "upper_arm_l"
+    pivot_m = [0.0, -0.15, 0.0]
+    axis = [1.0, 0.0, 0.0]
+    limb_axis = [0.0, 0.0, -1.0]
+    ratio = 0.33
+    [joints]                        # JointConfig fields: the subject's mechanics
+    play_m = 0.0005                 # free play of every joint, m (simbench.sim.play)
 
 Presets ship in ``simbench/sim/presets/<name>.toml`` (``ideal``, ``ascension-flock``,
-``polhemus-liberty``, ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``); each file
-says where its numbers come from.
+``ascension-flock-paper``, ``polhemus-liberty``, ``mems-consumer``, ``mems-industrial``,
+``imu-lab``, ``imu-lab-magnet``, ``skin-markers``, ``skin-paper-human``); each file says where its
+numbers come from, and which are fitted to what.
 """
 
 from __future__ import annotations
@@ -45,7 +61,7 @@ import numpy as np
 
 from simbench.errors import InputError, load_toml
 from simbench.sim.sensor_models import Distortion, ImuConfig, TrackerConfig
-from simbench.sim.skin import SkinSlip
+from simbench.sim.skin import SkinGirdle, SkinPack, SkinSlip
 
 PRESETS_DIR = Path(__file__).resolve().parent / "presets"
 
@@ -88,6 +104,8 @@ class SkinConfig:
         sta_by_sensor: per-sensor amplitudes overriding it, m.
         laxity_by_joint: joint-centre laxity amplitude by the joint's child sensor, m.
         slip: slip events.
+        pack: a sensor on a pack another segment pushes (``[skin.pack]``), or ``None``.
+        girdle: joints whose centre a girdle carries (``[[skin.girdle]]``: the shoulders).
         mount_stiffness_n_per_m: translational stiffness of the soft-tissue mount (0: the
             sensor is rigid on the bone, no mount).
         mount_rot_stiffness_nm_per_rad: rotational stiffness of the mount (0: rigid in rotation
@@ -100,6 +118,8 @@ class SkinConfig:
     sta_by_sensor: dict[str, float] = field(default_factory=dict)
     laxity_by_joint: dict[str, float] = field(default_factory=dict)
     slip: tuple[SkinSlip, ...] = ()
+    pack: SkinPack | None = None
+    girdle: tuple[SkinGirdle, ...] = ()
     mount_stiffness_n_per_m: float = 0.0
     mount_rot_stiffness_nm_per_rad: float = 0.0
     mount_damping_ratio: float = 0.3
@@ -129,6 +149,22 @@ class SkinConfig:
 
 
 @dataclass(frozen=True)
+class JointConfig:
+    """The captured subject's joints as built: free play (:mod:`simbench.sim.play`).
+
+    Attributes:
+        play_m: half the clearance of every joint along each axis of the child's frame, m
+            (0: perfect joints).
+    """
+
+    play_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.play_m) and 0 <= self.play_m < 0.05):
+            raise InputError(f"joints.play_m must be a number of metres in [0, 0.05), got {self.play_m!r}")
+
+
+@dataclass(frozen=True)
 class SensorConfig:
     """All sensor imperfections of a session."""
 
@@ -137,6 +173,7 @@ class SensorConfig:
     imu: ImuConfig = field(default_factory=ImuConfig)
     magnetic: FieldConfig = field(default_factory=FieldConfig)
     skin: SkinConfig = field(default_factory=SkinConfig)
+    joints: JointConfig = field(default_factory=JointConfig)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready copy (tuples as lists)."""
@@ -153,11 +190,18 @@ def _build(cls: type, table: Any, where: str) -> Any:
         raise InputError(f"{where}: unknown keys {unknown}; expected some of {sorted(names)}")
     kwargs: dict[str, Any] = {}
     for key, value in table.items():
-        sub = {"distortion": Distortion, "disturbance": Disturbance, "slip": SkinSlip}.get(key)
+        sub = {
+            "distortion": Distortion,
+            "disturbance": Disturbance,
+            "slip": SkinSlip,
+            "girdle": SkinGirdle,
+        }.get(key)
         if sub is not None:
             if not isinstance(value, list):
                 raise InputError(f"{where}.{key}: expected an array of tables ([[{where}.{key}]])")
             kwargs[key] = tuple(_build(sub, item, f"{where}.{key}[{k}]") for k, item in enumerate(value))
+        elif key == "pack" and cls is SkinConfig:
+            kwargs[key] = _build(SkinPack, value, f"{where}.{key}")
         elif isinstance(value, list):
             if not all(isinstance(v, int | float) for v in value):
                 raise InputError(f"{where}.{key}: expected numbers, got {value!r}")
@@ -182,10 +226,11 @@ def _build(cls: type, table: Any, where: str) -> Any:
 
 def parse_sensor_config(doc: dict[str, Any], where: str) -> SensorConfig:
     """A :class:`SensorConfig` from a parsed TOML document (``where`` names it in errors)."""
-    unknown = sorted(set(doc) - {"name", "description", "tracker", "imu", "magnetic", "skin"})
+    unknown = sorted(set(doc) - {"name", "description", "tracker", "imu", "magnetic", "skin", "joints"})
     if unknown:
         raise InputError(
-            f"{where}: unknown keys {unknown}; expected name, description, tracker, imu, magnetic, skin"
+            f"{where}: unknown keys {unknown}; expected name, description, tracker, imu, magnetic, "
+            "skin, joints"
         )
     return SensorConfig(
         name=str(doc.get("name", "custom")),
@@ -193,6 +238,7 @@ def parse_sensor_config(doc: dict[str, Any], where: str) -> SensorConfig:
         imu=_build(ImuConfig, doc.get("imu", {}), f"{where}: imu"),
         magnetic=_build(FieldConfig, doc.get("magnetic", {}), f"{where}: magnetic"),
         skin=_build(SkinConfig, doc.get("skin", {}), f"{where}: skin"),
+        joints=_build(JointConfig, doc.get("joints", {}), f"{where}: joints"),
     )
 
 

@@ -21,6 +21,12 @@ of Birds or a Polhemus Liberty/Fastrak reports poses:
   object: ``gain exp(-|p - c|^2 / (2 rho^2))``, negligible a few ``rho`` away;
 - the tracker's own sample rate: when polled faster than it measures, it repeats the last
   measurement (zero-order hold);
+- the range law: a tracker that turns field strengths into a distance with a slightly wrong
+  law (a transmitter that is not a point dipole, a gain that drifts with signal level) reports
+  the range ``r`` from the transmitter as ``r (r / r_ref)^k`` along the true direction
+  (``range_exponent`` ``k``; 0 = exact). Lengths across the line of sight are scaled by
+  ``(r / r_ref)^k``, lengths along it by ``(1 + k) (r / r_ref)^k``, so no single scale factor
+  fits the whole volume;
 - the unit scale factor: positions are reported in the system's units, ``true / scale``
   (O'Brien et al. measured a factor 0.94 between Flock units and centimetres);
 - resolution: positions quantised to ``resolution_m``, orientations' rotation vectors to
@@ -50,11 +56,18 @@ import numpy as np
 from calibration.rotations import matrix_to_quat, matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
 from simbench.errors import InputError
 
+#: Fields that may be negative.
+_SIGNED = frozenset({"range_exponent"})
+
 
 def _check_non_negative(obj: object) -> None:
     for f in fields(obj):  # type: ignore[arg-type]
         value = getattr(obj, f.name)
         if isinstance(value, tuple | dict):
+            continue
+        if f.name in _SIGNED:
+            if not np.isfinite(value):
+                raise InputError(f"{type(obj).__name__}.{f.name} must be a finite number, got {value!r}")
             continue
         if not np.isfinite(value) or value < 0:
             raise InputError(f"{type(obj).__name__}.{f.name} must be a finite number >= 0, got {value!r}")
@@ -116,6 +129,8 @@ class TrackerConfig:
         orientation_exponent: ``n`` of the orientation noise's distance law (3).
         transmitter_pos: ``(3,)`` transmitter position in world, m.
         transmitter_axis: ``(3,)`` the transmitter dipole's axis in world (normalised).
+        range_exponent: ``k`` of the range law: the range from the transmitter is reported as
+            ``r (r / reference_distance_m)^k`` (0 = exact; may be negative).
         unit_scale: reported positions are ``true / unit_scale`` (1 = metres, 0.94 = O'Brien's
             Flock); 0 is not allowed.
         resolution_m: position quantisation step, m (0 = none).
@@ -133,6 +148,7 @@ class TrackerConfig:
     orientation_exponent: float = 3.0
     transmitter_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     transmitter_axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    range_exponent: float = 0.0
     unit_scale: float = 1.0
     resolution_m: float = 0.0
     resolution_rad: float = 0.0
@@ -223,6 +239,8 @@ def apply_tracker(
     axis = np.asarray(config.transmitter_axis) / np.linalg.norm(config.transmitter_axis)
     cos = np.divide(rel @ axis, r, out=np.ones_like(r), where=r > 0)
     r = r / config.reference_distance_m
+    if config.range_exponent != 0:
+        p = p + rel * (np.power(r, config.range_exponent, where=r > 0, out=np.ones_like(r)) - 1)[..., None]
     if config.position_noise_m > 0:
         n_p = config.position_exponent
         sigma = config.position_noise_m * r**n_p * dipole_anisotropy(cos, n_p)
