@@ -29,6 +29,9 @@ def test_quick_validate_writes_a_complete_report(quick_report):
         "Slip detection",
         "Sourceless orientation",
         "Decisions against their targets",
+        "The paper's tables side by side",
+        "Table 4: the female subject",
+        "Realism",
     ):
         assert heading in md
     for row in ("Neck - Left Shoulder", "Between Shoulders", "Right Lower Leg", "Left Upper Arm"):
@@ -44,17 +47,24 @@ def test_quick_validate_writes_a_complete_report(quick_report):
     d = results["decisions"]
     cases = d["false_alarms"]["cases"]
     assert set(cases) == {
-        "linkage exercise, ascension-flock",
+        "linkage exercise, ascension-flock-paper",
         "humanoid exercise, skin-paper-human",
         "humanoid walk, skin-paper-human",
     }
-    assert cases["linkage exercise, ascension-flock"]["joint_hours"] == pytest.approx(2 * 5 * 12.0 / 3600)
+    assert cases["linkage exercise, ascension-flock-paper"]["joint_hours"] == pytest.approx(2 * 5 * 12.0 / 3600)
     assert [r["sessions"] for r in d["detection"]["by_motion"]["exercise"].values()] == [1, 1, 1]
     assert (
         d["hinge"]["hinge (2 deg wobble)"]["single_axis"] == 3
         and d["hinge"]["ball, 3 axes"]["single_axis"] == 0
     )
     assert d["clusters"] == {"seeds": 5, "right": 5, "target": 5}
+    tables = {t["key"]: t for t in results["paper_tables"]}
+    assert list(tables) == ["table_1", "table_2", "table_3", "table_4"]
+    assert tables["table_4"]["paper"]["n"] == 24 and len(tables["table_4"]["rows"]) == 8
+    for key in ("table_1", "table_2"):  # the quick run measures the causes of these two
+        assert set(tables[key]["causes"]) >= {"all"} and "Why:" in tables[key]["explanation"]
+        assert tables[key]["explanation"] in md
+    assert tables["table_1"]["simbench"]["n"] == 10  # 2 sets x 5 rows
 
 
 def test_report_images_are_real_pictures(quick_report):
@@ -78,7 +88,7 @@ def test_report_html_renders_the_markdown(quick_report):
     md = (quick_report / "index.md").read_text()
     html = (quick_report / "index.html").read_text()
     assert "|:---|---:|---:|---:|---:|---:|" in md  # linkage table: names left, numbers right
-    assert "<title>simbench validation report</title>" in html and "<code>ascension-flock</code>" in html
+    assert "<title>simbench validation report</title>" in html and "<code>ascension-flock-paper</code>" in html
     assert '<td style="text-align:left">Neck - Left Shoulder</td>' in html
     assert html.count('<td style="text-align:right">') > 40
     assert "`" not in html and "|---" not in html  # inline code and tables were rendered
@@ -161,6 +171,9 @@ def test_compare_flags_regressions_and_tolerates_noise():
     worse = bl.compare({"s": {"max_length_error_cm": 1.3, "hierarchy_wrong": 1.0}}, base)
     assert len(worse) == 2 and "worse than the accepted 1" in worse[0]
     assert bl.compare({}, base) == ["s: scenario missing"]
+    elsewhere = bl.Figures()
+    elsewhere.unavailable = ("s",)  # e.g. the realism figures without ../shared/data
+    assert bl.compare(elsewhere, base) == []
     assert bl.diff_lines(base, {"s": {"max_length_error_cm": 2.0, "hierarchy_wrong": 0.0}}) == [
         "s.max_length_error_cm: 1 -> 2"
     ]
@@ -170,6 +183,7 @@ def test_baseline_update_shows_the_diff(tmp_path, capsys, monkeypatch):
     path = tmp_path / "baseline.json"
     bl.write_baseline({"linkage-flock-exercise": {"max_length_error_cm": 99.0}}, path)
     monkeypatch.setattr(bl, "SCENARIOS", bl.SCENARIOS[:1])
+    monkeypatch.setattr(bl, "FIGURES", {})
     assert main(["baseline", "--file", str(path)]) == 0  # 99 cm accepted: anything better passes
     bl.write_baseline({"linkage-flock-exercise": {"max_length_error_cm": 1e-6}}, path)
     assert main(["baseline", "--file", str(path)]) == 1

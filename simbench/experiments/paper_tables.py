@@ -17,6 +17,7 @@ number with it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -120,3 +121,79 @@ TABLE_4 = _table(
     },
 )
 TABLES = (TABLE_1, TABLE_2, TABLE_3, TABLE_4)
+
+
+def difference_summary(differences_cm: dict[str, list[float]]) -> dict[str, Any]:
+    """The figures a table's differences are compared by (measured/true minus computed, cm).
+
+    Args:
+        differences_cm: row name -> the differences of its trials, cm (NaN where a trial has no
+            value).
+
+    Returns:
+        ``max_abs_cm`` and the row it is in (``max_row``), ``mean_cm`` over all differences,
+        ``negative`` (computed longer) of ``n``, ``row_mean_cm`` (each row's mean difference) and
+        ``largest_rows``: the rows by mean absolute difference, largest first.
+    """
+    rows = list(differences_cm)
+    d = [np.asarray(differences_cm[r], dtype=float) for r in rows]
+    flat = np.concatenate(d)
+    ok = np.isfinite(flat)
+    row_max = [float(np.nanmax(np.abs(x))) if np.isfinite(x).any() else -1.0 for x in d]
+    row_mean = [float(np.nanmean(np.abs(x))) if np.isfinite(x).any() else -1.0 for x in d]
+    return {
+        "max_abs_cm": float(np.max(np.abs(flat[ok]))) if ok.any() else float("nan"),
+        "max_row": rows[int(np.argmax(row_max))],
+        "mean_cm": float(np.mean(flat[ok])) if ok.any() else float("nan"),
+        "negative": int(np.sum(flat[ok] < 0)),
+        "n": int(ok.sum()),
+        "row_mean_cm": {
+            r: float(np.nanmean(x)) if np.isfinite(x).any() else float("nan")
+            for r, x in zip(rows, d, strict=True)
+        },
+        "largest_rows": [rows[k] for k in np.argsort(row_mean, kind="stable")[::-1]],
+    }
+
+
+def _spread(values: list[float]) -> dict[str, float]:
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return {"mean": float("nan"), "sd": float("nan"), "n": 0}
+    return {"mean": float(x.mean()), "sd": float(x.std(ddof=1)) if x.size > 1 else 0.0, "n": int(x.size)}
+
+
+def side_by_side(table: PaperTable, runs: list[dict[str, dict[str, float]]]) -> dict[str, Any]:
+    """One of the paper's tables beside simbench's trials of the same kind.
+
+    Args:
+        table: the paper's table.
+        runs: simbench's trials (each its own seed), each ``{row: {"true_cm", "computed_cm",
+            "difference_cm"}}`` with every row of ``table`` (cm; difference = true - computed).
+
+    Returns:
+        JSON-ready: ``title``, ``trials`` (the paper's), per row the measured length, the paper's
+        computed lengths and differences, simbench's true length and its computed lengths and
+        differences as mean, sample standard deviation and count over the trials; and the
+        :func:`difference_summary` of the paper's and of simbench's differences.
+    """
+    missing = [r for r in table.rows if any(r not in run for run in runs)]
+    if missing or not runs:
+        raise ValueError(f"{table.title}: simbench's trials lack rows {missing or list(table.rows)}")
+    rows = {}
+    for r in table.rows:
+        rows[r] = {
+            "measured_cm": table.measured_cm[r],
+            "paper_computed_cm": list(table.computed_cm[r]),
+            "paper_difference_cm": list(table.printed_difference_cm[r]),
+            "true_cm": runs[0][r]["true_cm"],
+            "simbench_computed_cm": _spread([run[r]["computed_cm"] for run in runs]),
+            "simbench_difference_cm": _spread([run[r]["difference_cm"] for run in runs]),
+        }
+    return {
+        "title": table.title,
+        "trials": list(table.trials),
+        "rows": rows,
+        "paper": difference_summary({r: list(table.printed_difference_cm[r]) for r in table.rows}),
+        "simbench": difference_summary({r: [run[r]["difference_cm"] for run in runs] for r in table.rows}),
+    }
