@@ -18,6 +18,7 @@ from pathlib import Path
 
 from simbench.experiments.obrien import PAPER, linkage_experiment, rigid_pair_scale
 from simbench.experiments.validate import Plan
+from simbench.io.atomic import atomic_write_text
 
 
 def main() -> None:
@@ -43,8 +44,9 @@ def main() -> None:
     print(f"  {'max error (cm)':24}{PAPER['linkage_max_error_cm']:>10.2f}{worst:>10.2f}")
     print(f"  {'hierarchy right':24}{'6 of 6':>10}{verdict:>10}")
     if args.json:
-        Path(args.json).write_text(
-            json.dumps({"unit_scale": scale, "linkage": linkage, "paper": PAPER}, indent=2) + "\n"
+        atomic_write_text(
+            Path(args.json),
+            json.dumps({"unit_scale": scale, "linkage": linkage, "paper": PAPER}, indent=2) + "\n",
         )
 
 

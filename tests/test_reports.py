@@ -51,7 +51,9 @@ def test_quick_validate_writes_a_complete_report(quick_report):
         "humanoid exercise, skin-paper-human",
         "humanoid walk, skin-paper-human",
     }
-    assert cases["linkage exercise, ascension-flock-paper"]["joint_hours"] == pytest.approx(2 * 5 * 12.0 / 3600)
+    assert cases["linkage exercise, ascension-flock-paper"]["joint_hours"] == pytest.approx(
+        2 * 5 * 12.0 / 3600
+    )
     assert [r["sessions"] for r in d["detection"]["by_motion"]["exercise"].values()] == [1, 1, 1]
     assert (
         d["hinge"]["hinge (2 deg wobble)"]["single_axis"] == 3
@@ -88,7 +90,9 @@ def test_report_html_renders_the_markdown(quick_report):
     md = (quick_report / "index.md").read_text()
     html = (quick_report / "index.html").read_text()
     assert "|:---|---:|---:|---:|---:|---:|" in md  # linkage table: names left, numbers right
-    assert "<title>simbench validation report</title>" in html and "<code>ascension-flock-paper</code>" in html
+    assert (
+        "<title>simbench validation report</title>" in html and "<code>ascension-flock-paper</code>" in html
+    )
     assert '<td style="text-align:left">Neck - Left Shoulder</td>' in html
     assert html.count('<td style="text-align:right">') > 40
     assert "`" not in html and "|---" not in html  # inline code and tables were rendered
