@@ -34,6 +34,7 @@ from calibration import calibrate, detect_slip
 from simbench.experiments.decisions import run_decisions
 from simbench.experiments.obrien import (
     HUMAN_PRESET,
+    PAIR_S,
     PAPER,
     human_causes,
     human_trial,
@@ -185,7 +186,7 @@ def _clean_sessions(linkage: dict[str, Any], humanoid: dict[str, Any]) -> dict[s
 
 
 def _human_causes(
-    plan: Plan, trials: list[dict[str, Any]], run: Callable
+    plan: Plan, trials: list[dict[str, Any]], run: Callable, pair_s: float
 ) -> dict[str, dict[str, dict[str, Any]]]:
     """The causes of Tables 2-4, each over the table's first trial (``trials``: those run with
     every effect on)."""
@@ -199,7 +200,7 @@ def _human_causes(
         if key not in plan.cause_tables:
             continue
         done = [t["rows"] for t in trials if t["trial"] == f"{subject} {motion.capitalize()} {k}"]
-        out[key] = human_causes([(subject, motion, k)], plan.humanoid_s, run=run, done=done)
+        out[key] = human_causes([(subject, motion, k)], plan.humanoid_s, run=run, done=done, pair_s=pair_s)
     return out
 
 
@@ -247,7 +248,8 @@ def run_validation(
     t0 = time.perf_counter()
     with ProcessPoolExecutor(workers) if workers > 1 else _Here() as pool:
         say(STEPS[0])
-        scale = rigid_pair_scale(duration_s=20.0 if quick else 60.0)
+        pair_s = 20.0 if quick else PAIR_S
+        scale = rigid_pair_scale(duration_s=pair_s)
         say(STEPS[1])
         linkage = linkage_experiment(plan.linkage_sets, plan.linkage_s, scale["scale"], keep, run=pool.map)
         say(STEPS[2])
@@ -271,8 +273,8 @@ def run_validation(
         decisions = run_decisions(quick, _clean_sessions(linkage, humanoid))
         say(STEPS[6])
         causes = {
-            "table_1": linkage_causes(plan.linkage_sets, plan.linkage_s, run=pool.map),
-            **_human_causes(plan, humanoid["trials"], pool.map),
+            "table_1": linkage_causes(plan.linkage_sets, plan.linkage_s, run=pool.map, pair_s=pair_s),
+            **_human_causes(plan, humanoid["trials"], pool.map, pair_s),
         }
         tables = paper_tables(linkage, humanoid, causes)
         say(STEPS[7])
