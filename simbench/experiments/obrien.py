@@ -410,11 +410,12 @@ def explain(table: dict[str, Any], causes: dict[str, dict[str, Any]]) -> str:
         f"The paper's largest error is {paper['max_abs_cm']:.1f} cm ({paper['max_row']}), simbench's "
         f"{sim['max_abs_cm']:.2f} cm ({sim['max_row']}); the mean difference {paper['mean_cm']:+.2f} "
         f"against {sim['mean_cm']:+.2f} cm, computed longer in {paper['negative']} of {paper['n']} "
-        f"against {sim['negative']} of {sim['n']}. Why: {where}, the {row_cause} makes the "
-        f"{row} (the paper's largest row, {paper['row_mean_cm'][row]:+.2f} cm on average) come out "
-        f"{abs(with_ - without):.2f} cm {longer} ({with_:+.2f} cm with it, {without:+.2f} without), "
-        f"and the {mean_cause} moves the mean difference most ({base['mean_cm']:+.2f} with it, "
-        f"{causes[mean_cause]['mean_cm']:+.2f} without). With every listed effect off the largest "
+        f"against {sim['negative']} of {sim['n']}. Why: {where}, the {row} (the paper's largest "
+        f"row, {paper['row_mean_cm'][row]:+.2f} cm on average) comes out {abs(with_ - without):.2f} cm "
+        f"{longer} through the {row_cause} ({with_:+.2f} cm with it, {without:+.2f} without); "
+        f"{'it also' if mean_cause == row_cause else f'the {mean_cause}'} moves the mean difference "
+        f"most ({base['mean_cm']:+.2f} with it, {causes[mean_cause]['mean_cm']:+.2f} without). "
+        f"With every listed effect off the largest "
         f"error is {causes['all']['max_abs_cm']:.2f} cm and the mean {causes['all']['mean_cm']:+.2f} cm."
     )
 
