@@ -56,7 +56,7 @@ def test_every_command_has_help_and_a_handler(capsys, command):
         (["scale", "poses.csv", "--sensors", "a", "b"], "the following arguments are required: --distance"),
         (["simulate"], "the following arguments are required: -o/--output"),
         (["orient", "imu.h5", "--method", "kalman"], "argument --method: invalid choice: 'kalman'"),
-        (["baseline", "--tolerance", "x"], "argument --tolerance: invalid float value: 'x'"),
+        (["baseline", "--tolerance", "x"], "argument --tolerance: expected a number, got 'x'"),
     ],
 )
 def test_usage_errors_exit_2(capsys, argv, message):

@@ -1,7 +1,8 @@
 """The ``simbench`` command line: argparse and thin commands, one module per subcommand.
 
-Every subcommand reports bad input as ``simbench: error: ...`` on stderr with exit status 2,
-never as a traceback.
+Every subcommand reports bad input as ``simbench: error: ...`` on stderr, on one line, with exit
+status 2; anything else that goes wrong is reported the same way, naming the exception, and Ctrl-C
+ends with exit status 130. A traceback is shown only with ``--debug``.
 """
 
 from __future__ import annotations
@@ -26,22 +27,44 @@ def build_parser() -> argparse.ArgumentParser:
         description="Physics-simulation validation testbed for motion-capture skeleton calibration.",
     )
     parser.add_argument("--version", action="version", version=f"simbench {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of any error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in COMMANDS:
         command.add_parser(sub)
     return parser
 
 
+def _one_line(exc: BaseException) -> str:
+    """The exception's message on one line (MuJoCo's and others' span several)."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``simbench`` command (``argv`` defaults to ``sys.argv[1:]``); returns the exit
-    status: 0, 1 when ``simbench baseline`` finds a regression, 2 on bad input (a usage error
-    exits 2 from argparse)."""
+    status: 0, 1 when ``simbench baseline`` finds a regression, 2 on bad input or any other
+    error (a usage error exits 2 from argparse), 130 when interrupted (Ctrl-C)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.func(args))
+    except KeyboardInterrupt:
+        if args.debug:
+            raise
+        print("simbench: interrupted", file=sys.stderr)
+        return 130
     except (InputError, CalibrationError, OSError) as exc:
-        print(f"simbench: error: {exc}", file=sys.stderr)
+        if args.debug:
+            raise
+        print(f"simbench: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # every other failure: one line, no traceback (--debug shows it)
+        if args.debug:
+            raise
+        print(
+            f"simbench: error: {type(exc).__name__}: {_one_line(exc)} (an internal error; --debug shows "
+            "where)",
+            file=sys.stderr,
+        )
         return 2
 
 

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from simbench.cli.types import non_negative_float
 from simbench.errors import InputError
 from simbench.experiments.baseline import (
     BASELINE_FILE,
@@ -25,7 +26,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bas.add_argument(
         "--update", action="store_true", help="recompute and rewrite the baseline, showing the diff"
     )
-    bas.add_argument("--tolerance", type=float, default=0.10, help="relative tolerance (default 0.10)")
+    bas.add_argument(
+        "--tolerance", type=non_negative_float, default=0.10, help="relative tolerance (default 0.10)"
+    )
     bas.add_argument("--file", metavar="PATH", help="baseline file (default reports/baseline.json)")
     bas.set_defaults(func=cmd_baseline)
 

@@ -10,6 +10,7 @@ from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration, SlipR
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
 from simbench.cli.table import format_table
+from simbench.cli.types import positive_float
 from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
 from simbench.io.hierarchy_json import read_hierarchy_json
 from simbench.io.poses import PoseRecording
@@ -54,7 +55,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     cal.add_argument(
         "--single-axis-ratio",
-        type=float,
+        type=positive_float,
         default=SINGLE_AXIS_RATIO,
         metavar="R",
         help=(
@@ -64,11 +65,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         ),
     )
     cal.add_argument(
-        "--slip-window", type=float, default=2.0, metavar="SECONDS", help="slip detector window (default 2 s)"
+        "--slip-window",
+        type=positive_float,
+        default=2.0,
+        metavar="SECONDS",
+        help="slip detector window (default 2 s)",
     )
     cal.add_argument(
         "--slip-false-alarms-per-hour",
-        type=float,
+        type=positive_float,
         default=FALSE_ALARMS_PER_HOUR,
         metavar="RATE",
         help=f"expected slip false alarms per hour of joint time (default {FALSE_ALARMS_PER_HOUR:g})",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from simbench.cli.types import positive_float
 from simbench.io.orientation_csv import write_orientation_csv
 from simbench.io.read import read_imu
 from simbench.orient import estimate, in_frame
@@ -27,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ori.add_argument("--no-weighting", action="store_true", help="fixed weights (no disturbance weighting)")
     ori.add_argument(
         "--smooth-hz",
-        type=float,
+        type=positive_float,
         default=None,
         metavar="HZ",
         help="zero-phase low-pass of the inputs (no lag)",

@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from calibration import unit_scale
+from simbench.cli.types import positive_float
 from simbench.errors import InputError
 from simbench.io.read import read_poses
 from simbench.units import LENGTH_UNITS, metres_per_unit
@@ -22,7 +23,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     scale.add_argument("input", help="pose file: a pose CSV")
     scale.add_argument("--sensors", nargs=2, required=True, metavar=("A", "B"), help="the two sensors")
-    scale.add_argument("--distance", type=float, required=True, help="their true distance, in --units")
+    scale.add_argument(
+        "--distance", type=positive_float, required=True, help="their true distance, in --units"
+    )
     scale.add_argument("--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit (default m)")
     scale.set_defaults(func=cmd_scale)
 

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from simbench.api import simulate
+from simbench.cli.types import positive_float, seed
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
 from simbench.io.dataset import truth_calibration_dict, write_dataset
@@ -32,10 +33,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="exercise, walk, single-axis, static, or a program .toml (default exercise)",
     )
     sim.add_argument(
-        "--duration", type=float, default=20.0, metavar="SECONDS", help="session length (default 20)"
+        "--duration", type=positive_float, default=20.0, metavar="SECONDS", help="session length (default 20)"
     )
-    sim.add_argument("--rate", type=float, default=120.0, metavar="HZ", help="capture rate (default 120)")
-    sim.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    sim.add_argument(
+        "--rate", type=positive_float, default=120.0, metavar="HZ", help="capture rate (default 120)"
+    )
+    sim.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     sim.add_argument(
         "--sensors",
         default="ideal",

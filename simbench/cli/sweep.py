@@ -10,6 +10,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from simbench.cli.types import positive_int
 from simbench.errors import InputError
 from simbench.experiments.study import load_study, trials
 from simbench.experiments.sweep import dask_executor, finished, run_study
@@ -23,7 +24,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "sweep", help="a study of seeded trials (noise, slip, placement...), local or on Dask"
     )
     swp.add_argument("study", help="the study TOML (see studies/ and simbench/experiments/study.py)")
-    swp.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="local worker processes")
+    swp.add_argument(
+        "--workers", type=positive_int, default=os.cpu_count() or 1, help="local worker processes"
+    )
     swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
     swp.add_argument("--out", metavar="DIR", help="output folder (default: the study file's name)")
     swp.add_argument("--no-progress", action="store_true")

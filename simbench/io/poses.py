@@ -75,10 +75,43 @@ def sample_rate(time_s: np.ndarray) -> tuple[float, str | None]:
     return float(rate), note
 
 
-def open_csv(path: Path) -> TextIO:
-    """Open a text table for ``csv.reader``; a missing or unreadable file is an InputError."""
+class _Text:
+    """A text file's lines for ``csv.reader``; bytes that are not UTF-8 are an InputError naming
+    the file and line (a binary file, or Latin-1 text, named ``.csv``)."""
+
+    def __init__(self, path: Path, fh: TextIO) -> None:
+        self._path, self._fh, self._line = path, fh, 0
+
+    def __enter__(self) -> _Text:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._fh.close()
+
+    def __iter__(self) -> _Text:
+        return self
+
+    def __next__(self) -> str:
+        try:
+            line = next(self._fh)
+        except UnicodeDecodeError as exc:
+            raise InputError(  # no line number: the file is decoded a block at a time
+                f"{self._path}: expected UTF-8 text, got byte 0x{exc.object[exc.start]:02x} after line "
+                f"{self._line} (a binary file, or another encoding: save it as UTF-8)"
+            ) from None
+        self._line += 1
+        if "\0" in line:
+            raise InputError(
+                f"{self._path}, line {self._line}: expected text, got a NUL byte (a binary file?)"
+            )
+        return line
+
+
+def open_csv(path: Path) -> _Text:
+    """Open a text table for ``csv.reader`` (UTF-8, a byte-order mark allowed); a missing or
+    unreadable file, or one that is not UTF-8 text, is an InputError."""
     try:
-        return path.open(newline="", encoding="utf-8")
+        return _Text(path, path.open(newline="", encoding="utf-8-sig"))
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
 

@@ -50,6 +50,8 @@ class SessionConfig:
             raise InputError(f"duration must be > 0 s, got {self.duration_s}")
         if not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise InputError(f"rate must be > 0 Hz, got {self.rate_hz}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise InputError(f"seed must be an integer in [0, 2^63), got {self.seed!r}")
 
     def as_dict(self) -> dict:
         """JSON-ready copy."""

@@ -53,6 +53,7 @@ numbers come from, and which are fitted to what.
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -138,6 +139,11 @@ class SkinConfig:
         if not (np.isfinite(self.mount_mass_kg) and self.mount_mass_kg > 0):
             raise InputError(f"skin.mount_mass_kg must be > 0, got {self.mount_mass_kg!r}")
         for table in ("sta_by_sensor", "laxity_by_joint"):
+            if not isinstance(getattr(self, table), dict):
+                raise InputError(
+                    f"skin.{table} must be a table of sensor = metres, e.g. {{ thigh_l = 0.015 }}, "
+                    f"got {getattr(self, table)!r}"
+                )
             for key, v in getattr(self, table).items():
                 if not isinstance(v, int | float) or not np.isfinite(v) or v < 0:
                     raise InputError(f"skin.{table}.{key} must be a number >= 0, got {v!r}")
@@ -256,7 +262,7 @@ def load_sensor_config(name_or_path: str) -> SensorConfig:
     path = Path(name_or_path)
     if path.suffix.lower() != ".toml":
         path = PRESETS_DIR / f"{name_or_path}.toml"
-        if not path.is_file():
+        if not re.fullmatch(r"[A-Za-z0-9_-]+", name_or_path) or not path.is_file():
             raise InputError(
                 f"unknown sensor preset {name_or_path!r}: expected one of {', '.join(preset_names())} "
                 "or a .toml file"

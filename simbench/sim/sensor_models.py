@@ -171,6 +171,12 @@ class TrackerConfig:
             raise InputError(
                 f"TrackerConfig.transmitter_pos must be 3 finite numbers, got {self.transmitter_pos}"
             )
+        axis = np.asarray(self.transmitter_axis, dtype=float)
+        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or not np.any(axis != 0):
+            raise InputError(
+                f"TrackerConfig.transmitter_axis must be 3 finite numbers, not all zero, got "
+                f"{self.transmitter_axis}"
+            )
 
 
 def dipole_anisotropy(cos_theta: np.ndarray, exponent: float) -> np.ndarray:

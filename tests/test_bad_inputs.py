@@ -1,0 +1,103 @@
+"""Bad input at the command line (issue 14, first part): every case is one line on stderr naming
+the file or option, exit status 2, no traceback and nothing written; Ctrl-C is exit 130."""
+
+from __future__ import annotations
+
+import pytest
+
+from simbench import cli
+from simbench.cli import main
+
+
+def _files(tmp_path):
+    (tmp_path / "latin1.csv").write_bytes(b"time,sensor,x\n\xe9t\xe9,1,2\n")
+    (tmp_path / "binary.csv").write_bytes(bytes(range(256)) * 4)
+    (tmp_path / "nul.csv").write_bytes(b"time,sensor\x00,x\n")
+    (tmp_path / "axis.toml").write_text("[tracker]\ntransmitter_axis = [0, 0, 0]\n")
+    (tmp_path / "sta.toml").write_text("[skin]\nsta_by_sensor = 5\n")
+    (tmp_path / "play.toml").write_text("[joints]\nplay_m = -0.001\n")
+    (tmp_path / "girdle.toml").write_text(
+        '[[skin.girdle]]\njoint = "upper_arm_l"\npivot_m = [0, 0, 0]\naxis = [1, 0, 0]\n'
+        "limb_axis = [0, 0, -1]\nratio = 2.0\n"
+    )
+    (tmp_path / "range.toml").write_text("[tracker]\nrange_exponent = nan\n")
+
+
+CASES = [
+    (["simulate", "--seed", "-1"], "--seed"),
+    (["simulate", "--seed", "1.5"], "--seed"),
+    (["simulate", "--duration", "nan"], "--duration"),
+    (["simulate", "--duration", "-2"], "--duration"),
+    (["simulate", "--rate", "0"], "--rate"),
+    (["calibrate", "{tmp}/none.csv", "--slip-window", "nan"], "--slip-window"),
+    (["calibrate", "{tmp}/none.csv", "--slip-window", "0"], "--slip-window"),
+    (["calibrate", "{tmp}/none.csv", "--slip-window", "-5"], "--slip-window"),
+    (["calibrate", "{tmp}/none.csv", "--slip-false-alarms-per-hour", "inf"], "--slip-false-alarms-per-hour"),
+    (["calibrate", "{tmp}/none.csv", "--single-axis-ratio", "-1"], "--single-axis-ratio"),
+    (["sweep", "{tmp}/none.toml", "--workers", "0"], "--workers"),
+    (["scale", "{tmp}/none.csv", "--sensors", "a", "b", "--distance", "0"], "--distance"),
+    (["orient", "{tmp}/none.h5", "--smooth-hz", "-1"], "--smooth-hz"),
+    (["baseline", "--tolerance", "-0.1"], "--tolerance"),
+    (["calibrate", "{tmp}/latin1.csv"], "latin1.csv"),
+    (["calibrate", "{tmp}/binary.csv"], "binary.csv"),
+    (["calibrate", "{tmp}/nul.csv"], "nul.csv"),
+    (["simulate", "--duration", "1", "--sensors", "{tmp}/axis.toml", "--out", "{tmp}/o.h5"], "axis.toml"),
+    (["simulate", "--duration", "1", "--sensors", "{tmp}/sta.toml", "--out", "{tmp}/o.h5"], "sta.toml"),
+    (["simulate", "--duration", "1", "--sensors", "{tmp}/play.toml", "--out", "{tmp}/o.h5"], "play.toml"),
+    (["simulate", "--duration", "1", "--sensors", "{tmp}/girdle.toml", "--out", "{tmp}/o.h5"], "girdle.toml"),
+    (["simulate", "--duration", "1", "--sensors", "{tmp}/range.toml", "--out", "{tmp}/o.h5"], "range.toml"),
+    (["simulate", "--duration", "1", "--sensors", "../../etc/passwd", "--out", "{tmp}/o.h5"], "etc/passwd"),
+]
+
+
+def _run(args: list[str]) -> int:
+    try:
+        return main(args)
+    except SystemExit as exc:  # argparse refuses a bad option value itself
+        return int(exc.code)
+
+
+@pytest.mark.parametrize(("argv", "named"), CASES, ids=[" ".join(a) for a, _ in CASES])
+def test_bad_input_is_one_line_naming_it_exit_2_nothing_written(capsys, tmp_path, argv, named):
+    _files(tmp_path)
+    before = set(tmp_path.iterdir())
+    assert _run([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert not any("Traceback" in line for line in lines)
+    errors = [line for line in lines if ": error: " in line]
+    assert len(errors) == 1 and errors[0] == lines[-1], lines  # argparse prints its usage above
+    assert named in errors[0], errors[0]
+    assert set(tmp_path.iterdir()) == before
+
+
+def test_ctrl_c_exits_130_without_a_traceback(capsys, monkeypatch):
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: _with_func(parser, "baseline", interrupted))
+    assert main(["baseline"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "simbench: interrupted"
+
+
+def test_internal_errors_are_one_line_and_debug_shows_them(capsys, monkeypatch):
+    def broken(args):
+        raise RuntimeError("something\nunexpected")
+
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: _with_func(parser, "baseline", broken))
+    assert main(["baseline"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert (
+        err == "simbench: error: RuntimeError: something unexpected (an internal error; --debug shows where)"
+    )
+    with pytest.raises(RuntimeError, match="something"):
+        main(["--debug", "baseline"])
+
+
+def _with_func(parser, command, func):
+    """The parser with ``command``'s function replaced."""
+    sub = next(a for a in parser._actions if a.dest == "command")
+    sub.choices[command].set_defaults(func=func)
+    return parser
