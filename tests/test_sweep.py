@@ -266,3 +266,40 @@ def test_report_plots_and_summary_of_a_two_parameter_grid(tmp_path):
     assert "condition number with the joint-centre error: 1.00." in text
     assert "Smallest mean joint-centre error: sensors.tracker.position_noise_m = 0, rate_hz = 60." in text
     assert "![heatmap](heatmap.png)" in text
+
+
+def test_a_changed_study_is_refused_in_the_same_folder(tmp_path):
+    """A study edited and rerun into the same folder is refused before any trial (the folder holds
+    the other study's trials); the same study resumes; --force starts over with the new one."""
+    path = study_file(tmp_path, duration=1.0, values="[0.0]")
+    out = tmp_path / "out"
+    original = st.load_study(path)
+    assert len(sw.run_study(original, out)) == 2
+    assert st.study_fingerprint(st.load_study(path)) == st.study_fingerprint(original)
+    assert sw.run_study(st.load_study(path), out).num_rows == 2  # the same study: resumed, nothing run
+    path.write_text(path.read_text().replace("values = [0.0]", "values = [0.0, 4.0]"))
+    changed = st.load_study(path)
+    before = sorted(p.name for p in (out / "trials").iterdir())
+    with pytest.raises(
+        InputError, match=r"out: holds 2 trial\(s\) of another study, not of 'small'.*--force"
+    ):
+        sw.run_study(changed, out)
+    assert sorted(p.name for p in (out / "trials").iterdir()) == before  # nothing touched
+    assert sw.run_study(changed, out, force=True).num_rows == 4
+    assert st.study_fingerprint(changed) != st.study_fingerprint(original)
+
+
+def test_a_cell_that_cannot_run_is_found_before_any_trial(tmp_path):
+    """A rate above the model's physics rate in the second cell: refused, naming the cell and its
+    value, before the first cell's trials run."""
+    path = tmp_path / "rate.toml"
+    path.write_text(
+        STUDY.format(duration=1.0, values="[0.0]")
+        .replace("sensors.tracker.position_noise_m", "rate_hz")
+        .replace('unit = "mm"', 'unit = "hz"')
+        .replace("values = [0.0]", "values = [120.0, 5000.0]")
+    )
+    out = tmp_path / "out"
+    with pytest.raises(InputError, match=r"cell 1 \(rate_hz = 5000\).*physics rate"):
+        sw.run_study(st.load_study(path), out)
+    assert not (out / "trials").exists() or not list((out / "trials").iterdir())

@@ -29,6 +29,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
     swp.add_argument("--out", metavar="DIR", help="output folder (default: the study file's name)")
+    swp.add_argument(
+        "--force", action="store_true", help="start over in a folder that holds another study's trials"
+    )
     swp.add_argument("--no-progress", action="store_true")
     swp.set_defaults(func=cmd_sweep)
 
@@ -49,7 +52,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     cluster = dask_executor(args.scheduler) if args.scheduler else nullcontext(None)
     try:
         with cluster as executor:
-            table = run_study(study, out, executor=executor, workers=args.workers, progress=progress)
+            table = run_study(
+                study, out, executor=executor, workers=args.workers, progress=progress, force=args.force
+            )
     finally:
         bar.close()
     plots = plot_study(study, table, out)

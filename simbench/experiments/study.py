@@ -30,6 +30,8 @@ trials and :func:`trial_config` gives the session of one. Running them is
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import math
 import os
 from dataclasses import dataclass
@@ -40,9 +42,11 @@ import numpy as np
 
 from simbench.errors import InputError, load_toml
 from simbench.experiments.metrics import CALIBRATION_METRICS
+from simbench.sim.plan import plan_session
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
-from simbench.sim.session import SessionConfig
+from simbench.sim.session import SessionConfig, load_session_model
 from simbench.units import UNITS
+from simbench.versions import __version__
 
 #: Every metric a study may name: a trial's row holds these columns (:func:`sweep.run_trial`).
 METRICS = {
@@ -312,3 +316,39 @@ def trial_config(study: Study, trial: Trial) -> SessionConfig:
         sensors=sensors,
         placement=tuple((k, tuple(v)) for k, v in sorted(shifts.items())),
     )
+
+
+def study_fingerprint(study: Study) -> str:
+    """A fingerprint of the study: SHA-256 of every parsed value (the base session, the sensors,
+    the parameters, seeds and estimators) and simbench's version. Two files that parse to the same
+    study share it; any changed value, or another simbench version, gives another."""
+    doc = json.dumps(dataclasses.asdict(study), sort_keys=True, default=repr)
+    return hashlib.sha256(f"simbench {__version__}\n{doc}".encode()).hexdigest()
+
+
+def check_study(study: Study) -> None:
+    """Build and check every cell's session before any trial runs: values a session refuses
+    (a duration or rate not > 0, a rate above the model's physics rate, an unknown model, motion
+    or preset, a sensor value out of range) are errors naming the cell and its values.
+
+    Raises:
+        InputError: the first cell that cannot run.
+    """
+    models: dict[tuple[str, str, float], Any] = {}
+    for trial in trials(study):
+        if trial.replicate:
+            continue  # replicates differ only in the seed
+        values = ", ".join(f"{k} = {v:g}" for k, v in trial.params) or "the base session"
+        try:
+            config = trial_config(study, trial)
+            sensors = (
+                config.sensors
+                if isinstance(config.sensors, SensorConfig)
+                else load_sensor_config(config.sensors)
+            )
+            key = (config.model, repr(sensors.skin), sensors.joints.play_m)
+            if key not in models:
+                models[key] = load_session_model(config)
+            plan_session(config, models[key])
+        except InputError as exc:
+            raise InputError(f"study {study.name!r}, cell {trial.cell} ({values}): {exc}") from None

@@ -15,6 +15,7 @@ extra ``simbench[studies]``; without them a study stops with an :class:`InputErr
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
@@ -23,11 +24,12 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from simbench.errors import optional_module
+from simbench.errors import InputError, optional_module
 from simbench.experiments.metrics import calibration_metrics, orientation_metrics
-from simbench.experiments.study import Study, Trial, trial_config, trials
-from simbench.io.atomic import atomic_path
+from simbench.experiments.study import Study, Trial, check_study, study_fingerprint, trial_config, trials
+from simbench.io.atomic import atomic_path, atomic_write_text
 from simbench.sim.session import load_session_model, run_session
+from simbench.versions import __version__
 
 #: The extra of the simbench distribution that installs a study's optional packages.
 EXTRA = "studies"
@@ -72,6 +74,38 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
             row[key] = orientation_metrics(ds, method)["total_rmse_deg"]
     row["run_time_s"] = time.perf_counter() - t0
     return row
+
+
+#: The file in an output folder that names the study whose trials it holds.
+STAMP = "study.json"
+
+
+def _claim(out: Path, study: Study, force: bool) -> None:
+    """Make ``out`` the folder of ``study`` (see :func:`run_study`)."""
+    fingerprint = study_fingerprint(study)
+    stamp = out / STAMP
+    held = finished(out)
+    if stamp.is_file():
+        try:
+            theirs = json.loads(stamp.read_text(encoding="utf-8"))["fingerprint"]
+        except (ValueError, KeyError, TypeError):
+            theirs = None
+    else:
+        theirs = None if held else fingerprint  # an empty folder is free
+    if theirs != fingerprint:
+        if not force:
+            whose = f"an unknown study (no {STAMP})" if theirs is None else "another study"
+            raise InputError(
+                f"{out}: holds {len(held)} trial(s) of {whose}, not of {study.name!r} (its file, a value in "
+                "it or the simbench version differs); use another --out, or --force to remove them and "
+                "start over"
+            )
+        for path in (out / "trials").glob("*.parquet"):
+            path.unlink()
+        (out / "results.parquet").unlink(missing_ok=True)
+    (out / "trials").mkdir(parents=True, exist_ok=True)
+    doc = {"fingerprint": fingerprint, "study": study.name, "simbench": __version__}
+    atomic_write_text(stamp, json.dumps(doc, indent=2) + "\n")
 
 
 def _write_row(out: Path, row: dict[str, Any]) -> None:
@@ -137,9 +171,16 @@ def run_study(
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
     limit: int | None = None,
+    force: bool = False,
 ) -> Any:
     """Run every unfinished trial of a study, writing each as it finishes; returns the
     ``pyarrow.Table`` of every finished trial (:func:`gather`).
+
+    The study is checked whole before any trial runs (:func:`check_study`), and the output
+    folder is claimed for it: ``out/study.json`` holds the study's fingerprint
+    (:func:`study_fingerprint`). A folder that holds another study's trials (another file, an
+    edited one, another simbench version) is refused unless ``force``, which removes its trials
+    and starts over.
 
     Args:
         study: the study.
@@ -148,13 +189,16 @@ def run_study(
         workers: size of the default pool.
         progress: called with ``(done, total)`` as trials finish.
         limit: run at most this many trials now (the rest on a later call).
+        force: start over in a folder that holds another study's trials.
 
     Raises:
-        InputError: the optional packages of ``simbench[studies]`` are missing (before any trial).
+        InputError: the optional packages of ``simbench[studies]`` are missing, a cell cannot
+            run, or ``out`` holds another study's trials (all before any trial).
     """
     for name in ("pyarrow.parquet", "threadpoolctl"):
         _optional(name)
-    (out / "trials").mkdir(parents=True, exist_ok=True)
+    check_study(study)
+    _claim(out, study, force)
     every = trials(study)
     done = finished(out)
     todo = [t for t in every if t.trial_id not in done][:limit]
