@@ -101,3 +101,27 @@ def _with_func(parser, command, func):
     sub = next(a for a in parser._actions if a.dest == "command")
     sub.choices[command].set_defaults(func=func)
     return parser
+
+
+def test_a_diverging_simulation_writes_no_dataset(capsys, tmp_path):
+    """dm_control's humanoid with its feet and arms left without sensors (so unactuated): the
+    physics blows up; the error names the model, the time and the joint, and nothing is written."""
+    pytest.importorskip("dm_control")
+    out = tmp_path / "x.h5"
+    sensors = "torso,lower_waist,pelvis,right_thigh,right_shin,left_thigh,left_shin"
+    argv = [
+        "simulate",
+        "--model",
+        "dm_control:humanoid",
+        "--sensors-on",
+        sensors,
+        "--duration",
+        "3",
+        "-o",
+        str(out),
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("simbench: error: model dm_control:humanoid: the simulation diverged at t = ")
+    assert "joint '" in err and "no dataset is written" in err and len(err.splitlines()) == 1
+    assert not out.exists() and list(tmp_path.iterdir()) == []

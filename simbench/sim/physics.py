@@ -15,6 +15,7 @@ import numpy as np
 from mujoco import rollout
 
 from calibration.rotations import matrix_to_quat, rotvec_to_matrix
+from simbench.errors import InputError
 from simbench.sim.models import CaptureModel
 from simbench.sim.plan import SessionPlan
 from simbench.sim.programs import joint_targets, root_pose
@@ -170,4 +171,45 @@ def run_physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[s
     finally:
         m.opt.timestep = model_dt
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(d.warning) if w.number > 0}
+    check_diverged(cm, plan, d, sensordata, warnings)
     return sensordata, warnings
+
+
+#: MuJoCo's warnings that mean the state blew up (MuJoCo then resets the state: time restarts).
+DIVERGENCE_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS")
+
+
+def check_diverged(
+    cm: CaptureModel, plan: SessionPlan, d: mujoco.MjData, sensordata: np.ndarray, warnings: dict[str, int]
+) -> None:
+    """Refuse a session whose physics diverged: a divergence warning, a clock that restarts, or
+    sensor data that is not finite.
+
+    Raises:
+        InputError: naming the model, the time and (where MuJoCo says) the joint; no dataset is
+            written from such a run.
+    """
+    clock = sensordata[:, cm.clock_adr]
+    restarts = np.flatnonzero(np.diff(clock) <= 0)
+    not_finite = np.flatnonzero(~np.isfinite(sensordata).all(axis=1))
+    bad = {name: n for name, n in warnings.items() if name in DIVERGENCE_WARNINGS}
+    if not (bad or restarts.size or not_finite.size):
+        return
+    first = min([*restarts + 1, *not_finite, len(clock)])
+    when = (
+        f"at t = {first * plan.timestep * plan.steps_per_sample:.3f} s"
+        if first < len(clock)
+        else "during the run"
+    )
+    joint = ""
+    for name in bad:
+        dof = int(d.warning[int(getattr(mujoco.mjtWarning, name))].lastinfo)
+        if 0 <= dof < cm.model.nv:
+            name_of = mujoco.mj_id2name(cm.model, mujoco.mjtObj.mjOBJ_JOINT, int(cm.model.dof_jntid[dof]))
+            joint = f", joint {name_of!r}"
+            break
+    raise InputError(
+        f"model {cm.source}: the simulation diverged {when}{joint} (MuJoCo: {bad or 'state reset'}); no "
+        "dataset is written. A body left without a sensor may be unactuated (choose --sensors-on to "
+        "include it), or the motion too violent for the timestep"
+    )
