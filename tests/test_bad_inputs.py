@@ -3,6 +3,12 @@ the file or option, exit status 2, no traceback and nothing written; Ctrl-C is e
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
+import time
+
 import pytest
 
 from simbench import cli
@@ -125,3 +131,35 @@ def test_a_diverging_simulation_writes_no_dataset(capsys, tmp_path):
     assert err.startswith("simbench: error: model dm_control:humanoid: the simulation diverged at t = ")
     assert "joint '" in err and "no dataset is written" in err and len(err.splitlines()) == 1
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_stale_temporary_files_of_dead_writers_are_swept(tmp_path):
+    """A writer killed outright leaves ``.NAME.<pid>.<random>.tmp``; the next write of NAME
+    removes it when that process is gone, and leaves a running writer's and other names' alone."""
+    from simbench.io.atomic import atomic_write_text
+
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    pid = int(dead.stdout)
+    stale = tmp_path / f".out.txt.{pid}.abc123.tmp"
+    alive = tmp_path / f".out.txt.{os.getppid()}.def456.tmp"
+    other = tmp_path / f".other.txt.{pid}.abc123.tmp"
+    for p in (stale, alive, other):
+        p.write_text("half")
+    atomic_write_text(tmp_path / "out.txt", "whole")
+    assert (tmp_path / "out.txt").read_text() == "whole"
+    assert not stale.exists() and alive.exists() and other.exists()
+
+
+def test_sigterm_ends_with_143_and_no_traceback(tmp_path):
+    """SIGTERM mid-run: exit 143, one line, nothing half-written."""
+    out = tmp_path / "x.h5"
+    cmd = [sys.executable, "-m", "simbench", "simulate", "--duration", "600", "-o", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(4)  # importing and loading the model, then physics
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "simbench: terminated" and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []

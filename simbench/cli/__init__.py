@@ -8,6 +8,7 @@ ends with exit status 130. A traceback is shown only with ``--debug``.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -34,6 +35,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised where the program is so that ``finally`` blocks (temporary files) run."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated
+
+
 def _one_line(exc: BaseException) -> str:
     """The exception's message on one line (MuJoCo's and others' span several)."""
     return " ".join(str(exc).split()) or type(exc).__name__
@@ -42,11 +51,16 @@ def _one_line(exc: BaseException) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``simbench`` command (``argv`` defaults to ``sys.argv[1:]``); returns the exit
     status: 0, 1 when ``simbench baseline`` finds a regression, 2 on bad input or any other
-    error (a usage error exits 2 from argparse), 130 when interrupted (Ctrl-C)."""
+    error (a usage error exits 2 from argparse), 130 when interrupted (Ctrl-C), 143 when
+    terminated (SIGTERM; temporary files are removed on the way out)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(args.func(args))
+    except Terminated:
+        print("simbench: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         if args.debug:
             raise
@@ -66,6 +80,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 __all__ = ["build_parser", "main"]

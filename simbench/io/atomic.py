@@ -2,7 +2,9 @@
 
 Output goes to a temporary file in the destination's folder, is flushed to disk, and replaces
 the destination in one ``os.replace``; if anything fails the temporary file is removed and the
-destination is left as it was.
+destination is left as it was. A process killed outright (SIGKILL) cannot remove its temporary
+file: each one's name carries its writer's process id, ``.NAME.<pid>.<random>.tmp``, and the next
+write of ``NAME`` removes those whose writer is no longer running.
 """
 
 from __future__ import annotations
@@ -54,8 +56,9 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     folder = dest.parent if str(dest.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"cannot write {dest}: folder {folder} does not exist")
+    sweep_stale(dest)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.{os.getpid()}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise InputError(f"cannot write {dest}: {exc.strerror}") from exc
     os.close(fd)
@@ -71,3 +74,33 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    return True
+
+
+def sweep_stale(dest: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporary files of ``dest`` left by writers that are no longer running; returns
+    the paths removed."""
+    dest = Path(dest)
+    folder = dest.parent if str(dest.parent) else Path(".")
+    removed = []
+    for tmp in folder.glob(f".{glob_escape(dest.name)}.*.tmp"):
+        pid = tmp.name[len(dest.name) + 2 :].split(".", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not _running(int(pid)):
+            with contextlib.suppress(FileNotFoundError):
+                tmp.unlink()
+                removed.append(tmp)
+    return removed
+
+
+def glob_escape(name: str) -> str:
+    """``name`` with glob's special characters taken literally."""
+    return "".join(f"[{c}]" if c in "*?[" else c for c in name)
