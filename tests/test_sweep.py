@@ -3,6 +3,7 @@ the base session's defaults, the error when the optional packages are missing, t
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -303,3 +304,49 @@ def test_a_cell_that_cannot_run_is_found_before_any_trial(tmp_path):
     with pytest.raises(InputError, match=r"cell 1 \(rate_hz = 5000\).*physics rate"):
         sw.run_study(st.load_study(path), out)
     assert not (out / "trials").exists() or not list((out / "trials").iterdir())
+
+
+def _children(pid: int) -> set[int]:
+    found = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        with contextlib.suppress(OSError):
+            found |= {int(x) for x in (task / "children").read_text().split()}
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"  # a zombie has died
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+def test_workers_die_with_a_killed_parent(tmp_path):
+    """SIGKILL of the study's own process only (not its group): its pool workers die too."""
+    path = study_file(tmp_path, duration=20.0, values="[0.0, 2.0, 4.0, 8.0]")
+    cmd = [
+        sys.executable,
+        "-m",
+        "simbench",
+        "sweep",
+        str(path),
+        "--out",
+        str(tmp_path / "out"),
+        "--workers",
+        "2",
+    ]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    workers: set[int] = set()
+    while time.time() < deadline and len(workers) < 2:
+        workers = _children(proc.pid)
+        time.sleep(0.1)
+    assert len(workers) >= 2, workers
+    proc.kill()
+    proc.wait()
+    deadline = time.time() + 20
+    while time.time() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.1)
+    assert not any(_alive(w) for w in workers)

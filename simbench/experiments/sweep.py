@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, as_completed
 from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
@@ -26,6 +26,7 @@ from typing import Any
 
 from simbench.errors import InputError, optional_module
 from simbench.experiments.metrics import calibration_metrics, orientation_metrics
+from simbench.experiments.pool import worker_pool
 from simbench.experiments.study import Study, Trial, check_study, study_fingerprint, trial_config, trials
 from simbench.io.atomic import atomic_path, atomic_write_text
 from simbench.sim.session import load_session_model, run_session
@@ -204,7 +205,7 @@ def run_study(
     todo = [t for t in every if t.trial_id not in done][:limit]
     own = executor is None
     if executor is None:
-        executor = ProcessPoolExecutor(max_workers=workers)
+        executor = worker_pool(workers)
     count = len(done)
     try:
         for fut in as_completed([executor.submit(run_trial, study, t) for t in todo]):

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,6 +43,7 @@ from simbench.experiments.obrien import (
     paper_tables,
     rigid_pair_scale,
 )
+from simbench.experiments.pool import worker_pool
 from simbench.experiments.realism import run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
 from simbench.orient import estimate
@@ -246,7 +246,7 @@ def run_validation(
     say = progress or (lambda _: None)
     keep: dict[str, Any] = {}
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(workers) if workers > 1 else _Here() as pool:
+    with worker_pool(workers) if workers > 1 else _Here() as pool:
         say(STEPS[0])
         pair_s = 20.0 if quick else PAIR_S
         scale = rigid_pair_scale(duration_s=pair_s)
