@@ -163,3 +163,61 @@ def test_sigterm_ends_with_143_and_no_traceback(tmp_path):
     assert proc.returncode == 143, err
     assert err.strip().splitlines()[-1] == "simbench: terminated" and "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def linkage_recording():
+    import numpy as np
+
+    from simbench.io.poses import PoseRecording
+    from simbench.sim.synthetic import linkage, simulate_motion
+
+    cap = simulate_motion(
+        linkage(), n_frames=600, rate_hz=120.0, rng=np.random.default_rng(1), position_noise_m=0.001
+    )
+    return PoseRecording(cap.names, cap.time_s, cap.R_w_s, cap.p_w_s, np.ones((600, 6), bool))
+
+
+def test_a_coordinate_of_1e30_is_refused_naming_sensor_and_time(capsys, tmp_path, linkage_recording):
+    from dataclasses import replace
+
+    from simbench.io.poses import write_pose_csv
+
+    p = linkage_recording.p_w_s.copy()
+    p[100, 2, 0] = 1e30
+    write_pose_csv(tmp_path / "far.csv", replace(linkage_recording, p_w_s=p))
+    assert main(["calibrate", str(tmp_path / "far.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert (
+        err.startswith(f"simbench: error: {tmp_path / 'far.csv'}: sensor ")
+        and "1e+30 m from the origin" in err
+    )
+
+
+def test_wrong_units_warn_about_implausible_limbs(capsys, tmp_path, linkage_recording):
+    """Metres read as millimetres: the limbs come out a thousand times too short, and the table
+    says so (a warning, not an error: the fit itself is fine)."""
+    from simbench.io.poses import write_pose_csv
+
+    write_pose_csv(tmp_path / "m.csv", linkage_recording)
+    assert (
+        main(["calibrate", str(tmp_path / "m.csv"), "--units", "mm", "--json", str(tmp_path / "c.json")]) == 0
+    )
+    out = capsys.readouterr().out
+    assert "warning: 5 limb length(s) outside 1 mm - 10 m" in out and "really in mm (--units)?" in out
+    assert "limb length(s) outside 1 mm - 10 m" in (tmp_path / "c.json").read_text()
+    assert main(["calibrate", str(tmp_path / "m.csv")]) == 0
+    assert "outside 1 mm - 10 m" not in capsys.readouterr().out
+
+
+def test_a_recording_without_a_valid_pose_is_refused(linkage_recording):
+    from dataclasses import replace
+
+    import numpy as np
+
+    from simbench.errors import InputError
+    from simbench.io.read import check_plausible
+
+    empty = replace(linkage_recording, valid=np.zeros_like(linkage_recording.valid))
+    with pytest.raises(InputError, match=r"x\.csv: no valid pose in 600 frame\(s\) of 6 sensor\(s\)"):
+        check_plausible(empty, "x.csv")

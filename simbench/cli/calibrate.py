@@ -113,6 +113,23 @@ def _slip_reports(
     return out
 
 
+#: Plausible limb lengths, metres: a body segment or a linkage piece.
+LIMB_RANGE_M = (1e-3, 10.0)
+
+
+def implausible_lengths(lengths: list, units: str) -> str:
+    """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``."""
+    lo, hi = LIMB_RANGE_M
+    odd = [x for x in lengths if not lo <= x.length <= hi]
+    if not odd:
+        return ""
+    shown = ", ".join(f"{x.segment} {x.length * 1e3:.3g} mm" for x in odd[:4])
+    return (
+        f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): "
+        f"are the positions really in {units} (--units)?"
+    )
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
@@ -126,6 +143,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     )
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
+    odd = implausible_lengths(cal.lengths, args.units)
+    if odd:
+        print(f"\n  warning: {odd}")
     if args.json:
         doc = calibration_to_dict(
             cal,
@@ -138,7 +158,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "rate_hz": rec.rate_hz,
                 "units": args.units,
             },
-            notes=rec.notes,
+            notes=(*rec.notes, odd) if odd else rec.notes,
             options={
                 "hierarchy_file": args.hierarchy,
                 "root": args.root,

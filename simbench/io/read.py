@@ -13,6 +13,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
+
 from simbench.errors import InputError
 from simbench.io.c3d import c3d_poses, read_cluster_spec
 from simbench.io.dataset import FORMAT as DATASET_FORMAT
@@ -46,6 +48,41 @@ def read_poses(
         clusters: for ``.c3d``: a TOML ``[clusters]`` spec (default: found automatically).
         wide: a wide-export spec TOML: read ``path`` as a wide export.
     """
+    return check_plausible(_read_poses(path, units, clusters, wide), path)
+
+
+#: Positions farther than this from the origin, in metres, are not a capture (1000 km; 1e6 of a
+#: metre-sized unit): refused.
+MAX_COORDINATE_M = 1e6
+
+
+def check_plausible(rec: PoseRecording, path: str | os.PathLike[str]) -> PoseRecording:
+    """Refuse a recording nothing sensible can come from: no valid pose at all, or positions
+    beyond :data:`MAX_COORDINATE_M` (a corrupt value, or a unit far off).
+
+    Raises:
+        InputError: naming the file, and the sensor and frame of the first far position.
+    """
+    if not rec.valid.any():
+        raise InputError(f"{path}: no valid pose in {rec.n_frames} frame(s) of {len(rec.names)} sensor(s)")
+    far = rec.valid & ~(np.abs(rec.p_w_s) <= MAX_COORDINATE_M).all(axis=2)
+    if far.any():
+        f, k = np.argwhere(far)[0]
+        size = np.abs(rec.p_w_s[f, k]).max()
+        raise InputError(
+            f"{path}: sensor {rec.names[k]!r} at t = {rec.time_s[f]:g} s is {size:.3g} m "
+            f"from the origin (expected within {MAX_COORDINATE_M:g} m; {int(far.sum())} such pose(s)): a "
+            "corrupt value, or the wrong --units?"
+        )
+    return rec
+
+
+def _read_poses(
+    path: str | os.PathLike[str],
+    units: str,
+    clusters: str | os.PathLike[str] | None,
+    wide: str | os.PathLike[str] | None,
+) -> PoseRecording:
     suffix = Path(path).suffix.lower()
     if wide is not None:
         return read_wide_csv(path, read_wide_spec(wide))
