@@ -221,3 +221,44 @@ def test_a_recording_without_a_valid_pose_is_refused(linkage_recording):
     empty = replace(linkage_recording, valid=np.zeros_like(linkage_recording.valid))
     with pytest.raises(InputError, match=r"x\.csv: no valid pose in 600 frame\(s\) of 6 sensor\(s\)"):
         check_plausible(empty, "x.csv")
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    from simbench.io.dataset import write_dataset
+    from simbench.sim.session import SessionConfig, run_session
+
+    path = tmp_path_factory.mktemp("ds") / "ok.h5"
+    write_dataset(path, run_session(SessionConfig(duration_s=1.0)))
+    return path
+
+
+def _drop_time(fh):
+    n = fh["time_s"].shape[0]
+    del fh["time_s"]
+    fh["time_s"] = [b"a"] * n
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (lambda fh: fh.__delitem__("measured"), "not a complete simbench dataset: missing /measured"),
+        (lambda fh: fh["measured"].__delitem__("p_w_s"), "missing dataset(s) /measured/p_w_s"),
+        (lambda fh: fh.attrs.__setitem__("meta", "{not json"), "the meta attribute is not JSON"),
+        (lambda fh: fh.attrs.__setitem__("meta", "[1, 2]"), "the meta attribute is not a JSON object"),
+        (_drop_time, "/time_s must be a 1-D array of numbers (seconds), got object"),
+    ],
+    ids=["no measured", "no positions", "meta not JSON", "meta a list", "time as strings"],
+)
+def test_a_damaged_dataset_is_named(capsys, tmp_path, small_dataset, damage, message):
+    import shutil
+
+    import h5py
+
+    path = tmp_path / "damaged.h5"
+    shutil.copy(small_dataset, path)
+    with h5py.File(path, "a") as fh:
+        damage(fh)
+    assert main(["calibrate", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"simbench: error: {path}: ") and message in err and len(err.splitlines()) == 1

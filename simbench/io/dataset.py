@@ -233,10 +233,10 @@ def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
 
 
 def _read_sensor_data(group: h5py.Group, path: Path) -> SensorData:
-    try:
-        return SensorData(**{x.name: group[x.name][()] for x in fields(SensorData)})
-    except KeyError as exc:
-        raise InputError(f"{path}: missing dataset {group.name}/{exc.args[0]}") from None
+    missing = [f"{group.name}/{x.name}" for x in fields(SensorData) if x.name not in group]
+    if missing:
+        raise InputError(f"{path}: missing dataset(s) {', '.join(missing)}")
+    return SensorData(**{x.name: group[x.name][()] for x in fields(SensorData)})
 
 
 def read_dataset(path: str | os.PathLike[str]) -> Dataset:
@@ -252,15 +252,34 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
         version = int(fh.attrs.get("format_version", 0))
         if version > FORMAT_VERSION:
             raise InputError(f"{path}: dataset format version {version} is newer than this simbench reads")
+        missing = [f"/{name}" for name in ("sensors", "time_s", "measured") if name not in fh]
+        missing += ["the meta attribute"] if "meta" not in fh.attrs else []
+        if missing:
+            raise InputError(f"{path}: not a complete simbench dataset: missing {', '.join(missing)}")
         try:
             meta = json.loads(fh.attrs["meta"])
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{path}: the meta attribute is not JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise InputError(f"{path}: the meta attribute is not a JSON object, got {type(meta).__name__}")
+        try:
             # format 1 files written before the typed field kept the factor in meta
             scale = float(fh.attrs.get("position_unit_scale", meta.pop("position_unit_scale", 1.0)))
-            sensors = tuple(s.decode() if isinstance(s, bytes) else str(s) for s in fh["sensors"][()])
-            time_s = fh["time_s"][()]
-            measured = _read_sensor_data(fh["measured"], path)
-        except KeyError as exc:
-            raise InputError(f"{path}: missing {exc.args[0]}") from None
+        except (TypeError, ValueError):
+            raise InputError(f"{path}: position_unit_scale is not a number") from None
+        sensors = tuple(
+            s.decode() if isinstance(s, bytes) else str(s) for s in np.atleast_1d(fh["sensors"][()])
+        )
+        time_s = fh["time_s"][()]
+        if not (
+            isinstance(time_s, np.ndarray) and time_s.ndim == 1 and np.issubdtype(time_s.dtype, np.number)
+        ):
+            kind = getattr(time_s, "dtype", type(time_s).__name__)
+            raise InputError(
+                f"{path}: /time_s must be a 1-D array of numbers (seconds), got {kind} of shape "
+                f"{getattr(time_s, 'shape', ())}"
+            )
+        measured = _read_sensor_data(fh["measured"], path)
         truth = None
         if "truth" in fh:
             g = fh["truth"]
