@@ -262,3 +262,17 @@ def test_a_damaged_dataset_is_named(capsys, tmp_path, small_dataset, damage, mes
     assert main(["calibrate", str(path)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"simbench: error: {path}: ") and message in err and len(err.splitlines()) == 1
+
+
+def test_implausibly_fine_time_steps_are_refused(capsys, tmp_path, linkage_recording):
+    """Time stamps 1e-14 s apart (a counter, or another unit): refused, asking about seconds."""
+    from dataclasses import replace
+
+    from simbench.io.poses import write_pose_csv
+
+    write_pose_csv(
+        tmp_path / "fine.csv", replace(linkage_recording, time_s=linkage_recording.time_s * 1.2e-12)
+    )
+    assert main(["calibrate", str(tmp_path / "fine.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "time steps of 1e-14 s" in err and "are the times in seconds?" in err

@@ -56,15 +56,28 @@ def read_poses(
 MAX_COORDINATE_M = 1e6
 
 
+#: The finest median time step of a recording, s: motion capture runs at hertz to kilohertz; a
+#: megahertz rate means times in another unit (or a counter), not seconds.
+MIN_STEP_S = 1e-6
+
+
 def check_plausible(rec: PoseRecording, path: str | os.PathLike[str]) -> PoseRecording:
-    """Refuse a recording nothing sensible can come from: no valid pose at all, or positions
-    beyond :data:`MAX_COORDINATE_M` (a corrupt value, or a unit far off).
+    """Refuse a recording nothing sensible can come from: no valid pose at all, a median time
+    step below :data:`MIN_STEP_S`, or positions beyond :data:`MAX_COORDINATE_M` (a corrupt
+    value, or a unit far off).
 
     Raises:
         InputError: naming the file, and the sensor and frame of the first far position.
     """
     if not rec.valid.any():
         raise InputError(f"{path}: no valid pose in {rec.n_frames} frame(s) of {len(rec.names)} sensor(s)")
+    if rec.n_frames > 1:
+        step = float(np.median(np.diff(rec.time_s)))
+        if step < MIN_STEP_S:
+            raise InputError(
+                f"{path}: time steps of {step:.3g} s (a rate of {1 / step:.3g} Hz; expected below "
+                f"{1 / MIN_STEP_S:g} Hz): are the times in seconds?"
+            )
     far = rec.valid & ~(np.abs(rec.p_w_s) <= MAX_COORDINATE_M).all(axis=2)
     if far.any():
         f, k = np.argwhere(far)[0]
