@@ -48,6 +48,12 @@ def study_file(tmp_path: Path, duration: float = 3.0, values: str = "[0.0, 8.0]"
     return path
 
 
+def sweep_command(path: Path, out: Path, workers: int) -> list[str]:
+    """``simbench sweep`` as a subprocess command line."""
+    command = [sys.executable, "-m", "simbench", "sweep", str(path), "--out", str(out)]
+    return [*command, "--workers", str(workers), "--no-progress"]
+
+
 def rows(table) -> list[dict]:
     out = table.to_pylist()
     for r in out:
@@ -75,18 +81,7 @@ def test_dask_local_cluster_gives_identical_rows(tmp_path):
 def test_killed_study_resumes_with_each_trial_once(tmp_path):
     path = study_file(tmp_path, duration=2.0, values="[0.0, 2.0, 4.0, 8.0]")  # 8 trials
     out = tmp_path / "out"
-    cmd = [
-        sys.executable,
-        "-m",
-        "simbench",
-        "sweep",
-        str(path),
-        "--out",
-        str(out),
-        "--workers",
-        "1",
-        "--no-progress",
-    ]
+    cmd = sweep_command(path, out, workers=1)
     proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     while time.time() < deadline and len(sw.finished(out)) < 2:
@@ -326,17 +321,7 @@ def _alive(pid: int) -> bool:
 def test_workers_die_with_a_killed_parent(tmp_path):
     """SIGKILL of the study's own process only (not its group): its pool workers die too."""
     path = study_file(tmp_path, duration=20.0, values="[0.0, 2.0, 4.0, 8.0]")
-    cmd = [
-        sys.executable,
-        "-m",
-        "simbench",
-        "sweep",
-        str(path),
-        "--out",
-        str(tmp_path / "out"),
-        "--workers",
-        "2",
-    ]
+    cmd = sweep_command(path, tmp_path / "out", workers=2)
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 60
     workers: set[int] = set()
