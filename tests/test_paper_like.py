@@ -11,7 +11,13 @@ from numpy.testing import assert_allclose
 
 from calibration.rotations import quat_to_matrix, rotvec_to_matrix
 from simbench.errors import InputError
-from simbench.experiments.obrien import LINKAGE_ROWS, explain, linkage_experiment, rigid_pair_scale
+from simbench.experiments.obrien import (
+    HUMANOID_ROWS,
+    LINKAGE_ROWS,
+    explain,
+    linkage_experiment,
+    rigid_pair_scale,
+)
 from simbench.experiments.paper_tables import TABLE_1, TABLE_4, difference_summary, side_by_side
 from simbench.score import truth_lengths
 from simbench.sim.models import load_capture_model
@@ -121,16 +127,7 @@ def test_female_subject_has_table_4_lengths():
     """``humanoid-female``'s joint-to-joint lengths are Table 4's measured ones."""
     ds = run_session(SessionConfig(model="humanoid-female", motion="static", duration_s=0.5, sensors="ideal"))
     lengths = {k[0]: v * 100 for k, v in truth_lengths(ds).items()}
-    rows = {
-        "Right Lower Leg": "shank_r",
-        "Left Lower Leg": "shank_l",
-        "Right Upper Leg": "thigh_r",
-        "Left Upper Leg": "thigh_l",
-        "Right Lower Arm": "forearm_r",
-        "Left Lower Arm": "forearm_l",
-        "Right Upper Arm": "upper_arm_r",
-        "Left Upper Arm": "upper_arm_l",
-    }
+    rows = {row: key[0] for row, key in HUMANOID_ROWS.items()}  # row -> segment
     for row, segment in rows.items():
         assert lengths[segment] == pytest.approx(TABLE_4.measured_cm[row], abs=1e-6), row
     assert sorted(VARIANTS) == ["humanoid-female"]

@@ -341,11 +341,7 @@ def check_study(study: Study) -> None:
         values = ", ".join(f"{k} = {v:g}" for k, v in trial.params) or "the base session"
         try:
             config = trial_config(study, trial)
-            sensors = (
-                config.sensors
-                if isinstance(config.sensors, SensorConfig)
-                else load_sensor_config(config.sensors)
-            )
+            sensors = config.sensors  # trial_config resolves the preset
             key = (config.model, repr(sensors.skin), sensors.joints.play_m)
             if key not in models:
                 models[key] = load_session_model(config)
