@@ -157,3 +157,108 @@ def test_bursty_note_reaches_every_recording_once():
     assert rec.notes[0] == "read by hand" and sum("bursts" in n for n in rec.notes) == 1
     again = PoseRecording(rec.names, rec.time_s, rec.R_w_s, rec.p_w_s, rec.valid, notes=rec.notes)
     assert again.notes == rec.notes  # built from a bursty recording's notes: not repeated
+
+
+def messy_csv(tmp_path, *, blank_lines=False, name="messy.csv"):
+    """Three sensors over 60 frames, rows shuffled within and across frames, with gaps, NaN rows,
+    off-norm quaternions, an extra column and CRLF line ends; optionally blank lines."""
+    rng = np.random.default_rng(11)
+    rows = []
+    for f in range(60):
+        for s in ("hip", "knee", "ankle"):
+            if rng.random() < 0.1:
+                continue  # a missing row
+            q = rng.normal(size=4)
+            q *= (1.0 + rng.choice([0.0, 0.01])) / np.linalg.norm(q)
+            x = rng.normal(size=3) * 100.0
+            if rng.random() < 0.05:
+                x[1] = np.nan
+            rows.append(",".join([repr(f / 120.0), s, *map(repr, map(float, [*x, *q])), "z"]))
+    order = np.argsort(np.arange(len(rows)) + rng.normal(0, 4, len(rows)))  # locally shuffled
+    lines = [HEADER.strip() + ",extra"] + [rows[k] for k in order]
+    if blank_lines:
+        lines = [line for row in lines for line in (row, "")]
+    return write(tmp_path, "\r\n".join(lines) + "\r\n", name)
+
+
+def same_recording(a, b):
+    assert a.names == b.names and a.notes == b.notes
+    assert np.array_equal(a.time_s, b.time_s) and np.array_equal(a.valid, b.valid)
+    assert np.array_equal(np.asarray(a.R_w_s), np.asarray(b.R_w_s), equal_nan=True)
+    assert np.array_equal(np.asarray(a.p_w_s), np.asarray(b.p_w_s), equal_nan=True)
+
+
+@pytest.mark.parametrize("in_memory", [True, False])
+def test_fast_and_exact_readers_agree_in_memory_and_on_disk(tmp_path, monkeypatch, in_memory):
+    """pyarrow's reader, the csv module's, arrays and the temporary HDF5 store all give the same
+    recording; small blocks and chunks put frames across block and slab boundaries."""
+    import h5py
+
+    from simbench.io import csv_blocks
+
+    path = messy_csv(tmp_path)
+    reference = read_pose_csv(path, units="mm", in_memory=True)
+    assert reference.valid.sum() > 100 and (~reference.valid).sum() > 5
+    assert any("off unit norm" in n for n in reference.notes)
+    monkeypatch.setattr(csv_blocks, "BLOCK_BYTES", 1 << 10)  # pyarrow's smallest useful block
+    monkeypatch.setattr(csv_blocks, "BLOCK_ROWS", 7)
+    monkeypatch.setattr(csv_blocks, "CHUNK_FRAMES", 4)
+    fast = read_pose_csv(path, units="mm", in_memory=in_memory)
+    assert isinstance(fast.R_w_s, np.ndarray if in_memory else h5py.Dataset)
+    same_recording(fast, reference)
+    exact = []
+    monkeypatch.setattr(
+        csv_blocks, "exact_blocks", lambda *a, f=csv_blocks.exact_blocks: exact.append(1) or f(*a)
+    )
+    read_pose_csv(path, in_memory=in_memory)
+    assert not exact  # the fast reader read the file
+    blank = read_pose_csv(
+        messy_csv(tmp_path, blank_lines=True, name="blank.csv"), units="mm", in_memory=in_memory
+    )
+    # blank lines send the file to the exact reader; only the line numbers in the notes differ
+    assert exact
+    assert blank.notes != reference.notes
+    same_recording(
+        blank,
+        PoseRecording(
+            *[getattr(reference, k) for k in ("names", "time_s", "R_w_s", "p_w_s", "valid")],
+            source=blank.source,
+            notes=blank.notes,
+        ),
+    )
+
+
+@pytest.mark.parametrize(
+    ("bad", "line", "message"),
+    [
+        ("0.25,knee,0,0,0,1,0,0,0", 41, r"sensor 'knee' appears twice at time 0.25 \(also on line 7\)"),
+        ("0.3,hip,0,0,0,0,0,0,0", 41, "zero quaternion"),
+        ("inf,hip,0,0,0,1,0,0,0", 41, "time is not finite"),
+        ("0.3, ,0,0,0,1,0,0,0", 41, "empty sensor name"),
+        ("0.3,hip,0,0,zero,1,0,0,0", 41, "column 'z' is not a number: 'zero'"),
+        ("0.3,hip,0,0,0,1,0,0", 41, "expected 9 fields, got 8"),
+    ],
+)
+def test_errors_deep_in_a_file_name_their_line_across_blocks(tmp_path, monkeypatch, bad, line, message):
+    from simbench.io import csv_blocks
+
+    monkeypatch.setattr(csv_blocks, "BLOCK_BYTES", 1 << 10)
+    monkeypatch.setattr(csv_blocks, "BLOCK_ROWS", 5)
+    rows = [f"{f / 8!r},{s},0,0,0,1,0,0,0" for f in range(20) for s in ("hip", "knee")]
+    rows.insert(line - 2, bad)
+    path = write(tmp_path, HEADER + "\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=rf"line {line}: {message}"):
+        read_pose_csv(path, in_memory=False)
+
+
+def test_calibration_of_a_recording_on_disk_equals_in_memory(linkage_noisy, tmp_path):
+    from simbench.api import calibrate
+
+    path = tmp_path / "poses.csv"
+    write_pose_csv(path, recording(linkage_noisy))
+    disk, memory = read_pose_csv(path, in_memory=False), read_pose_csv(path, in_memory=True)
+    a, b = calibrate(disk), calibrate(memory)
+    assert a.parent_of == b.parent_of and len(a.joints) == 5
+    for ja, jb in zip(a.joints, b.joints, strict=True):
+        assert np.array_equal(ja.fit.joint_in_parent, jb.fit.joint_in_parent)
+        assert np.array_equal(ja.fit.frame_residual, jb.fit.frame_residual)

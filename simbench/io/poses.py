@@ -29,16 +29,14 @@ import csv
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 
-from calibration.rotations import UNIT_TOLERANCE, matrix_to_quat, quat_to_matrix
+from calibration.rotations import matrix_to_quat
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_open
+from simbench.io.csv_blocks import CSV_COLUMNS, read_table
 from simbench.units import metres_per_unit
-
-CSV_COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
 
 #: A step shorter than this fraction of the mean step is part of a burst.
 BURST_STEP = 0.1
@@ -73,47 +71,6 @@ def sample_rate(time_s: np.ndarray) -> tuple[float, str | None]:
         f"{1.0 / np.median(step):.4g} Hz); rate taken from the sample count over the span: {rate:.4g} Hz"
     )
     return float(rate), note
-
-
-class _Text:
-    """A text file's lines for ``csv.reader``; bytes that are not UTF-8 are an InputError naming
-    the file and line (a binary file, or Latin-1 text, named ``.csv``)."""
-
-    def __init__(self, path: Path, fh: TextIO) -> None:
-        self._path, self._fh, self._line = path, fh, 0
-
-    def __enter__(self) -> _Text:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._fh.close()
-
-    def __iter__(self) -> _Text:
-        return self
-
-    def __next__(self) -> str:
-        try:
-            line = next(self._fh)
-        except UnicodeDecodeError as exc:
-            raise InputError(  # no line number: the file is decoded a block at a time
-                f"{self._path}: expected UTF-8 text, got byte 0x{exc.object[exc.start]:02x} after line "
-                f"{self._line} (a binary file, or another encoding: save it as UTF-8)"
-            ) from None
-        self._line += 1
-        if "\0" in line:
-            raise InputError(
-                f"{self._path}, line {self._line}: expected text, got a NUL byte (a binary file?)"
-            )
-        return line
-
-
-def open_csv(path: Path) -> _Text:
-    """Open a text table for ``csv.reader`` (UTF-8, a byte-order mark allowed); a missing or
-    unreadable file, or one that is not UTF-8 text, is an InputError."""
-    try:
-        return _Text(path, path.open(newline="", encoding="utf-8-sig"))
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
 
 
 @dataclass(frozen=True)
@@ -168,141 +125,37 @@ class PoseRecording:
         return sample_rate(self.time_s)[0]
 
 
-def _fail(path: str | os.PathLike[str], line: int | None, message: str) -> InputError:
-    where = f"{path}" if line is None else f"{path}, line {line}"
-    return InputError(f"{where}: {message}")
-
-
-def read_pose_csv(path: str | os.PathLike[str], *, units: str = "m") -> PoseRecording:
-    """Read a pose CSV (see the module docstring).
+def read_pose_csv(
+    path: str | os.PathLike[str], *, units: str = "m", in_memory: bool | None = None
+) -> PoseRecording:
+    """Read a pose CSV (see the module docstring), streaming: memory holds one block of rows
+    and the ``(frames, sensors)`` flags, not the file (:mod:`simbench.io.csv_blocks`).
 
     Args:
         path: the file.
         units: length unit of the file's positions; converted to metres.
+        in_memory: poses in arrays (True), or in an unlinked temporary HDF5 file read a chunk
+            at a time (False; then ``R_w_s`` and ``p_w_s`` are h5py datasets); ``None`` chooses
+            by size (:data:`~simbench.io.csv_blocks.IN_MEMORY_BYTES`).
 
     Raises:
         InputError: naming the file, line and problem.
     """
     scale = metres_per_unit(units)
     path = Path(path)
-    with open_csv(path) as fh:
-        reader = csv.reader(fh)
-        header = None
-        for row in reader:
-            if any(cell.strip() for cell in row):
-                header = [cell.strip() for cell in row]
-                break
-        if header is None:
-            raise _fail(path, None, f"the file is empty; expected a header {','.join(CSV_COLUMNS)}")
-        missing = [c for c in CSV_COLUMNS if c not in header]
-        if missing:
-            raise _fail(
-                path,
-                reader.line_num,
-                f"missing columns {missing}; expected {','.join(CSV_COLUMNS)}, got {','.join(header)}",
-            )
-        repeated = sorted({c for c in header if header.count(c) > 1 and c in CSV_COLUMNS})
-        if repeated:
-            raise _fail(path, reader.line_num, f"columns repeated in the header: {repeated}")
-        col = [header.index(c) for c in CSV_COLUMNS]
-        times: list[float] = []
-        sensors: list[str] = []
-        values: list[list[float]] = []
-        lines: list[int] = []
-        for row in reader:
-            if not any(cell.strip() for cell in row):
-                continue
-            line = reader.line_num
-            if len(row) != len(header):
-                raise _fail(path, line, f"expected {len(header)} fields, got {len(row)}")
-            name = row[col[1]].strip()
-            if not name:
-                raise _fail(path, line, "empty sensor name")
-            nums = []
-            for c, k in zip(CSV_COLUMNS, col, strict=True):
-                if c == "sensor":
-                    continue
-                try:
-                    nums.append(float(row[k]))
-                except ValueError:
-                    raise _fail(path, line, f"column {c!r} is not a number: {row[k]!r}") from None
-            if not np.isfinite(nums[0]):
-                raise _fail(path, line, f"time is not finite: {row[col[0]]!r}")
-            times.append(nums[0])
-            sensors.append(name)
-            values.append(nums[1:])
-            lines.append(line)
-    if not times:
-        raise _fail(path, None, "no data rows after the header")
-    return _assemble(path, np.array(times), sensors, np.array(values), np.array(lines), scale, units)
-
-
-def _assemble(
-    path: Path,
-    times: np.ndarray,
-    sensors: list[str],
-    values: np.ndarray,
-    lines: np.ndarray,
-    scale: float,
-    units: str,
-) -> PoseRecording:
-    """Arrange parsed rows ``(rows, 7)`` = ``x, y, z, qw, qx, qy, qz`` into frames x sensors."""
-    names = tuple(dict.fromkeys(sensors))
-    s_idx = _index(names, sensors)
-    frame_times, t_idx = np.unique(times, return_inverse=True)
-    n_frames, n = len(frame_times), len(names)
-    key = t_idx * n + s_idx
-    order = np.argsort(key, kind="stable")
-    dup = np.flatnonzero(np.diff(key[order]) == 0)
-    if dup.size:
-        a, b = lines[order[dup[0]]], lines[order[dup[0] + 1]]
-        raise _fail(
-            path,
-            int(b),
-            f"sensor {sensors[order[dup[0]]]!r} appears twice at time "
-            f"{float(times[order[dup[0]]])!r} (also on line {a}); {dup.size} duplicate row(s) in all",
-        )
-    notes: list[str] = []
-    q = values[:, 3:]
-    finite = np.isfinite(values).all(axis=1)
-    qnorm = np.linalg.norm(q, axis=1)
-    zero = finite & (qnorm == 0.0)
-    if zero.any():
-        raise _fail(
-            path, int(lines[np.flatnonzero(zero)[0]]), f"zero quaternion ({int(zero.sum())} in the file)"
-        )
-    off = finite & (np.abs(qnorm - 1.0) > UNIT_TOLERANCE)
-    if off.any():
-        worst = int(np.argmax(np.where(off, np.abs(qnorm - 1.0), -1.0)))
-        notes.append(
-            f"{int(off.sum())} quaternion(s) off unit norm by more than {UNIT_TOLERANCE:g} were "
-            f"normalised (worst |q| = {qnorm[worst]:.6g} on line {int(lines[worst])})"
-        )
-    R = np.full((n_frames, n, 3, 3), np.nan)
-    p = np.full((n_frames, n, 3), np.nan)
-    valid = np.zeros((n_frames, n), dtype=bool)
-    R[t_idx[finite], s_idx[finite]] = quat_to_matrix(q[finite])
-    p[t_idx[finite], s_idx[finite]] = values[finite, :3] * scale
-    valid[t_idx[finite], s_idx[finite]] = True
-    present = np.zeros((n_frames, n), dtype=bool)
-    present[t_idx, s_idx] = True
-    for k, name in enumerate(names):
-        absent = int(n_frames - present[:, k].sum())
-        bad = int(present[:, k].sum() - valid[:, k].sum())
-        if absent:
-            notes.append(f"sensor {name}: no row in {absent} of {n_frames} frames (treated as missing)")
-        if bad:
-            notes.append(f"sensor {name}: {bad} row(s) with NaN or inf values (treated as missing)")
-    if units != "m":
-        notes.append(f"positions read in {units} and converted to metres")
-    return PoseRecording(
-        names=names, time_s=frame_times, R_w_s=R, p_w_s=p, valid=valid, source=str(path), notes=tuple(notes)
+    table = read_table(path, scale, in_memory=in_memory)
+    notes = (
+        table.notes if units == "m" else (*table.notes, f"positions read in {units} and converted to metres")
     )
-
-
-def _index(names: tuple[str, ...], sensors: list[str]) -> np.ndarray:
-    lookup = {name: k for k, name in enumerate(names)}
-    return np.array([lookup[s] for s in sensors])
+    return PoseRecording(
+        names=table.names,
+        time_s=table.time_s,
+        R_w_s=table.R_w_s,
+        p_w_s=table.p_w_s,
+        valid=table.valid,
+        source=str(path),
+        notes=notes,
+    )
 
 
 def write_pose_csv(

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calibration.poses import CHUNK_FRAMES
 from simbench.errors import InputError
 from simbench.io.c3d import c3d_poses, read_cluster_spec
 from simbench.io.dataset import FORMAT as DATASET_FORMAT
@@ -78,7 +79,12 @@ def check_plausible(rec: PoseRecording, path: str | os.PathLike[str]) -> PoseRec
                 f"{path}: time steps of {step:.3g} s (a rate of {1 / step:.3g} Hz; expected below "
                 f"{1 / MIN_STEP_S:g} Hz): are the times in seconds?"
             )
-    far = rec.valid & ~(np.abs(rec.p_w_s) <= MAX_COORDINATE_M).all(axis=2)
+    far = np.zeros(rec.valid.shape, dtype=bool)
+    for start in range(0, rec.n_frames, CHUNK_FRAMES):  # the positions may be larger than memory
+        frames = slice(start, start + CHUNK_FRAMES)
+        far[frames] = rec.valid[frames] & ~(np.abs(np.asarray(rec.p_w_s[frames])) <= MAX_COORDINATE_M).all(
+            axis=2
+        )
     if far.any():
         f, k = np.argwhere(far)[0]
         size = np.abs(rec.p_w_s[f, k]).max()

@@ -32,7 +32,8 @@ import numpy as np
 from calibration.rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_open
-from simbench.io.poses import PoseRecording, open_csv
+from simbench.io.csv_blocks import open_csv
+from simbench.io.poses import PoseRecording
 from simbench.units import metres_per_unit
 
 
