@@ -114,8 +114,10 @@ def block_jackknife(
         w = (ok[:, parent] & ok[:, child]).astype(float)  # (c, J)
         A = np.concatenate([R[:, parent], -R[:, child]], axis=-1) * w[..., None, None]  # (c, J, 3, 6)
         b = p[:, child] - p[:, parent]
-        ata += np.einsum("fb,fjki,fjkl->bjil", onehot, A, A)
-        atb += np.einsum("fb,fjki,fjk->bji", onehot, A, b)
+        At = A.swapaxes(-1, -2)  # (c, J, 6, 3)
+        # each frame's normal equations, summed into its block by one product with the one-hot
+        ata += (onehot.T @ (At @ A).reshape(frames.stop - frames.start, -1)).reshape(ata.shape)
+        atb += (onehot.T @ (At @ b[..., None]).reshape(frames.stop - frames.start, -1)).reshape(atb.shape)
     full_ata, full_atb = ata.sum(axis=0), atb.sum(axis=0)
     out = np.full(n_j, np.nan)
     for k in range(n_j):

@@ -33,6 +33,10 @@ from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 #: third difference of white noise over the noise's own variance.
 THIRD_DIFFERENCE_GAIN = 20.0
 
+#: Bytes of residuals worked on at a time (a chunk of frames is cut shorter when many pairs are
+#: asked for).
+WORK_BYTES = 4 << 20
+
 
 def pair_noise_variance(
     R_w_s: Any,
@@ -68,21 +72,25 @@ def pair_noise_variance(
     child = np.asarray(child, dtype=np.int64)
     n_pairs = parent.shape[0]
     rot, pos = residual_operators(n, parent, child, joint_in_parent, joint_in_child)
-    sum_xyz = np.kron(np.eye(n_pairs), np.ones((3, 1)))  # (3P, P): adds each pair's x, y, z
+    # every pair of 32 sensors is 1,488 residual columns: a chunk's work arrays stay near
+    # WORK_BYTES however many pairs there are
+    chunk_frames = max(16, min(chunk_frames, WORK_BYTES // (24 * max(n_pairs, 1))))
     total = np.zeros(n_pairs)
     used = np.zeros(n_pairs)
     carry: tuple[np.ndarray, np.ndarray] | None = None  # residuals and validity of the last 3 frames
     for _, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         c = R.shape[0]
-        e = R.reshape(c, 9 * n) @ rot + p.reshape(c, 3 * n) @ pos  # (c, 3P)
+        e = R.reshape(c, 9 * n) @ rot
+        e += p.reshape(c, 3 * n) @ pos  # (c, 3P)
         both = ok[:, parent] & ok[:, child]  # (c, P)
         if carry is not None:
             e, both = np.concatenate([carry[0], e]), np.concatenate([carry[1], both])
         if e.shape[0] >= 4:
             d3 = np.diff(e, n=3, axis=0)
-            sq = np.square(d3, out=d3) @ sum_xyz  # (c - 3, P)
+            sq = np.square(d3, out=d3).reshape(-1, n_pairs, 3).sum(axis=2)  # (c - 3, P)
             usable = both[:-3] & both[1:-2] & both[2:-1] & both[3:]
-            total += np.where(usable, sq, 0.0).sum(axis=0)
+            sq[~usable] = 0.0
+            total += sq.sum(axis=0)
             used += usable.sum(axis=0)
         carry = (e[-3:], both[-3:])
     return np.where(used > 0, total / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0)
