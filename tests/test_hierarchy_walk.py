@@ -151,7 +151,7 @@ def test_pair_noise_recovers_white_noise(exact_linkage):
     np.testing.assert_allclose(sol.rms_residual**2 - nu, 0.0, atol=0.1 * expected.max())
 
 
-def test_pair_noise_same_over_chunks_and_missing_frames(exact_linkage):
+def test_pair_noise_same_over_chunks_pair_groups_and_missing_frames(exact_linkage, monkeypatch):
     cap = exact_linkage
     p = cap.p_w_s + np.random.default_rng(9).normal(scale=0.004, size=cap.p_w_s.shape)
     valid = np.ones(p.shape[:2], dtype=bool)
@@ -162,6 +162,9 @@ def test_pair_noise_same_over_chunks_and_missing_frames(exact_linkage):
     args = (cap.R_w_s, p, par, chi, sol.joint_in_parent, sol.joint_in_child)
     whole = pair_noise_variance(*args, valid=valid, chunk_frames=10_000)
     np.testing.assert_allclose(pair_noise_variance(*args, valid=valid, chunk_frames=7), whole, rtol=1e-12)
+    np.testing.assert_allclose(pair_noise_variance(*args, valid=valid, chunk_frames=2), whole, rtol=1e-12)
+    monkeypatch.setattr("calibration.pair_noise.WORK_BYTES", 1)  # one pair at a time
+    np.testing.assert_allclose(pair_noise_variance(*args, valid=valid, chunk_frames=1000), whole, rtol=1e-12)
     # a loop over the frames as reference: third differences where all four frames are valid
     for k in range(len(par)):
         a, b = par[k], chi[k]

@@ -45,7 +45,7 @@ CSV_COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
 BLOCK_BYTES = 1 << 16
 
 #: Rows per block (pyarrow's batches are gathered into blocks this long).
-BLOCK_ROWS = 1 << 16
+BLOCK_ROWS = 1 << 14
 
 #: Poses (``R`` and ``p``, float64) up to this size are held in memory; larger recordings are
 #: written to an unlinked temporary HDF5 file and read back a chunk at a time.
