@@ -109,15 +109,15 @@ def block_jackknife(
     ata = np.zeros((n_blocks, n_j, 6, 6))
     atb = np.zeros((n_blocks, n_j, 6))
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
-        block = np.arange(frames.start, frames.stop) * n_blocks // n_frames
-        onehot = (block[:, None] == np.arange(n_blocks)).astype(float)
+        block = np.arange(frames.start, frames.stop) * n_blocks // n_frames  # non-decreasing
+        starts = np.flatnonzero(np.r_[True, block[1:] != block[:-1]])
         w = (ok[:, parent] & ok[:, child]).astype(float)  # (c, J)
         A = np.concatenate([R[:, parent], -R[:, child]], axis=-1) * w[..., None, None]  # (c, J, 3, 6)
+        At = A.swapaxes(-1, -2)
         b = p[:, child] - p[:, parent]
-        At = A.swapaxes(-1, -2)  # (c, J, 6, 3)
-        # each frame's normal equations, summed into its block by one product with the one-hot
-        ata += (onehot.T @ (At @ A).reshape(frames.stop - frames.start, -1)).reshape(ata.shape)
-        atb += (onehot.T @ (At @ b[..., None]).reshape(frames.stop - frames.start, -1)).reshape(atb.shape)
+        # each frame's normal equations, summed over the runs of frames of one block
+        ata[block[starts]] += np.add.reduceat(At @ A, starts, axis=0)
+        atb[block[starts]] += np.add.reduceat((At @ b[..., None])[..., 0], starts, axis=0)
     full_ata, full_atb = ata.sum(axis=0), atb.sum(axis=0)
     out = np.full(n_j, np.nan)
     for k in range(n_j):

@@ -66,46 +66,62 @@ def pair_noise_variance(
         ``(P,)`` noise variance of the 3-D residual (the expected ``|e|^2`` noise adds), in the
         unit of ``p_w_s`` squared; 0 for a pair with no four consecutive valid frames.
     """
-    check_poses(R_w_s, p_w_s, valid)
+    _, n = check_poses(R_w_s, p_w_s, valid)
     parent = np.asarray(parent, dtype=np.int64)
     child = np.asarray(child, dtype=np.int64)
     n_pairs = parent.shape[0]
-    lp = np.asarray(joint_in_parent, dtype=float).reshape(n_pairs, 3, 1)
-    lc = np.asarray(joint_in_child, dtype=float).reshape(n_pairs, 3, 1)
+    rotated = _Rotated(n, parent, child, joint_in_parent, joint_in_child)
+    # frames a slice at a time, so that the work arrays stay near WORK_BYTES however many pairs
+    # (the 496 pairs of 32 sensors are 1,488 residual components a frame)
+    step = max(4, WORK_BYTES // (24 * max(n_pairs, 1)))
     total = np.zeros(n_pairs)
     used = np.zeros(n_pairs)
     carry: tuple[np.ndarray, np.ndarray] | None = None  # residuals and validity of the last 3 frames
-    for _, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
-        c = R.shape[0]
-        e_last, both_last = np.empty((min(c, 3), n_pairs, 3)), np.empty((min(c, 3), n_pairs), dtype=bool)
-        # pairs a group at a time, so that the work arrays stay near WORK_BYTES (the pairs of
-        # 32 sensors are 496, their rotations 36 MB a chunk)
-        group = max(1, WORK_BYTES // (72 * c))
-        for k in range(0, n_pairs, group):
-            ks = slice(k, k + group)
-            pa, ch = parent[ks], child[ks]
-            # O'Brien eq. 8 for each pair: R_p l_p + p_p - R_c l_c - p_c, (c, pairs, 3)
-            e = (R[:, pa] @ lp[ks])[..., 0]
-            e -= (R[:, ch] @ lc[ks])[..., 0]
-            e += p[:, pa]
-            e -= p[:, ch]
-            both = ok[:, pa] & ok[:, ch]
-            e_last[:, ks], both_last[:, ks] = e[-3:], both[-3:]
+    for _, R_chunk, p_chunk, ok_chunk in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        for start in range(0, R_chunk.shape[0], step):
+            R, p, ok = (x[start : start + step] for x in (R_chunk, p_chunk, ok_chunk))
+            e = rotated(R)  # O'Brien eq. 8 for each pair: R_p l_p + p_p - R_c l_c - p_c, (c, P, 3)
+            e += p[:, parent]
+            e -= p[:, child]
+            both = ok[:, parent] & ok[:, child]  # (c, P)
             if carry is not None:
-                e, both = np.concatenate([carry[0][:, ks], e]), np.concatenate([carry[1][:, ks], both])
+                e, both = np.concatenate([carry[0], e]), np.concatenate([carry[1], both])
             if e.shape[0] >= 4:
                 d3 = np.diff(e, n=3, axis=0)
-                sq = np.square(d3, out=d3).sum(axis=2)  # (frames - 3, pairs)
+                sq = np.square(d3, out=d3).sum(axis=2)  # (c - 3, P)
                 usable = both[:-3] & both[1:-2] & both[2:-1] & both[3:]
                 sq[~usable] = 0.0
-                total[ks] += sq.sum(axis=0)
-                used[ks] += usable.sum(axis=0)
-        carry = (e_last, both_last) if carry is None or c >= 3 else _last_three(carry, e_last, both_last)
+                total += sq.sum(axis=0)
+                used += usable.sum(axis=0)
+            carry = (e[-3:], both[-3:])
     return np.where(used > 0, total / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0)
 
 
-def _last_three(
-    carry: tuple[np.ndarray, np.ndarray], e: np.ndarray, both: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The last three frames of the carry followed by a chunk shorter than three frames."""
-    return np.concatenate([carry[0], e])[-3:], np.concatenate([carry[1], both])[-3:]
+class _Rotated:
+    """``R_p l_p - R_c l_c`` of every pair from a slice of rotations: one matrix product per
+    sensor and side (its rotation times the centres of all its pairs), never the products of a
+    dense operator that is almost all zeros."""
+
+    def __init__(
+        self,
+        n: int,
+        parent: np.ndarray,
+        child: np.ndarray,
+        joint_in_parent: np.ndarray,
+        joint_in_child: np.ndarray,
+    ) -> None:
+        lp = np.asarray(joint_in_parent, dtype=float).reshape(-1, 3)
+        lc = np.asarray(joint_in_child, dtype=float).reshape(-1, 3)
+        self.n_pairs = parent.size
+        self.terms = []  # (sensor, pairs, (3, m) centres with their sign)
+        for s in range(n):
+            for pairs, centres, sign in ((parent == s, lp, 1.0), (child == s, lc, -1.0)):
+                if pairs.any():
+                    self.terms.append((s, np.flatnonzero(pairs), sign * centres[pairs].T))
+
+    def __call__(self, R: np.ndarray) -> np.ndarray:
+        c = R.shape[0]
+        out = np.zeros((c, self.n_pairs, 3))
+        for s, pairs, centres in self.terms:
+            out[:, pairs] += (R[:, s].reshape(3 * c, 3) @ centres).reshape(c, 3, -1).transpose(0, 2, 1)
+        return out

@@ -106,6 +106,16 @@ def test_jackknife_error_matches_the_normal_equations_on_white_noise():
     assert se == pytest.approx(expected, rel=0.5)
 
 
+def test_jackknife_is_the_same_over_chunks_that_cut_blocks_and_missing_frames():
+    R, p, _, _ = two_segments(30.0, seed=5, artefact_m=0.002)
+    valid = np.random.default_rng(5).random(p.shape[:2]) > 0.05
+    args = (R, p, np.array([0]), np.array([1]), np.array([6]))
+    whole = block_jackknife(*args, valid=valid, chunk_frames=R.shape[0])
+    assert np.isfinite(whole).all() and whole[0] > 0
+    for chunk in (7, 333):  # chunks that end inside blocks, and blocks inside chunks
+        np.testing.assert_allclose(block_jackknife(*args, valid=valid, chunk_frames=chunk), whole, rtol=1e-9)
+
+
 def test_residual_outlier_test_is_a_ratio_test():
     r = np.array([5.0, 6.0, 4.5, 5.5, 50.0])
     for scale in (1.0, 1e-3, 39.37):
