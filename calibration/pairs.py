@@ -351,7 +351,8 @@ def frame_residuals(
     sum_xyz = np.kron(np.eye(n_joints), np.ones((3, 1)))  # (3J, J): adds each joint's x, y, z
     total = np.zeros(n_joints)
     used = np.zeros(n_joints)
-    per_frame = np.full((n_frames, n_joints), np.nan) if keep_frames else None
+    # joint-major, so that each joint's series is one contiguous row (calibrate hands out views)
+    per_frame = np.full((n_joints, n_frames), np.nan) if keep_frames else None
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         c = R.shape[0]
         r = R.reshape(c, 9 * n) @ rot
@@ -366,10 +367,10 @@ def frame_residuals(
             total += np.where(both, sq, 0.0).sum(axis=0)
             used += both.sum(axis=0)
         if per_frame is not None:
-            per_frame[frames] = np.sqrt(sq)
+            per_frame[:, frames] = np.sqrt(sq).T
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.where(used > 0, np.sqrt(total / np.maximum(used, 1)), np.nan)
-    return rms, per_frame
+    return rms, None if per_frame is None else per_frame.T
 
 
 def pair_fit_spectrum(sol: PairSolutions, k: int, single_axis_ratio: float = SINGLE_AXIS_RATIO) -> Spectrum:

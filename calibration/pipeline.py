@@ -349,13 +349,15 @@ def _joint(
     n_frames: int,
     single_axis_ratio: float,
 ) -> Joint:
-    """Joint ``k`` of the solved batch, with its spectrum read and its own copies of the arrays."""
+    """Joint ``k`` of the solved batch, with its spectrum read, its own copies of the small arrays
+    and a view of its per-frame residuals."""
     spec = pair_fit_spectrum(sol, k, single_axis_ratio)
     fit = JointFit(
         joint_in_parent=sol.joint_in_parent[k].copy(),
         joint_in_child=sol.joint_in_child[k].copy(),
         rms_residual=float(rms[k]),
-        frame_residual=None if per_frame is None else per_frame[:, k].copy(),
+        # a view: each joint's row of one joint-major array (a copy would double frames x joints)
+        frame_residual=None if per_frame is None else per_frame[:, k],
         singular_values=sol.singular_values[k].copy(),
         rank=spec.rank,
         single_axis=spec.single_axis,
