@@ -4,8 +4,6 @@ the base session's defaults, the error when the optional packages are missing, t
 from __future__ import annotations
 
 import contextlib
-import os
-import signal
 import subprocess
 import sys
 import time
@@ -76,28 +74,6 @@ def test_dask_local_cluster_gives_identical_rows(tmp_path):
     with sw.local_dask_executor(2) as executor:  # two worker processes over loopback TCP
         dask = sw.run_study(study, tmp_path / "dask", executor=executor)
     assert rows(dask) == rows(local)
-
-
-def test_killed_study_resumes_with_each_trial_once(tmp_path):
-    path = study_file(tmp_path, duration=2.0, values="[0.0, 2.0, 4.0, 8.0]")  # 8 trials
-    out = tmp_path / "out"
-    cmd = sweep_command(path, out, workers=1)
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
-    while time.time() < deadline and len(sw.finished(out)) < 2:
-        time.sleep(0.05)
-    os.killpg(proc.pid, signal.SIGKILL)  # the study and its worker, mid-way
-    proc.wait()
-    partial = sw.finished(out)
-    assert 2 <= len(partial) < 8
-    assert not list((out / "trials").glob(".*.tmp"))  # no half-written trial survives
-    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    assert done.returncode == 0, done.stderr
-    table = sw.gather(out)
-    ids = table.column("trial").to_pylist()
-    assert len(ids) == 8 and len(set(ids)) == 8
-    fresh = sw.run_study(st.load_study(path), tmp_path / "fresh", workers=2)
-    assert rows(table) == rows(fresh)
 
 
 def test_error_grows_with_noise(tmp_path):

@@ -39,8 +39,12 @@ class Terminated(BaseException):
     """SIGTERM, raised where the program is so that ``finally`` blocks (temporary files) run."""
 
 
-def _terminate(signum: int, frame: object) -> None:
-    raise Terminated
+def _interrupted(signum: int, frame: object) -> None:
+    """The first SIGINT or SIGTERM: ignore both from now on (a second one would interrupt the
+    cleanup it starts: workers stopped, temporary files removed) and raise."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
 
 
 def _one_line(exc: BaseException) -> str:
@@ -55,7 +59,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     terminated (SIGTERM; temporary files are removed on the way out)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = {sig: signal.signal(sig, _interrupted) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         return int(args.func(args))
     except Terminated:
@@ -81,7 +85,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return 2
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 __all__ = ["build_parser", "main"]

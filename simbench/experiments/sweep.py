@@ -19,7 +19,7 @@ import json
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, as_completed
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -183,6 +183,10 @@ def run_study(
     edited one, another simbench version) is refused unless ``force``, which removes its trials
     and starts over.
 
+    Interrupted (Ctrl-C, SIGTERM) or stopped by a failed trial, it runs nothing more: the default
+    pool's workers are killed at once, no file is left half-written, and the trials written so
+    far are kept for the next call.
+
     Args:
         study: the study.
         out: output folder (created); finished trials there are skipped.
@@ -203,17 +207,20 @@ def run_study(
     every = trials(study)
     done = finished(out)
     todo = [t for t in every if t.trial_id not in done][:limit]
-    own = executor is None
-    if executor is None:
-        executor = worker_pool(workers)
     count = len(done)
-    try:
-        for fut in as_completed([executor.submit(run_trial, study, t) for t in todo]):
-            _write_row(out, fut.result())
-            count += 1
-            if progress:
-                progress(count, len(every))
-    finally:
-        if own:
-            executor.shutdown(cancel_futures=True)
+    with worker_pool(workers) if executor is None else nullcontext(executor) as pool:
+        futures = []
+        try:
+            for trial in todo:
+                futures.append(pool.submit(run_trial, study, trial))
+            for fut in as_completed(futures):
+                _write_row(out, fut.result())
+                count += 1
+                if progress:
+                    progress(count, len(every))
+        except BaseException:  # Ctrl-C, SIGTERM, a failed trial: run no more (own pool: killed)
+            if pool is executor:
+                for fut in futures:
+                    fut.cancel()
+            raise
     return gather(out)

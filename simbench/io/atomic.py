@@ -2,9 +2,11 @@
 
 Output goes to a temporary file in the destination's folder, is flushed to disk, and replaces
 the destination in one ``os.replace``; if anything fails the temporary file is removed and the
-destination is left as it was. A process killed outright (SIGKILL) cannot remove its temporary
-file: each one's name carries its writer's process id, ``.NAME.<pid>.<random>.tmp``, and the next
-write of ``NAME`` removes those whose writer is no longer running.
+destination is left as it was. That includes Ctrl-C (``KeyboardInterrupt``) and SIGTERM, which
+:func:`simbench.cli.main` raises as an exception for this reason. A process killed outright
+(SIGKILL) cannot remove its temporary file: each one's name carries its writer's process id,
+``.NAME.<pid>.<random>.tmp``, and the next write of ``NAME`` removes those whose writer is no
+longer running.
 """
 
 from __future__ import annotations
@@ -57,15 +59,15 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     if not folder.is_dir():
         raise InputError(f"cannot write {dest}: folder {folder} does not exist")
     sweep_stale(dest)
+    umask = os.umask(0)
+    os.umask(umask)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.{os.getpid()}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise InputError(f"cannot write {dest}: {exc.strerror}") from exc
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
-    try:
+    try:  # from here on, any exception (Ctrl-C, SIGTERM as simbench.cli raises it) removes tmp
+        os.close(fd)
+        os.chmod(tmp, 0o666 & ~umask)
         yield Path(tmp)
         with open(tmp, "rb+") as fh:  # the writer has closed it: flush it to disk, then swap
             os.fsync(fh.fileno())
