@@ -13,14 +13,25 @@ class InputError(ValueError):
 
 
 def load_toml(path) -> dict:
-    """Parse a TOML file; a missing file or bad TOML is an :class:`InputError` naming the file."""
+    """Parse a TOML file; a missing file, one that is not UTF-8 text or bad TOML is an
+    :class:`InputError` naming the file."""
     path = Path(path)
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: {not_utf8(exc)}") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+
+
+def not_utf8(exc: UnicodeDecodeError) -> str:
+    """What a :class:`UnicodeDecodeError` means to the user: the byte and where it is."""
+    return (
+        f"expected UTF-8 text, got byte 0x{exc.object[exc.start]:02x} at byte {exc.start} (a binary file, "
+        "or another encoding: save it as UTF-8)"
+    )
 
 
 def optional_module(name: str, extra: str, feature: str) -> ModuleType:

@@ -262,3 +262,11 @@ def test_calibration_of_a_recording_on_disk_equals_in_memory(linkage_noisy, tmp_
     for ja, jb in zip(a.joints, b.joints, strict=True):
         assert np.array_equal(ja.fit.joint_in_parent, jb.fit.joint_in_parent)
         assert np.array_equal(ja.fit.frame_residual, jb.fit.frame_residual)
+
+
+def test_quaternions_far_from_unit_norm_are_normalised_without_overflow(tmp_path):
+    text = HEADER + "0,a,0,0,0,1e200,0,0,0\n0,b,0,0,0,0,1e-320,0,0\n"  # |q| beyond and below float64
+    rec = read_pose_csv(write(tmp_path, text))
+    assert_allclose(rec.R_w_s[0, 0], np.eye(3), atol=1e-15)
+    assert_allclose(rec.R_w_s[0, 1], np.diag([1.0, -1.0, -1.0]), atol=1e-15)  # 180 deg about x
+    assert "2 quaternion(s) off unit norm" in rec.notes[0] and "1e+200 on line 2" in rec.notes[0]

@@ -39,8 +39,12 @@ def cmd_baseline(args: argparse.Namespace) -> int:
     Returns 0 when no figure got worse than the tolerance (or after ``--update``), 1 otherwise.
     """
     path = Path(args.file) if args.file else BASELINE_FILE
-    current = compute()
     if args.update:
+        if not path.resolve().parent.is_dir():
+            raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+        if path.is_dir():
+            raise InputError(f"cannot write {path}: it is a folder")
+        current = compute()
         try:
             old = load_baseline(path)
         except InputError:
@@ -51,7 +55,9 @@ def cmd_baseline(args: argparse.Namespace) -> int:
         print(f"simbench baseline --update: wrote {path}")
         print("\n".join(f"  {line}" for line in changes) if changes else "  no change")
         return 0
-    problems = compare(current, load_baseline(path), rel_tol=args.tolerance)
+    accepted = load_baseline(path)  # a missing or broken file is found before the long computation
+    current = compute()
+    problems = compare(current, accepted, rel_tol=args.tolerance)
     for name, figures in current.items():
         print(f"  {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in figures.items()))
     for name in current.unavailable:

@@ -6,11 +6,19 @@ import argparse
 
 import numpy as np
 
-from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration, SlipReport, detect_slip
+from calibration import (
+    HIERARCHY_METHODS,
+    SINGLE_AXIS_RATIO,
+    Calibration,
+    CalibrationError,
+    SlipReport,
+    detect_slip,
+)
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
 from simbench.cli.table import format_table
 from simbench.cli.types import positive_float
+from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
 from simbench.io.hierarchy_json import read_hierarchy_json
 from simbench.io.poses import PoseRecording
@@ -134,13 +142,24 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
-    cal = calibrate(
-        rec,
-        hierarchy=parent_of,
-        root=args.root,
-        hierarchy_method=args.hierarchy_method,
-        single_axis_ratio=args.single_axis_ratio,
-    )
+    sensors = f"its sensors: {', '.join(rec.names)}"
+    if args.root is not None and args.root not in rec.names:
+        raise InputError(f"--root: no sensor {args.root!r} in {args.input} ({sensors})")
+    unknown = sorted({s for edge in (parent_of or {}).items() for s in edge} - set(rec.names))
+    if unknown:
+        raise InputError(f"{args.hierarchy}: sensor(s) {unknown} are not in {args.input} ({sensors})")
+    try:
+        cal = calibrate(
+            rec,
+            hierarchy=parent_of,
+            root=args.root,
+            hierarchy_method=args.hierarchy_method,
+            single_axis_ratio=args.single_axis_ratio,
+        )
+    except CalibrationError as exc:  # the data (or the hierarchy given) cannot be calibrated
+        raise InputError(
+            f"{args.input}{f' with {args.hierarchy}' if args.hierarchy else ''}: {exc}"
+        ) from None
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
     odd = implausible_lengths(cal.lengths, args.units)

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from calibration import unit_scale
+from calibration import CalibrationError, unit_scale
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
 from simbench.io.read import read_poses
@@ -43,7 +43,10 @@ def cmd_scale(args: argparse.Namespace) -> int:
     p_w_a = np.where(both[:, None], rec.p_w_s[:, a], np.nan)
     p_w_b = np.where(both[:, None], rec.p_w_s[:, b], np.nan)
     known = args.distance * metres_per_unit(args.units)
-    est = unit_scale(p_w_a, p_w_b, known)
+    try:
+        est = unit_scale(p_w_a, p_w_b, known)
+    except CalibrationError as exc:  # too few frames with both sensors
+        raise InputError(f"{args.input}: sensors {args.sensors[0]} and {args.sensors[1]}: {exc}") from None
     print(f"simbench scale: {rec.source}, sensors {args.sensors[0]} and {args.sensors[1]}")
     print(f"  frames used         {est.n_frames} of {rec.n_frames}")
     print(f"  known distance      {known * 100:.2f} cm")

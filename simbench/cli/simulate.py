@@ -60,7 +60,22 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     for out in (args.output, args.csv, args.truth_json):
         if out is not None and not Path(out).resolve().parent.is_dir():
             raise InputError(f"cannot write {out}: folder {Path(out).parent} does not exist")
-    bodies = tuple(b.strip() for b in args.sensors_on.split(",") if b.strip()) if args.sensors_on else None
+        if out is not None and Path(out).is_dir():
+            raise InputError(f"cannot write {out}: it is a folder")
+    for option, value in (("--model", args.model), ("--motion", args.motion), ("--sensors", args.sensors)):
+        if not value.strip():
+            raise InputError(f"{option}: expected a name or a file, got {value!r}")
+    bodies = None
+    if args.sensors_on is not None:
+        bodies = tuple(b.strip() for b in args.sensors_on.split(",") if b.strip())
+        twice = sorted({b for b in bodies if bodies.count(b) > 1})
+        if twice:
+            raise InputError(f"--sensors-on: bodies named twice: {twice}")
+        if len(bodies) < 2:
+            raise InputError(
+                "--sensors-on: a capture needs at least 2 bodies, separated by commas, got "
+                f"{args.sensors_on!r}"
+            )
     ds = simulate(
         args.model,
         args.motion,

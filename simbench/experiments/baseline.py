@@ -18,13 +18,14 @@ computed here (the real recordings in ``../shared/data`` are missing) and is ski
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import InputError
+from simbench.errors import InputError, not_utf8
 from simbench.experiments.metrics import calibration_metrics, orientation_metrics
 from simbench.experiments.realism import realism_ratios, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
@@ -189,14 +190,33 @@ def compare(
 
 
 def load_baseline(path: Path = BASELINE_FILE) -> dict[str, dict[str, float]]:
-    """The accepted figures."""
+    """The accepted figures: ``{"scenarios": {name: {metric: number}}}`` in ``path``.
+
+    Raises:
+        InputError: naming the file: missing, unreadable, not JSON, or not of that shape.
+    """
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputError(f"{path}: no baseline yet; run `simbench baseline --update`") from None
-    except ValueError as exc:
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: {not_utf8(exc)}") from None
+    except ValueError as exc:  # not JSON
         raise InputError(f"{path}: not valid JSON ({exc})") from None
-    return doc["scenarios"]
+    scenarios = doc.get("scenarios") if isinstance(doc, dict) else None
+    if not isinstance(scenarios, dict):
+        raise InputError(f'{path}: expected an object with "scenarios": {{name: {{metric: number}}}}')
+    for name, figures in scenarios.items():
+        if not isinstance(figures, dict):
+            raise InputError(f"{path}, key scenarios.{name}: expected {{metric: number}}, got {figures!r}")
+        for metric, value in figures.items():
+            if not (isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)):
+                raise InputError(
+                    f"{path}, key scenarios.{name}.{metric}: expected a finite number, got {value!r}"
+                )
+    return scenarios
 
 
 def diff_lines(old: dict[str, dict[str, float]], new: dict[str, dict[str, float]]) -> list[str]:

@@ -34,7 +34,7 @@ import hashlib
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,10 @@ ORIENTATION_METHODS = ("fontaine", "triad", "wahba", "mahony")
 DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
 STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
 PARAMETER_KEYS = {"name", "unit", "values", "low", "high", "log"}
+SAMPLING_KEYS = {"kind", "samples"}
+#: The most trials a study may have (cells times seeds per cell): a grid beyond this is a
+#: mistake (a million trials of seconds each is weeks of computing).
+MAX_TRIALS = 1_000_000
 SUFFIX_UNIT = {"_m": "m", "_rad": "rad", "_s": "s", "_hz": "hz"}
 
 
@@ -89,6 +93,8 @@ class Study:
     kind: str
     samples: int
     parameters: tuple[Parameter, ...]
+    #: The file the study was read from (messages name it); not part of the study's fingerprint.
+    source: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True)
@@ -104,6 +110,11 @@ class Trial:
     def trial_id(self) -> str:
         """``c<cell>-r<replicate>``, zero-padded: sorts in trial order."""
         return f"c{self.cell:05d}-r{self.replicate:03d}"
+
+
+def _is_number(value: Any) -> bool:
+    """An int or float that is not a bool (TOML's ``true`` is no number)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def _field_unit(field: str) -> str:
@@ -135,77 +146,130 @@ def _check_parameter_name(name: str, base_sensors: SensorConfig) -> None:
         )
 
 
-def _parse_parameter(p: dict[str, Any], where: str, kind: str, base_sensors: SensorConfig) -> Parameter:
+def _parse_parameter(p: Any, where: str, kind: str, base_sensors: SensorConfig) -> Parameter:
     """One ``[[parameter]]`` table, its values converted to SI."""
+    if not isinstance(p, dict):
+        raise InputError(f"{where}: expected a table ([[parameter]]), got {p!r}")
     extra = sorted(set(p) - PARAMETER_KEYS)
     if extra:
-        raise InputError(f"{where}: unknown keys {extra}")
+        raise InputError(f"{where}: unknown keys {extra}; expected some of {sorted(PARAMETER_KEYS)}")
     name = p.get("name")
     if not isinstance(name, str):
-        raise InputError(f"{where}: missing name")
-    _check_parameter_name(name, base_sensors)
+        raise InputError(f"{where}, key name: expected the parameter's name (a string), got {name!r}")
+    try:
+        _check_parameter_name(name, base_sensors)
+    except InputError as exc:
+        raise InputError(f"{where}, key name: {exc}") from None
     where = f"{where} ({name})"
-    unit = str(p.get("unit", "1")).lower()
-    if unit not in UNITS:
-        raise InputError(f"{where}: unknown unit {unit!r}; expected one of {sorted(UNITS)}")
+    unit = p.get("unit", "1")
+    if not isinstance(unit, str) or unit.lower() not in UNITS:
+        raise InputError(f"{where}, key unit: unknown unit {unit!r}; expected one of {sorted(UNITS)}")
+    unit = unit.lower()
     si, factor = UNITS[unit]
     field_unit = _field_unit(name.split(".")[-1])
     if si != field_unit:
-        raise InputError(f"{where}: unit {unit!r} does not fit (the field is in {field_unit})")
+        raise InputError(f"{where}, key unit: unit {unit!r} does not fit (the field is in {field_unit})")
     if kind == "grid":
         values = p.get("values")
-        if not isinstance(values, list) or not values or not all(isinstance(v, int | float) for v in values):
-            raise InputError(f"{where}: grid sampling needs a non-empty list of numbers in 'values'")
+        if (
+            not isinstance(values, list)
+            or not values
+            or not all(_is_number(v) and math.isfinite(v) for v in values)
+        ):
+            raise InputError(
+                f"{where}, key values: grid sampling needs a non-empty list of finite numbers, got {values!r}"
+            )
+        extra = sorted({"low", "high", "log"} & set(p))
+        if extra:
+            raise InputError(f"{where}: {extra} apply to random sampling; a grid takes values")
         return Parameter(name, values=tuple(float(v) * factor for v in values))
     low, high = p.get("low"), p.get("high")
-    if not isinstance(low, int | float) or not isinstance(high, int | float) or not low < high:
-        raise InputError(f"{where}: random sampling needs low < high, got {low!r} and {high!r}")
-    log = bool(p.get("log", False))
+    if not (
+        _is_number(low) and _is_number(high) and math.isfinite(low) and math.isfinite(high) and low < high
+    ):
+        raise InputError(
+            f"{where}, keys low and high: random sampling needs low < high (finite numbers), got {low!r} "
+            f"and {high!r}"
+        )
+    if "values" in p:
+        raise InputError(f"{where}: values apply to grid sampling; random sampling takes low and high")
+    log = p.get("log", False)
+    if not isinstance(log, bool):
+        raise InputError(f"{where}, key log: expected true or false, got {log!r}")
     if log and low <= 0:
-        raise InputError(f"{where}: log sampling needs low > 0")
+        raise InputError(f"{where}, key low: log sampling needs low > 0, got {low!r}")
     return Parameter(name, low=float(low) * factor, high=float(high) * factor, log=log)
 
 
 def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], SensorConfig]:
     """``[base]`` as written (``sensors`` filled in from SessionConfig's default) and its sensors."""
-    base = dict(doc.get("base", {}))
+    base = doc.get("base", {})
+    if not isinstance(base, dict):
+        raise InputError(f"{path}, key base: expected a table ([base]), got {base!r}")
+    base = dict(base)
     bad = sorted(set(base) - BASE_KEYS)
     if bad:
         raise InputError(f"{path}: base: unknown keys {bad}; expected {sorted(BASE_KEYS)}")
     base.setdefault("sensors", SessionConfig().sensors)
     for key, value in base.items():
         numeric = key in ("duration_s", "rate_hz")
-        if numeric and not (isinstance(value, int | float) and not isinstance(value, bool)):
-            raise InputError(f"{path}: base.{key}: expected a number, got {value!r}")
-        if not numeric and not isinstance(value, str):
-            raise InputError(f"{path}: base.{key}: expected a string, got {value!r}")
+        if numeric and not _is_number(value):
+            raise InputError(f"{path}, key base.{key}: expected a number, got {value!r}")
+        if not numeric and not (isinstance(value, str) and value.strip()):
+            raise InputError(f"{path}, key base.{key}: expected a string (a name), got {value!r}")
     try:
         base_sensors = load_sensor_config(base["sensors"])
     except InputError as exc:
-        raise InputError(f"{path}: base.sensors: {exc}") from None
+        raise InputError(f"{path}, key base.sensors: {exc}") from None
     return base, base_sensors
 
 
+def _strings(doc: dict[str, Any], path: Path, key: str, default: tuple[str, ...]) -> tuple[str, ...]:
+    """A non-empty list of strings at ``key``."""
+    value = doc.get(key, list(default))
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise InputError(f"{path}, key {key}: expected a non-empty list of names, got {value!r}")
+    return tuple(value)
+
+
 def _parse_estimators(doc: dict[str, Any], path: Path) -> tuple[str, ...]:
-    estimators = tuple(doc.get("estimators", ["calibration"]))
+    estimators = _strings(doc, path, "estimators", ("calibration",))
     for e in estimators:
         method = e.split(":", 1)[1] if e.startswith("orientation:") else None
         if e != "calibration" and method not in ORIENTATION_METHODS:
             expected = f"calibration or orientation:<{'|'.join(ORIENTATION_METHODS)}>"
-            raise InputError(f"{path}: estimators: unknown {e!r}; expected {expected}")
+            raise InputError(f"{path}, key estimators: unknown {e!r}; expected {expected}")
     return estimators
 
 
 def _parse_sampling(doc: dict[str, Any], path: Path) -> tuple[str, int]:
     """``(kind, samples)`` of ``[sampling]``."""
-    sampling = dict(doc.get("sampling", {"kind": "grid"}))
+    sampling = doc.get("sampling", {"kind": "grid"})
+    if not isinstance(sampling, dict):
+        raise InputError(f"{path}, key sampling: expected a table ([sampling]), got {sampling!r}")
+    unknown = sorted(set(sampling) - SAMPLING_KEYS)
+    if unknown:
+        raise InputError(f"{path}: sampling: unknown keys {unknown}; expected {sorted(SAMPLING_KEYS)}")
     kind = sampling.get("kind", "grid")
     if kind not in ("grid", "random"):
-        raise InputError(f"{path}: sampling.kind must be 'grid' or 'random', got {kind!r}")
-    samples = int(sampling.get("samples", 0))
-    if kind == "random" and samples < 1:
-        raise InputError(f"{path}: sampling.samples must be >= 1 for random sampling")
-    return kind, samples
+        raise InputError(f"{path}, key sampling.kind: expected 'grid' or 'random', got {kind!r}")
+    samples = sampling.get("samples", 0)
+    if kind == "random" and not (isinstance(samples, int) and not isinstance(samples, bool) and samples >= 1):
+        raise InputError(
+            f"{path}, key sampling.samples: random sampling needs an integer >= 1, got {samples!r}"
+        )
+    if kind == "grid" and "samples" in sampling:
+        raise InputError(
+            f"{path}, key sampling.samples: applies to random sampling; a grid takes every value"
+        )
+    return kind, int(samples)
+
+
+def _integer(doc: dict[str, Any], path: Path, key: str, default: int, low: int) -> int:
+    value = doc.get(key, default)
+    if not (isinstance(value, int) and not isinstance(value, bool) and low <= value < 2**63):
+        raise InputError(f"{path}, key {key}: {key} must be an integer >= {low} (below 2^63), got {value!r}")
+    return value
 
 
 def load_study(path: str | os.PathLike[str]) -> Study:
@@ -220,25 +284,35 @@ def load_study(path: str | os.PathLike[str]) -> Study:
     unknown = sorted(set(doc) - STUDY_KEYS)
     if unknown:
         raise InputError(f"{path}: unknown keys {unknown}; expected {sorted(STUDY_KEYS)}")
+    name = doc.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise InputError(f"{path}, key name: expected a name (a string), got {name!r}")
+    seed = _integer(doc, path, "seed", 0, 0)
+    seeds = _integer(doc, path, "seeds_per_cell", 1, 1)
     base, base_sensors = _parse_base(doc, path)
     estimators = _parse_estimators(doc, path)
-    metrics = tuple(doc.get("metrics", DEFAULT_METRICS))
+    metrics = _strings(doc, path, "metrics", DEFAULT_METRICS)
     bad = sorted(set(metrics) - set(METRICS))
     if bad:
-        raise InputError(f"{path}: metrics: unknown {bad}; expected some of {sorted(METRICS)}")
+        raise InputError(f"{path}, key metrics: unknown {bad}; expected some of {sorted(METRICS)}")
     kind, samples = _parse_sampling(doc, path)
-    seeds = doc.get("seeds_per_cell", 1)
-    if not isinstance(seeds, int) or seeds < 1:
-        raise InputError(f"{path}: seeds_per_cell must be an integer >= 1, got {seeds!r}")
     raw = doc.get("parameter", [])
+    if not isinstance(raw, list):
+        raise InputError(f"{path}, key parameter: expected [[parameter]] tables, got {raw!r}")
     if not raw:
         raise InputError(f"{path}: expected at least one [[parameter]]")
     params = tuple(
-        _parse_parameter(p, f"{path}: parameter[{k}]", kind, base_sensors) for k, p in enumerate(raw)
+        _parse_parameter(p, f"{path}, parameter[{k}]", kind, base_sensors) for k, p in enumerate(raw)
     )
+    cells = math.prod(len(p.values) for p in params) if kind == "grid" else samples
+    if cells * seeds > MAX_TRIALS:
+        raise InputError(
+            f"{path}: {cells:,} cell(s) x {seeds} seed(s) = {cells * seeds:,} trials; at most {MAX_TRIALS:,} "
+            "(fewer values, samples or seeds)"
+        )
     study = Study(
-        name=str(doc.get("name", path.stem)),
-        seed=int(doc.get("seed", 0)),
+        name=name,
+        seed=seed,
         seeds_per_cell=seeds,
         estimators=estimators,
         metrics=metrics,
@@ -246,6 +320,7 @@ def load_study(path: str | os.PathLike[str]) -> Study:
         kind=kind,
         samples=samples,
         parameters=params,
+        source=str(path),
     )
     try:
         base_session(study)
@@ -322,7 +397,9 @@ def study_fingerprint(study: Study) -> str:
     """A fingerprint of the study: SHA-256 of every parsed value (the base session, the sensors,
     the parameters, seeds and estimators) and simbench's version. Two files that parse to the same
     study share it; any changed value, or another simbench version, gives another."""
-    doc = json.dumps(dataclasses.asdict(study), sort_keys=True, default=repr)
+    values = dataclasses.asdict(study)
+    del values["source"]  # where the file lies is not what it asks
+    doc = json.dumps(values, sort_keys=True, default=repr)
     return hashlib.sha256(f"simbench {__version__}\n{doc}".encode()).hexdigest()
 
 
@@ -347,4 +424,5 @@ def check_study(study: Study) -> None:
                 models[key] = load_session_model(config)
             plan_session(config, models[key])
         except InputError as exc:
-            raise InputError(f"study {study.name!r}, cell {trial.cell} ({values}): {exc}") from None
+            where = f"{study.source}: study" if study.source else "study"
+            raise InputError(f"{where} {study.name!r}, cell {trial.cell} ({values}): {exc}") from None

@@ -42,6 +42,18 @@ def _header_frames(path: Path) -> tuple[int, int]:
         head = fh.read(512)
         if len(head) < 512:
             raise InputError(f"{path}: not a C3D file: {size} bytes, shorter than its header")
+        if head[1] != 0x50:
+            raise InputError(
+                f"{path}: not a C3D file: its second byte is 0x{head[1]:02x}, a C3D file's is 0x50"
+            )
+        if head[0] < 2:
+            raise InputError(f"{path}: not a C3D file: its header puts the parameters in block {head[0]}")
+        if (head[0] - 1) * 512 + 4 > size:
+            raise InputError(
+                f"{path}: truncated C3D file: the header puts the parameters at byte "
+                f"{(head[0] - 1) * 512}, the "
+                f"file has {size} bytes"
+            )
         fh.seek((head[0] - 1) * 512)
         param = fh.read(4)
     order = ">" if len(param) == 4 and param[3] == 86 else "<"  # 86: MIPS (big-endian)
@@ -69,6 +81,8 @@ def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarra
         InputError: unreadable or truncated file (fewer frames than its header announces).
     """
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path}: expected a file, got a directory")
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     announced, available = _header_frames(path)
@@ -103,15 +117,35 @@ def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarra
 
 
 def read_cluster_spec(path: str | os.PathLike[str]) -> dict[str, list[str]]:
-    """``{segment: [marker labels]}`` from a TOML file with a ``[clusters]`` table."""
+    """``{segment: [marker labels]}`` from a TOML file with a ``[clusters]`` table.
+
+    Raises:
+        InputError: naming the file and key: no ``[clusters]`` table or other keys beside it,
+            fewer than 2 clusters (calibration needs 2 segments), a cluster of fewer than 3
+            labels, a label twice (in one cluster or two).
+    """
     path = Path(path)
     doc = load_toml(path)
     clusters = doc.get("clusters")
     if not isinstance(clusters, dict) or not clusters:
         raise InputError(f'{path}: expected a [clusters] table: segment = ["MARKER1", "MARKER2", "MARKER3"]')
+    unknown = sorted(set(doc) - {"clusters"})
+    if unknown:
+        raise InputError(f"{path}: unknown keys {unknown}; expected only a [clusters] table")
+    owner: dict[str, str] = {}
     for name, labels in clusters.items():
         if not isinstance(labels, list) or len(labels) < 3 or not all(isinstance(x, str) for x in labels):
-            raise InputError(f"{path}: clusters.{name}: expected a list of at least 3 marker labels")
+            raise InputError(
+                f"{path}, key clusters.{name}: expected a list of at least 3 marker labels, got {labels!r}"
+            )
+        for label in labels:
+            if label in owner:
+                where = "twice in it" if owner[label] == name else f"also in clusters.{owner[label]}"
+                raise InputError(
+                    f"{path}, key clusters.{name}: marker {label!r} is {where}; a marker belongs to one "
+                    "rigid cluster"
+                )
+            owner[label] = name
     return clusters
 
 
@@ -174,6 +208,10 @@ def c3d_poses(
     missing = sorted({m for ms in clusters.values() for m in ms} - index.keys())
     if missing:
         raise InputError(f"{path}: no markers named {missing}; markers: {labels}")
+    if len(clusters) < 2:
+        raise InputError(
+            f"{path}: {len(clusters)} marker cluster given ({list(clusters)}); calibration needs 2 or more"
+        )
     names = tuple(clusters)
     f = xyz.shape[0]
     R = np.full((f, len(names), 3, 3), np.nan)

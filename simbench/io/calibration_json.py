@@ -29,6 +29,9 @@ from simbench.io.atomic import atomic_write_text
 from simbench.versions import software_versions
 
 FORMAT = "simbench-calibration"
+#: The farthest a joint centre may be from its sensor, in the document's units (1e6: far beyond any
+#: body, a corrupt value).
+MAX_OFFSET = 1e6
 FORMAT_VERSION = 1
 
 
@@ -171,6 +174,11 @@ def _check_joint(path: Path, k: int, joint: Any) -> None:
             and all(isinstance(x, int | float) and not isinstance(x, bool) for x in value)
         ):
             raise InputError(f"{where}: expected {key!r} to be a list of 3 numbers, got {value!r}")
+        if not all(math.isfinite(x) and abs(x) <= MAX_OFFSET for x in value):
+            raise InputError(
+                f"{where}: expected {key!r} to be 3 finite numbers within {MAX_OFFSET:g} of the sensor, "
+                f"got {value!r}"
+            )
     if not isinstance(joint.get("single_axis", False), bool | None):
         raise InputError(f"{where}: expected 'single_axis' to be true or false, got {joint['single_axis']!r}")
 
@@ -186,7 +194,9 @@ def read_calibration_json(path: str | os.PathLike[str]) -> dict[str, Any]:
         The document as parsed.
 
     Raises:
-        InputError: naming the file and what is wrong (cannot read, not JSON, a missing field).
+        InputError: naming the file and what is wrong (cannot read, not JSON, a missing field, a
+            location that is not finite or beyond :data:`MAX_OFFSET`, a sensor the child of two
+            joints or joined with itself).
     """
     path = Path(path)
     try:
@@ -205,6 +215,13 @@ def read_calibration_json(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise InputError(f'{path}: not a calibration JSON: expected an object with a "joints" list')
     for k, joint in enumerate(doc["joints"]):
         _check_joint(path, k, joint)
+    children = [j["child"] for j in doc["joints"]]
+    twice = sorted({c for c in children if children.count(c) > 1})
+    if twice:
+        raise InputError(f"{path}: not a calibration JSON: sensors that are the child of two joints: {twice}")
+    own = sorted(j["child"] for j in doc["joints"] if j["child"] == j["parent"])
+    if own:
+        raise InputError(f"{path}: not a calibration JSON: joints of a sensor with itself: {own}")
     return doc
 
 

@@ -93,12 +93,26 @@ class _Text:
 def open_csv(path: Path) -> _Text:
     """Open a text table for ``csv.reader`` (UTF-8, a byte-order mark allowed); a missing or
     unreadable file, or one that is not UTF-8 text, is an InputError."""
-    if path.is_dir():
-        raise InputError(f"{path}: expected a file, got a directory")
     try:
+        if path.is_dir():
+            raise InputError(f"{path}: expected a file, got a directory")
         return _Text(path, path.open(newline="", encoding="utf-8-sig"))
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+
+
+def csv_rows(path: Path, reader: Any) -> Iterator[list[str]]:
+    """The rows of a ``csv.reader``; a row the csv module cannot read (a field beyond its size
+    limit, as an unclosed quote makes) is an InputError naming the file and line."""
+    rows = iter(reader)
+    while True:
+        try:
+            row = next(rows)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise fail(path, reader.line_num, f"not a readable CSV row ({exc}; an unclosed quote?)") from None
+        yield row
 
 
 def fail(path: str | os.PathLike[str], line: int | None, message: str) -> InputError:
@@ -147,7 +161,7 @@ def read_header(path: Path) -> tuple[list[str], int]:
     columns."""
     with open_csv(path) as fh:
         reader = csv.reader(fh)
-        for row in reader:
+        for row in csv_rows(path, reader):
             if any(cell.strip() for cell in row):
                 header = [cell.strip() for cell in row]
                 break
@@ -172,10 +186,11 @@ def exact_blocks(path: Path, header: list[str], header_line: int) -> Blocks:
     def blocks(values: bool) -> Iterator[_Block]:
         with open_csv(path) as fh:
             reader = csv.reader(fh)
+            lines = csv_rows(path, reader)
             while reader.line_num < header_line:
-                next(reader)
+                next(lines)
             rows: list[tuple[float, str, list[float], int]] = []
-            for row in reader:
+            for row in lines:
                 if not any(cell.strip() for cell in row):
                     continue
                 line = reader.line_num
@@ -311,7 +326,10 @@ def _arrange(path: Path, blocks: Blocks, scale: float, in_memory: bool | None) -
         _check_repeats(path, blocks, b, f, s, state, n, names, frame_times)
         finite = np.isfinite(b.values).all(axis=1)
         q = b.values[:, 3:]
-        qnorm = np.linalg.norm(q, axis=1)
+        big = np.max(np.abs(q), axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", over="ignore"):  # a norm beyond float64 is inf: reported
+            q = q / np.where(big > 0, big, 1.0)  # scaled first: |(1e200, 0, 0, 0)| would overflow
+            qnorm = np.linalg.norm(q, axis=1) * big[:, 0]
         zero = finite & (qnorm == 0.0)
         if zero.any():
             raise fail(path, int(b.lines[np.flatnonzero(zero)[0]]), "zero quaternion")

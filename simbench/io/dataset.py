@@ -232,11 +232,46 @@ def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
                 g.create_dataset(x.name, data=value)
 
 
-def _read_sensor_data(group: h5py.Group, path: Path) -> SensorData:
+def _array(node: Any, path: Path, name: str, kind: str = "number") -> np.ndarray:
+    """The array at ``node[name]``: numbers (``kind="number"``) or booleans (``"bool"``)."""
+    item = node.get(name)
+    if not isinstance(item, h5py.Dataset):
+        raise InputError(
+            f"{path}: {node.name.rstrip('/')}/{name} must be a dataset, got {type(item).__name__}"
+        )
+    value = item[()]
+    dtype = getattr(value, "dtype", None)
+    ok = isinstance(value, np.ndarray) and (
+        np.issubdtype(dtype, np.bool_) or (kind == "number" and np.issubdtype(dtype, np.number))
+    )
+    if not ok:
+        expected = "numbers" if kind == "number" else "booleans"
+        raise InputError(
+            f"{path}: {item.name} must be an array of {expected}, got {dtype or type(value).__name__} of "
+            "shape "
+            f"{getattr(value, 'shape', ())}"
+        )
+    return value
+
+
+def _read_sensor_data(group: Any, path: Path) -> SensorData:
+    if not isinstance(group, h5py.Group):
+        raise InputError(f"{path}: {group.name} must be a group of datasets, got {type(group).__name__}")
     missing = [f"{group.name}/{x.name}" for x in fields(SensorData) if x.name not in group]
     if missing:
         raise InputError(f"{path}: missing dataset(s) {', '.join(missing)}")
-    return SensorData(**{x.name: group[x.name][()] for x in fields(SensorData)})
+    values = {
+        x.name: _array(group, path, x.name, "bool" if x.name == "valid" else "number")
+        for x in fields(SensorData)
+    }
+    if values["valid"].ndim != 2:
+        raise InputError(
+            f"{path}: {group.name}/valid must be (frames, sensors), got shape {values['valid'].shape}"
+        )
+    try:
+        return SensorData(**values)
+    except InputError as exc:
+        raise InputError(f"{path}: {group.name}: {exc}") from None
 
 
 def read_dataset(path: str | os.PathLike[str]) -> Dataset:
@@ -249,7 +284,12 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
     with open_hdf5(path) as fh:
         if fh.attrs.get("format") != FORMAT:
             raise InputError(f"{path}: not a simbench dataset (format attribute {fh.attrs.get('format')!r})")
-        version = int(fh.attrs.get("format_version", 0))
+        try:
+            version = int(fh.attrs.get("format_version", 0))
+        except (TypeError, ValueError):
+            raise InputError(
+                f"{path}: format_version must be an integer, got {fh.attrs.get('format_version')!r}"
+            ) from None
         if version > FORMAT_VERSION:
             raise InputError(f"{path}: dataset format version {version} is newer than this simbench reads")
         missing = [f"/{name}" for name in ("sensors", "time_s", "measured") if name not in fh]
@@ -267,10 +307,12 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
             scale = float(fh.attrs.get("position_unit_scale", meta.pop("position_unit_scale", 1.0)))
         except (TypeError, ValueError):
             raise InputError(f"{path}: position_unit_scale is not a number") from None
+        if not isinstance(fh["sensors"], h5py.Dataset):
+            raise InputError(f"{path}: /sensors must be a dataset of names")
         sensors = tuple(
             s.decode() if isinstance(s, bytes) else str(s) for s in np.atleast_1d(fh["sensors"][()])
         )
-        time_s = fh["time_s"][()]
+        time_s = fh["time_s"][()] if isinstance(fh["time_s"], h5py.Dataset) else None
         if not (
             isinstance(time_s, np.ndarray) and time_s.ndim == 1 and np.issubdtype(time_s.dtype, np.number)
         ):
@@ -279,7 +321,9 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
                 f"{path}: /time_s must be a 1-D array of numbers (seconds), got {kind} of shape "
                 f"{getattr(time_s, 'shape', ())}"
             )
+        _check_times(time_s, path)
         measured = _read_sensor_data(fh["measured"], path)
+        _check_poses(measured, time_s, sensors, path)
         truth = None
         if "truth" in fh:
             g = fh["truth"]
@@ -290,15 +334,67 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
                     continue
                 if x.name not in g:
                     raise InputError(f"{path}: missing dataset /truth/{x.name}")
-                value = g[x.name][()]
                 if x.name in ("parent", "child"):
-                    value = tuple(v.decode() if isinstance(v, bytes) else str(v) for v in value)
+                    if not isinstance(g[x.name], h5py.Dataset):
+                        raise InputError(f"{path}: /truth/{x.name} must be a dataset of names")
+                    value = tuple(
+                        v.decode() if isinstance(v, bytes) else str(v) for v in np.atleast_1d(g[x.name][()])
+                    )
+                else:
+                    value = _array(g, path, x.name, "bool" if x.name == "single_axis" else "number")
                 values[x.name] = value
+            for name in ("rigid", "actual"):
+                if values[name].valid.shape != measured.valid.shape:
+                    raise InputError(
+                        f"{path}: /truth ({name}) holds {values[name].valid.shape} (frames, sensors), "
+                        f"/measured {measured.valid.shape}"
+                    )
             truth = Truth(**values)
     meta["source"] = str(path)
-    return Dataset(
-        time_s=time_s, sensors=sensors, measured=measured, truth=truth, meta=meta, position_unit_scale=scale
-    )
+    try:
+        return Dataset(
+            time_s=time_s,
+            sensors=sensors,
+            measured=measured,
+            truth=truth,
+            meta=meta,
+            position_unit_scale=scale,
+        )
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
+
+
+def _check_poses(m: SensorData, time_s: np.ndarray, sensors: tuple[str, ...], path: Path) -> None:
+    """A sample marked valid must have a finite position and a non-zero finite quaternion."""
+    if m.valid.shape != (time_s.size, len(sensors)):
+        raise InputError(
+            f"{path}: /measured holds {m.valid.shape} (frames, sensors); /time_s and /sensors say "
+            f"{(time_s.size, len(sensors))}"
+        )
+    q_ok = np.isfinite(m.q_w_s).all(axis=-1) & (np.linalg.norm(np.nan_to_num(m.q_w_s), axis=-1) > 0)
+    bad = m.valid & ~(q_ok & np.isfinite(m.p_w_s).all(axis=-1))
+    if bad.any():
+        f, k = np.argwhere(bad)[0]
+        raise InputError(
+            f"{path}: /measured: {int(bad.sum())} sample(s) marked valid without a finite position and a "
+            f"non-zero quaternion (the first: sensor {sensors[k]!r} at t = {time_s[f]:g} s)"
+        )
+
+
+def _check_times(time_s: np.ndarray, path: Path) -> None:
+    """Sample times must be finite and strictly increasing."""
+    bad = np.flatnonzero(~np.isfinite(time_s))
+    if bad.size:
+        raise InputError(
+            f"{path}: /time_s[{bad[0]}] is {float(time_s[bad[0]])!r}; expected finite times in seconds"
+        )
+    back = np.flatnonzero(np.diff(time_s) <= 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise InputError(
+            f"{path}: /time_s must increase, got {float(time_s[k])!r} s after {float(time_s[k - 1])!r} s "
+            f"(sample {k})"
+        )
 
 
 def truth_calibration_dict(ds: Dataset) -> dict[str, Any]:

@@ -7,7 +7,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from simbench.errors import InputError
+from simbench.errors import InputError, not_utf8
 
 
 def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -21,8 +21,9 @@ def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
         ``{child: parent}`` for every sensor that has a parent (the root has none).
 
     Raises:
-        InputError: the file cannot be read, is not valid JSON (with the line), names a sensor
-            twice as a child, or is not an object of strings.
+        InputError: the file cannot be read, is not UTF-8 or valid JSON (with the line), names a
+            sensor twice as a child, is not an object of strings, or makes a sensor its own
+            parent or ancestor (a cycle).
     """
 
     def no_repeats(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -36,6 +37,8 @@ def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: {not_utf8(exc)}") from None
     try:
         doc = json.loads(text, object_pairs_hook=no_repeats)
     except json.JSONDecodeError as exc:
@@ -44,4 +47,14 @@ def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
         isinstance(k, str) and isinstance(v, str) for k, v in doc.items()
     ):
         raise InputError(f'{path}: expected a JSON object {{"child": "parent", ...}} of sensor names')
+    own = sorted(child for child, parent in doc.items() if child == parent)
+    if own:
+        raise InputError(f"{path}: sensors given as their own parent: {own}")
+    for start in doc:
+        seen = [start]
+        while seen[-1] in doc:
+            seen.append(doc[seen[-1]])
+            if seen[-1] in seen[:-1]:
+                cycle = seen[seen.index(seen[-1]) :]
+                raise InputError(f"{path}: the hierarchy has a cycle: {' -> '.join(cycle)} (child -> parent)")
     return doc

@@ -13,6 +13,7 @@ horizontal part along +y); samples at the accelerometer's configured range are m
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,7 +57,11 @@ class ImuRecording:
 def _field(fh: h5py.File, path: Path, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
     if name not in fh:
         raise InputError(f"{path}: not a BROAD file: missing dataset {name!r} (has {sorted(fh.keys())})")
-    x = fh[name][()]
+    x = fh[name][()] if isinstance(fh[name], h5py.Dataset) else None
+    if not (isinstance(x, np.ndarray) and (np.issubdtype(x.dtype, np.number) or x.dtype == bool)):
+        raise InputError(
+            f"{path}: {name} must be an array of numbers, got {getattr(x, 'dtype', type(fh[name]).__name__)}"
+        )
     if x.ndim != 1 + len(shape_tail) or x.shape[1:] != shape_tail:
         raise InputError(
             f"{path}: expected {name} of shape (frames, {', '.join(map(str, shape_tail))}), got {x.shape}"
@@ -72,13 +77,30 @@ def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
         gyro = _field(fh, path, "imu_gyr", (3,))
         mag = _field(fh, path, "imu_mag", (3,))
         n = acc.shape[0]
+        if n < 2:
+            raise InputError(f"{path}: imu_acc holds {n} sample(s); expected at least 2")
         if gyro.shape[0] != n or mag.shape[0] != n:
-            raise InputError(f"{path}: imu_acc, imu_gyr and imu_mag have different lengths")
+            raise InputError(
+                f"{path}: imu_acc, imu_gyr and imu_mag have different lengths: {n}, {gyro.shape[0]}, "
+                f"{mag.shape[0]}"
+            )
         q = _field(fh, path, "opt_quat", (4,)) if "opt_quat" in fh else None
-        move = fh["movement"][()].astype(bool) if "movement" in fh else None
+        if q is not None and q.shape[0] != n:
+            raise InputError(f"{path}: opt_quat holds {q.shape[0]} samples, imu_acc {n}")
+        move = _field(fh, path, "movement", ()).astype(bool) if "movement" in fh else None
+        if move is not None and move.shape[0] != n:
+            raise InputError(f"{path}: movement holds {move.shape[0]} samples, imu_acc {n}")
         if "sampling_rate" not in fh.attrs:
             raise InputError(f"{path}: missing attribute 'sampling_rate'")
-        rate = float(fh.attrs["sampling_rate"])
+        try:
+            rate = float(np.ravel(fh.attrs["sampling_rate"])[0])
+        except (TypeError, ValueError, IndexError):
+            rate = math.nan
+        if not (math.isfinite(rate) and rate > 0):
+            raise InputError(
+                f"{path}: attribute sampling_rate must be a finite number of Hz > 0, got "
+                f"{fh.attrs['sampling_rate']!r}"
+            )
     finite = np.isfinite(acc).all(axis=1) & np.isfinite(mag).all(axis=1)
     notes = []
     if not finite.all():

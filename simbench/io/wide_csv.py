@@ -23,7 +23,9 @@ Errors name the file, line and column; what was repaired is said in the recordin
 from __future__ import annotations
 
 import csv
+import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,7 +36,7 @@ from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_open
 from simbench.io.csv_blocks import open_csv
 from simbench.io.poses import PoseRecording
-from simbench.units import metres_per_unit
+from simbench.units import LENGTH_UNITS, metres_per_unit
 
 
 @dataclass(frozen=True)
@@ -51,48 +53,97 @@ class WideSpec:
     sensors: dict[str, dict[str, list[str]]]
 
 
+#: Euler sequences scipy takes: three axes, no axis twice in a row; uppercase intrinsic,
+#: lowercase extrinsic.
+EULER_SEQUENCE = re.compile(r"[XYZ]{3}|[xyz]{3}")
+
+
+def _check_euler(path: Path, seq: object) -> str:
+    if not (isinstance(seq, str) and EULER_SEQUENCE.fullmatch(seq) and seq[0] != seq[1] and seq[1] != seq[2]):
+        raise InputError(
+            f"{path}, key wide.euler: expected three axes, no axis twice in a row, all uppercase "
+            f"(intrinsic) or all lowercase (extrinsic), e.g. 'ZYX'; got {seq!r}"
+        )
+    return seq
+
+
 def read_wide_spec(path: str | os.PathLike[str]) -> WideSpec:
-    """Read and check a wide-CSV specification TOML."""
+    """Read and check a wide-CSV specification TOML.
+
+    Raises:
+        InputError: naming the file and key: no ``[wide]`` table, unknown keys, neither a time
+            column nor a positive finite ``rate_hz`` (or both), unknown units, orientation,
+            angle units or Euler sequence, sensors without their column names, a column used
+            twice.
+    """
     path = Path(path)
     doc = load_toml(path)
     w = doc.get("wide")
     if not isinstance(w, dict):
-        raise InputError(f"{path}: expected a [wide] table")
+        raise InputError(f"{path}: expected a [wide] table, got {'none' if w is None else repr(w)}")
     known = {"time", "rate_hz", "units", "orientation", "euler", "angle_units", "repeated", "sensors"}
     unknown = sorted(set(w) - known)
     if unknown:
         raise InputError(f"{path}: wide: unknown keys {unknown}; expected {sorted(known)}")
     orientation = w.get("orientation", "quaternion")
     if orientation not in ("quaternion", "euler"):
-        raise InputError(f"{path}: wide.orientation must be 'quaternion' or 'euler', got {orientation!r}")
-    if w.get("time") is None and not isinstance(w.get("rate_hz"), int | float):
-        raise InputError(f"{path}: wide: give a time column (time = ...) or rate_hz")
+        raise InputError(
+            f"{path}, key wide.orientation: expected 'quaternion' or 'euler', got {orientation!r}"
+        )
+    time = w.get("time")
+    rate = w.get("rate_hz")
+    if time is not None and not (isinstance(time, str) and time.strip()):
+        raise InputError(f"{path}, key wide.time: expected the name of the time column, got {time!r}")
+    if rate is not None and not (
+        isinstance(rate, int | float) and not isinstance(rate, bool) and math.isfinite(rate) and rate > 0
+    ):
+        raise InputError(f"{path}, key wide.rate_hz: expected a finite number of Hz > 0, got {rate!r}")
+    if (time is None) == (rate is None):
+        raise InputError(
+            f"{path}: wide: give a time column (time = ...) or a sample rate (rate_hz = ...), got "
+            f"{'both' if time is not None else 'neither'}"
+        )
     angle_units = w.get("angle_units", "deg")
     if angle_units not in ("deg", "rad"):
-        raise InputError(f"{path}: wide.angle_units must be 'deg' or 'rad', got {angle_units!r}")
+        raise InputError(f"{path}, key wide.angle_units: expected 'deg' or 'rad', got {angle_units!r}")
     repeated = w.get("repeated", "drop")
     if repeated not in ("drop", "keep"):
-        raise InputError(f"{path}: wide.repeated must be 'drop' or 'keep', got {repeated!r}")
+        raise InputError(f"{path}, key wide.repeated: expected 'drop' or 'keep', got {repeated!r}")
     units = w.get("units", "m")
-    metres_per_unit(units)
+    if not isinstance(units, str) or units not in LENGTH_UNITS:
+        raise InputError(
+            f"{path}, key wide.units: unknown units {units!r}: expected one of {', '.join(LENGTH_UNITS)}"
+        )
+    euler = _check_euler(path, w.get("euler", "ZYX"))
     sensors = w.get("sensors")
     if not isinstance(sensors, dict) or len(sensors) < 1:
-        raise InputError(f"{path}: expected [wide.sensors.<name>] tables")
+        raise InputError(f"{path}: expected [wide.sensors.<name>] tables, got {sensors!r}")
+    used: dict[str, str] = {time: "wide.time"} if time is not None else {}
     for name, cols in sensors.items():
+        if not isinstance(cols, dict):
+            raise InputError(
+                f"{path}, key wide.sensors.{name}: expected a table of column names, got {cols!r}"
+            )
         need = {"position": 3, orientation: 4 if orientation == "quaternion" else 3}
         for key, count in need.items():
             v = cols.get(key)
             if not isinstance(v, list) or len(v) != count or not all(isinstance(c, str) for c in v):
-                raise InputError(f"{path}: wide.sensors.{name}.{key}: expected {count} column names")
+                raise InputError(
+                    f"{path}, key wide.sensors.{name}.{key}: expected {count} column names, got {v!r}"
+                )
+            for c in v:
+                if c in used:
+                    raise InputError(f"{path}, key wide.sensors.{name}.{key}: column {c!r} is also {used[c]}")
+                used[c] = f"wide.sensors.{name}.{key}"
         extra = sorted(set(cols) - set(need))
         if extra:
             raise InputError(f"{path}: wide.sensors.{name}: unexpected keys {extra} for {orientation} input")
     return WideSpec(
-        time=w.get("time"),
-        rate_hz=float(w["rate_hz"]) if "rate_hz" in w else None,
+        time=time,
+        rate_hz=None if rate is None else float(rate),
         units=units,
         orientation=orientation,
-        euler=str(w.get("euler", "ZYX")),
+        euler=euler,
         degrees=angle_units == "deg",
         drop_repeated=repeated == "drop",
         sensors=sensors,
@@ -117,32 +168,52 @@ def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording
             raise InputError(f"{path}, line {reader.line_num}: missing columns {missing}; header: {header}")
         col = {c: header.index(c) for c in wanted}
         rows = []
-        for row in reader:
-            if not any(c.strip() for c in row):
-                continue
-            if len(row) != len(header):
-                raise InputError(
-                    f"{path}, line {reader.line_num}: expected {len(header)} fields, got {len(row)}"
-                )
-            values = []
-            for c in wanted:
-                try:
-                    values.append(float(row[col[c]]))
-                except ValueError:
+        line_of = []
+        done = reader.line_num  # the last line of the last complete row
+        try:
+            for row in reader:
+                done = reader.line_num
+                if not any(c.strip() for c in row):
+                    continue
+                if len(row) != len(header):
                     raise InputError(
-                        f"{path}, line {reader.line_num}: column {c!r} is not a number: {row[col[c]]!r}"
-                    ) from None
-            rows.append(values)
+                        f"{path}, line {reader.line_num}: expected {len(header)} fields, got {len(row)}"
+                    )
+                values = []
+                for c in wanted:
+                    try:
+                        values.append(float(row[col[c]]))
+                    except ValueError:
+                        raise InputError(
+                            f"{path}, line {reader.line_num}: column {c!r} is not a number: "
+                            f"{_shown(row[col[c]])}"
+                        ) from None
+                rows.append(values)
+                line_of.append(reader.line_num)
+        except csv.Error as exc:  # a field beyond the csv module's limit (an unclosed quote)
+            raise InputError(
+                f"{path}, line {done + 1}: not a readable CSV row ({exc}; an unclosed quote?)"
+            ) from None
     if len(rows) < 1:
-        raise InputError(f"{path}: no data rows")
+        raise InputError(f"{path}: no data rows after the header")
     data = np.array(rows)
     offset = 0
     if spec.time:
         time_s = data[:, 0]
         offset = 1
-        if not np.all(np.diff(time_s) > 0):
-            bad = int(np.flatnonzero(np.diff(time_s) <= 0)[0]) + 2
-            raise InputError(f"{path}: times must increase (row {bad} after the header does not)")
+        bad = np.flatnonzero(~np.isfinite(time_s))
+        if bad.size:
+            raise InputError(
+                f"{path}, line {line_of[bad[0]]}, column {spec.time!r}: expected a finite time in seconds, "
+                f"got {float(time_s[bad[0]])!r}"
+            )
+        back = np.flatnonzero(np.diff(time_s) <= 0)
+        if back.size:
+            k = int(back[0]) + 1
+            raise InputError(
+                f"{path}, line {line_of[k]}, column {spec.time!r}: times must increase, got "
+                f"{float(time_s[k])!r} s after {float(time_s[k - 1])!r} s"
+            )
     else:
         time_s = np.arange(len(data)) / spec.rate_hz
     scale = metres_per_unit(spec.units)
@@ -166,8 +237,12 @@ def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording
                 notes.append(f"sensor {name}: {int(same.sum())} repeated samples treated as missing")
         if spec.orientation == "quaternion":
             q = block[ok, 3:]
-            if np.any(np.linalg.norm(q, axis=1) == 0):
-                raise InputError(f"{path}: sensor {name}: zero quaternion")
+            zero = np.flatnonzero(np.linalg.norm(q, axis=1) == 0)
+            if zero.size:
+                raise InputError(
+                    f"{path}, line {line_of[np.flatnonzero(ok)[zero[0]]]}: sensor {name}: zero quaternion "
+                    f"({zero.size} in the file)"
+                )
             R[ok, s] = quat_to_matrix(q)
         else:
             R[ok, s] = euler_to_matrix(spec.euler, block[ok, 3:], degrees=spec.degrees)
@@ -176,6 +251,11 @@ def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording
     return PoseRecording(
         names=names, time_s=time_s, R_w_s=R, p_w_s=p, valid=valid, source=str(path), notes=tuple(notes)
     )
+
+
+def _shown(text: str, limit: int = 40) -> str:
+    """A field for a message: quoted, and cut when long."""
+    return repr(text) if len(text) <= limit else f"{text[:limit]!r}... ({len(text)} characters)"
 
 
 def write_wide_csv(path: str | os.PathLike[str], rec: PoseRecording, spec: WideSpec) -> None:

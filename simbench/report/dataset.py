@@ -14,15 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from calibration import calibrate, frame_residuals
+from calibration import CalibrationError, calibrate, frame_residuals
 from calibration.hierarchy import hierarchy_from_parents
 from calibration.joint import JointFit
 from calibration.pipeline import Joint
 from calibration.skeleton import SegmentLength, segment_lengths
+from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_joints, read_calibration_json
 from simbench.io.dataset import Dataset, read_dataset
 from simbench.io.poses import PoseRecording
-from simbench.io.read import read_poses
+from simbench.io.read import check_plausible, read_poses
 from simbench.report.markdown import markdown_table
 from simbench.report.output import write_report_files
 from simbench.report.plots import plot_residual_histograms
@@ -59,7 +60,7 @@ def _read_input(
     """``(dataset or None, poses, metres per input unit)`` of a simbench dataset or a pose file."""
     if Path(dataset).suffix.lower() in (".h5", ".hdf5"):
         ds = read_dataset(dataset)
-        return ds, ds.poses(), ds.position_unit_scale
+        return ds, check_plausible(ds.poses(), dataset), ds.position_unit_scale
     return None, read_poses(str(dataset), units, clusters, wide), 1.0
 
 
@@ -82,6 +83,15 @@ def _from_file(rec: PoseRecording, calibration_file: str | os.PathLike[str]) -> 
     tree over the recording's sensors.
     """
     doc = read_calibration_json(calibration_file)
+    units = doc.get("units", "m")
+    if units != "m":
+        raise InputError(
+            f"{calibration_file}, key units: expected 'm' (the joint locations are taken in the recording's "
+            f"units, metres), got {units!r}"
+        )
+    stated = doc.get("warnings", [])
+    if stated is not None and not (isinstance(stated, list) and all(isinstance(w, str) for w in stated)):
+        raise InputError(f"{calibration_file}, key warnings: expected a list of strings, got {stated!r}")
     located = calibration_joints(doc, rec.names, source=calibration_file)
     hierarchy_from_parents(located.parent_of, rec.names)  # checks the names and the tree
     rms, per_frame = frame_residuals(
@@ -115,7 +125,7 @@ def _from_file(rec: PoseRecording, calibration_file: str | os.PathLike[str]) -> 
     )
     pairs = list(zip(located.parent_index.tolist(), located.child_index.tolist(), strict=True))
     lengths = segment_lengths(rec.names, pairs, located.joint_in_parent, located.joint_in_child)
-    warnings = tuple(str(w) for w in doc.get("warnings", []) or [])  # as the file states them
+    warnings = tuple(stated or [])  # as the file states them
     source = f"from {calibration_file}"
     return ReportedCalibration(joints, tuple(lengths), located.parent_of, source, warnings)
 
@@ -171,11 +181,15 @@ def dataset_report(
         ``{"md": ..., "html": ..., "json": ...}``: the paths written (the PNG lies beside them).
 
     Raises:
-        InputError: an input file is missing or malformed.
-        CalibrationInputError: the calibration's hierarchy is not a tree over the sensors.
+        InputError: an input file is missing or malformed, the calibration JSON's hierarchy is
+            not a tree over the sensors, or the recording cannot be calibrated (each naming the
+            file).
     """
     ds, rec, scale = _read_input(dataset, units, clusters, wide)
-    cal = _calibrated_here(rec) if calibration_file is None else _from_file(rec, calibration_file)
+    try:
+        cal = _calibrated_here(rec) if calibration_file is None else _from_file(rec, calibration_file)
+    except CalibrationError as exc:  # what the data (or the file's hierarchy) cannot give
+        raise InputError(f"{calibration_file or dataset}: {exc}") from None
     out.mkdir(parents=True, exist_ok=True)
     plot_residual_histograms(cal.joints, out / "residual_histograms.png", scale)
     residuals_mm = [j.fit.rms_residual * scale * 1e3 for j in cal.joints]

@@ -52,6 +52,8 @@ def resolve_model_path(source: str) -> Path:
         return _dm_control_suite_path(source)
     path = Path(source)
     if path.suffix.lower() == ".xml":
+        if path.is_dir():
+            raise InputError(f"model file {path}: expected a file, got a directory")
         if not path.is_file():
             raise InputError(f"model file {path} does not exist")
         return path

@@ -205,9 +205,9 @@ def _sensor_body_ids(base: mujoco.MjModel, names: Sequence[str], source: str) ->
             raise InputError(f"model {source} has no body {name!r}; bodies: {', '.join(map(str, bodies))}")
         ids.append(body_id)
     if len(set(ids)) != len(ids):
-        raise InputError(f"sensor bodies named twice: {names}")
+        raise InputError(f"model {source}: sensor bodies named twice: {names}")
     if len(ids) < 2:
-        raise InputError(f"a capture needs at least 2 sensor bodies, got {names}")
+        raise InputError(f"model {source}: a capture needs at least 2 sensor bodies, got {names}")
     return tuple(sorted(ids))
 
 

@@ -15,9 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from simbench.errors import InputError
-from simbench.sim.models import CaptureModel, Mount, load_capture_model
+from simbench.sim.models import CaptureModel, Mount, joint_sensor_indices, load_capture_model
 from simbench.sim.programs import BUILTIN_PROGRAMS, Program, builtin_program, load_program
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+
+#: The most samples a session may record (10 million: a day at 120 Hz; each sample of each sensor
+#: holds some hundred numbers of truth and measurement).
+MAX_SAMPLES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -98,6 +102,10 @@ def steps_per_sample(model_timestep: float, rate_hz: float) -> tuple[int, float]
         InputError: when the capture rate is above the model's physics rate.
     """
     period = 1.0 / rate_hz
+    if not math.isfinite(period / model_timestep):
+        raise InputError(
+            f"capture rate {rate_hz:g} Hz: a sample period of {period:g} s is not a number of steps"
+        )
     if period < model_timestep * (1 - 1e-9):
         raise InputError(
             f"capture rate {rate_hz:g} Hz is above the model's physics rate {1 / model_timestep:g} Hz"
@@ -144,6 +152,42 @@ def load_session_model(config: SessionConfig) -> CaptureModel:
     )
 
 
+def sensors_source(config: SessionConfig) -> str:
+    """The sensors of a session as its messages name them: the preset or file, or the object's name."""
+    if isinstance(config.sensors, SensorConfig):
+        return f"sensors {config.sensors.name!r}"
+    return config.sensors if config.sensors.endswith(".toml") else f"sensor preset {config.sensors!r}"
+
+
+def check_sensor_names(sensor_config: SensorConfig, cm: CaptureModel, source: str) -> None:
+    """The sensors and joints a configuration's skin names must be on the model: checked before
+    any physics (the skin models would find them only after it).
+
+    Raises:
+        InputError: naming ``source`` (the preset or file), the key and the model's sensors.
+    """
+    skin = sensor_config.skin
+    sensors = list(cm.sensors)
+    _, child = joint_sensor_indices(cm)
+    children = [sensors[c] for c in child]
+    pack = [] if skin.pack is None else [skin.pack.sensor, skin.pack.pushed_by]
+    groups = [
+        ("skin.sta_by_sensor", list(skin.sta_by_sensor), sensors),
+        ("skin.laxity_by_joint", list(skin.laxity_by_joint), children),
+        ("skin.slip", [slip.sensor for slip in skin.slip], sensors),
+        ("skin.pack", pack, sensors),
+        ("skin.girdle", [g.joint for g in skin.girdle], children),
+    ]
+    for key, names, among in groups:
+        unknown = sorted(set(names) - set(among))
+        if unknown:
+            what = "carry no sensor" if among is sensors else "are not the child sensor of a joint"
+            raise InputError(
+                f"{source}: {key} names {unknown}, which {what} in the model {cm.source}; "
+                f"{'sensors' if among is sensors else 'child sensors of its joints'}: {among}"
+            )
+
+
 def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     """Draw everything random about a session from its seed, and check it against the model."""
     sensor_config = _sensor_config(config)
@@ -157,10 +201,23 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
             f"sensors {config.sensors!r} need joint play {sensor_config.joints.play_m} m; the model was "
             f"loaded with {cm.joint_play_m} m (load it with load_session_model)"
         )
-    k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
-    n_samples = math.floor(config.duration_s * config.rate_hz + 1e-9)
+    check_sensor_names(sensor_config, cm, sensors_source(config))
+    samples = config.duration_s * config.rate_hz
+    if samples > MAX_SAMPLES:
+        raise InputError(
+            f"duration {config.duration_s:g} s at {config.rate_hz:g} Hz gives {samples:.3g} samples; at most "
+            f"{MAX_SAMPLES:.0e} (a session of days: is the duration in seconds?)"
+        )
+    n_samples = math.floor(samples + 1e-9)
     if n_samples < 2:
         raise InputError(f"duration {config.duration_s} s at {config.rate_hz} Hz gives fewer than 2 samples")
+    k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
+    latency = sensor_config.tracker.latency_s
+    if latency >= (n_samples - 1) / config.rate_hz:
+        raise InputError(
+            f"{sensors_source(config)}, key tracker.latency_s: a latency of {latency:g} s is not shorter "
+            f"than the session ({config.duration_s:g} s): no sample would be valid"
+        )
     seeds = np.random.SeedSequence(config.seed).spawn(5)
     motion_rng = np.random.default_rng(seeds[0])
     program = _program(config, cm, motion_rng)

@@ -190,9 +190,11 @@ def _floats(doc: dict, key: str, where: str, n: int, default: float | None = Non
             raise InputError(f"{where}: missing {key!r}")
         return np.full(n, default)
     value = doc[key]
-    if isinstance(value, int | float):
+    if isinstance(value, int | float) and not isinstance(value, bool):
         value = [value]
-    if not isinstance(value, list) or not all(isinstance(v, int | float) for v in value):
+    if not isinstance(value, list) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) for v in value
+    ):
         raise InputError(f"{where}.{key}: expected a list of numbers, got {value!r}")
     if len(value) != n:
         raise InputError(
@@ -217,6 +219,8 @@ def load_program(path: str | Path, cm: CaptureModel) -> Program:
     if unknown:
         raise InputError(f"{path}: unknown keys {unknown}; expected name, root, phase")
     root = doc.get("root", "still")
+    if not isinstance(doc.get("name", ""), str):
+        raise InputError(f"{path}: name must be a string, got {doc['name']!r}")
     if root not in ROOT_STYLES:
         raise InputError(f"{path}: root must be one of {', '.join(ROOT_STYLES)}, got {root!r}")
     dofs = _dof_count(cm)
@@ -226,6 +230,8 @@ def load_program(path: str | Path, cm: CaptureModel) -> Program:
         raise InputError(f"{path}: expected at least one [[phase]]")
     for k, ph in enumerate(raw_phases):
         where = f"{path}: phase[{k}]"
+        if not isinstance(ph, dict):
+            raise InputError(f"{where}: expected a table ([[phase]]), got {ph!r}")
         extra = sorted(set(ph) - {"start_s", "end_s", "joints"})
         if extra:
             raise InputError(f"{where}: unknown keys {extra}; expected start_s, end_s, joints")
@@ -233,12 +239,19 @@ def load_program(path: str | Path, cm: CaptureModel) -> Program:
         if not 0 <= start < end:
             raise InputError(f"{where}: need 0 <= start_s < end_s, got {start} and {end}")
         joints = {}
-        for joint, spec in ph.get("joints", {}).items():
+        table = ph.get("joints", {})
+        if not isinstance(table, dict):
+            raise InputError(
+                f"{where}.joints: expected a table of joints ([phase.joints.<name>]), got {table!r}"
+            )
+        for joint, spec in table.items():
             if joint not in dofs:
                 raise InputError(
                     f"{where}: the model {cm.source} has no joint {joint!r}; joints: {', '.join(dofs)}"
                 )
             jw = f"{where}.joints.{joint}"
+            if not isinstance(spec, dict):
+                raise InputError(f"{jw}: expected a table (amplitude_rad, frequency_hz, ...), got {spec!r}")
             extra = sorted(set(spec) - {"amplitude_rad", "frequency_hz", "phase_rad", "offset_rad"})
             if extra:
                 raise InputError(f"{jw}: unknown keys {extra}")

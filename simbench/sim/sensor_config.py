@@ -208,26 +208,38 @@ def _build(cls: type, table: Any, where: str) -> Any:
             kwargs[key] = tuple(_build(sub, item, f"{where}.{key}[{k}]") for k, item in enumerate(value))
         elif key == "pack" and cls is SkinConfig:
             kwargs[key] = _build(SkinPack, value, f"{where}.{key}")
-        elif isinstance(value, list):
-            if not all(isinstance(v, int | float) for v in value):
-                raise InputError(f"{where}.{key}: expected numbers, got {value!r}")
-            kwargs[key] = tuple(float(v) for v in value)
-        elif isinstance(value, dict):
-            kwargs[key] = dict(value)
-        elif isinstance(value, bool):
-            raise InputError(f"{where}.{key}: expected a number, got {value!r}")
-        elif isinstance(value, int | float) and names[key].type == "float":
-            kwargs[key] = float(value)
-        elif names[key].type == "float":
-            raise InputError(f"{where}.{key}: expected a number, got {value!r}")
         else:
-            kwargs[key] = value
+            kwargs[key] = _value(value, names[key].type, f"{where}.{key}")
     try:
         return cls(**kwargs)
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
     except TypeError as exc:
         raise InputError(f"{where}: {exc}") from None
+
+
+def _value(value: Any, kind: str, where: str) -> Any:
+    """A TOML value for a field of type ``kind`` (``float``, ``tuple[float, ...]``,
+    ``dict[str, float]``; others, such as sensor names, as they are: their dataclass checks them),
+    or an InputError naming ``where``."""
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if kind == "float":
+        if not number:
+            raise InputError(f"{where}: expected a number, got {value!r}")
+        return float(value)
+    if kind.startswith("tuple"):
+        if not isinstance(value, list) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in value
+        ):
+            raise InputError(f"{where}: expected a list of numbers, got {value!r}")
+        return tuple(float(v) for v in value)
+    if kind.startswith("dict"):
+        if not isinstance(value, dict):
+            raise InputError(
+                f"{where}: expected a table of sensor = value, e.g. {{ thigh_l = 0.015 }}, got {value!r}"
+            )
+        return dict(value)
+    return value
 
 
 def parse_sensor_config(doc: dict[str, Any], where: str) -> SensorConfig:
@@ -238,6 +250,9 @@ def parse_sensor_config(doc: dict[str, Any], where: str) -> SensorConfig:
             f"{where}: unknown keys {unknown}; expected name, description, tracker, imu, magnetic, "
             "skin, joints"
         )
+    for key in ("name", "description"):
+        if not isinstance(doc.get(key, ""), str):
+            raise InputError(f"{where}, key {key}: expected a string, got {doc[key]!r}")
     return SensorConfig(
         name=str(doc.get("name", "custom")),
         tracker=_build(TrackerConfig, doc.get("tracker", {}), f"{where}: tracker"),

@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 
 from calibration.rotations import matrix_to_quat, quat_to_matrix
+from simbench.errors import InputError
 from simbench.io.dataset import Dataset, SensorData, Truth
 from simbench.sim.models import CaptureModel, joint_sensor_indices
 from simbench.sim.physics import CHUNK_STEPS, SETTLE_S, run_physics
@@ -37,6 +38,7 @@ from simbench.sim.plan import (
     SessionPlan,
     load_session_model,
     plan_session,
+    sensors_source,
     steps_per_sample,
 )
 from simbench.sim.readings import Readings, readings_at_samples, true_sensor_data, wear
@@ -178,10 +180,16 @@ def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Datase
     valid = np.ones((time_s.size, len(cm.sensors)), dtype=bool)
     bone = true_sensor_data(readings.bone, valid, plan.sensor_config.magnetic)
     actual = true_sensor_data(readings.worn, valid, plan.sensor_config.magnetic)
+    measured = _measure(config, plan, time_s, actual)
+    if not measured.valid.any():
+        raise InputError(
+            f"{sensors_source(config)}: the tracker gives no valid sample in {time_s.size} samples "
+            "(its latency, dropouts or sample rate); no dataset is written"
+        )
     return Dataset(
         time_s=time_s,
         sensors=cm.sensors,
-        measured=_measure(config, plan, time_s, actual),
+        measured=measured,
         truth=_truth(cm, readings, bone, actual),
         meta=_meta(config, cm, plan, time_s.size, warnings),
         position_unit_scale=plan.sensor_config.tracker.unit_scale,

@@ -65,6 +65,8 @@ class SkinSlip:
     offset_m: tuple[float, float, float]
 
     def __post_init__(self) -> None:
+        if not isinstance(self.sensor, str) or not self.sensor:
+            raise InputError(f"slip.sensor must be a sensor name, got {self.sensor!r}")
         if not np.isfinite(self.time_s) or self.time_s < 0:
             raise InputError(f"slip.time_s must be >= 0, got {self.time_s}")
         if len(self.offset_m) != 3 or not np.all(np.isfinite(self.offset_m)):
