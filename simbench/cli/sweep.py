@@ -42,6 +42,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(args.study).with_suffix("")
     if not out.parent.is_dir():
         raise InputError(f"cannot write {out}: folder {out.parent} does not exist")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: expected a folder for the study's results, got a file")
     total = len(trials(study))
     bar = tqdm(total=total, desc=study.name, unit="trial", file=sys.stderr, disable=args.no_progress)
     bar.update(len(finished(out)))
