@@ -148,14 +148,17 @@ def hierarchy_file(tmp_path, text):
         ),
         (lambda t, c: [csv_file(t, HEADER + "0,a,0,0,0,1,0,0,0\n0,a,0,0,0,1,0,0,0\n")], "appears twice"),
         (lambda t, c: [csv_file(t, "x", name="poses.trc")], "unknown pose file type '.trc'"),
-        (lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '{"head": "neck"}')], "lacks: \\['neck'\\]"),
+        (
+            lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '{"head": "neck"}')],
+            "h.json: sensor\\(s\\) \\['neck'\\] are not in",
+        ),
         (lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, "{oops")], "line 1: not valid JSON"),
         (lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '["a"]')], "expected a JSON object"),
         (
             lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '{"head": "chest", "head": "x"}')],
             "parent twice",
         ),
-        (lambda t, c: [str(c), "--root", "nobody"], "root 'nobody' is not a sensor"),
+        (lambda t, c: [str(c), "--root", "nobody"], "--root: no sensor 'nobody' in"),
         (lambda t, c: [str(c), "--json", str(t / "no" / "such" / "dir.json")], "does not exist"),
     ],
 )
