@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from child import PEAK_RSS  # benchmarks/child.py: the script's own folder is on the path
 
 from calibration import calibrate
 from simbench.sim.synthetic import random_tree, simulate_motion
@@ -112,17 +113,12 @@ def write_large(path: Path, n_frames: int, n_sensors: int, chunk: int) -> list[s
     return list(skeleton.names)
 
 
-# Peak RSS is read from /proc/self/status (VmHWM), which belongs to this process image alone;
-# getrusage's ru_maxrss would also count the parent's memory at fork time.
-CHILD = """
+CHILD = (
+    PEAK_RSS
+    + """
 import json, sys, time
 import h5py
 from calibration import calibrate
-def peak_rss_mib():
-    with open("/proc/self/status") as fh:
-        for line in fh:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024
 path, names = sys.argv[1], json.loads(sys.argv[2])
 with h5py.File(path, "r") as fh:
     t0 = time.perf_counter()
@@ -136,6 +132,7 @@ print(json.dumps({
     "root": cal.root,
 }))
 """
+)
 
 
 def large_case(n_frames: int, n_sensors: int) -> dict:

@@ -49,7 +49,7 @@ from simbench.errors import InputError
 from simbench.io.atomic import atomic_path
 from simbench.io.hdf5 import open_hdf5
 from simbench.io.imu import ImuRecording
-from simbench.io.poses import PoseRecording
+from simbench.io.poses import PoseRecording, first_bad_time
 
 FORMAT = "simbench-dataset"
 FORMAT_VERSION = 1
@@ -383,18 +383,9 @@ def _check_poses(m: SensorData, time_s: np.ndarray, sensors: tuple[str, ...], pa
 
 def _check_times(time_s: np.ndarray, path: Path) -> None:
     """Sample times must be finite and strictly increasing."""
-    bad = np.flatnonzero(~np.isfinite(time_s))
-    if bad.size:
-        raise InputError(
-            f"{path}: /time_s[{bad[0]}] is {float(time_s[bad[0]])!r}; expected finite times in seconds"
-        )
-    back = np.flatnonzero(np.diff(time_s) <= 0)
-    if back.size:
-        k = int(back[0]) + 1
-        raise InputError(
-            f"{path}: /time_s must increase, got {float(time_s[k])!r} s after {float(time_s[k - 1])!r} s "
-            f"(sample {k})"
-        )
+    wrong = first_bad_time(time_s)
+    if wrong is not None:
+        raise InputError(f"{path}: /time_s[{wrong[0]}]: {wrong[1]}")
 
 
 def truth_calibration_dict(ds: Dataset) -> dict[str, Any]:

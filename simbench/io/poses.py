@@ -73,6 +73,23 @@ def sample_rate(time_s: np.ndarray) -> tuple[float, str | None]:
     return float(rate), note
 
 
+def first_bad_time(time_s: np.ndarray) -> tuple[int, str] | None:
+    """The first sample whose time is not finite or does not increase, and what is wrong with it
+    (for the caller to place: a file's line, a dataset's path); ``None`` when all are right.
+
+    Args:
+        time_s: ``(frames,)`` sample times, seconds.
+    """
+    bad = np.flatnonzero(~np.isfinite(time_s))
+    if bad.size:
+        return int(bad[0]), f"expected a finite time in seconds, got {float(time_s[bad[0]])!r}"
+    back = np.flatnonzero(np.diff(time_s) <= 0)
+    if back.size:
+        k = int(back[0]) + 1
+        return k, f"times must increase, got {float(time_s[k])!r} s after {float(time_s[k - 1])!r} s"
+    return None
+
+
 @dataclass(frozen=True)
 class PoseRecording:
     """6-DoF sensor poses over time.

@@ -35,7 +35,7 @@ from calibration.rotations import euler_to_matrix, matrix_to_euler, matrix_to_qu
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_open
 from simbench.io.csv_blocks import open_csv
-from simbench.io.poses import PoseRecording
+from simbench.io.poses import PoseRecording, first_bad_time
 from simbench.units import LENGTH_UNITS, metres_per_unit
 
 
@@ -201,19 +201,9 @@ def read_wide_csv(path: str | os.PathLike[str], spec: WideSpec) -> PoseRecording
     if spec.time:
         time_s = data[:, 0]
         offset = 1
-        bad = np.flatnonzero(~np.isfinite(time_s))
-        if bad.size:
-            raise InputError(
-                f"{path}, line {line_of[bad[0]]}, column {spec.time!r}: expected a finite time in seconds, "
-                f"got {float(time_s[bad[0]])!r}"
-            )
-        back = np.flatnonzero(np.diff(time_s) <= 0)
-        if back.size:
-            k = int(back[0]) + 1
-            raise InputError(
-                f"{path}, line {line_of[k]}, column {spec.time!r}: times must increase, got "
-                f"{float(time_s[k])!r} s after {float(time_s[k - 1])!r} s"
-            )
+        wrong = first_bad_time(time_s)
+        if wrong is not None:
+            raise InputError(f"{path}, line {line_of[wrong[0]]}, column {spec.time!r}: {wrong[1]}")
     else:
         time_s = np.arange(len(data)) / spec.rate_hz
     scale = metres_per_unit(spec.units)
