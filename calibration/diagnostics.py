@@ -163,7 +163,7 @@ def rotation_ranges(
     """
     parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
     n_frames, n = int(R_w_s.shape[0]), int(R_w_s.shape[1])
-    p_w_s = np.zeros((n_frames, n, 3))  # positions play no part; iter_chunks wants them
+    p_w_s = np.broadcast_to(0.0, (n_frames, n, 3))  # positions play no part; iter_chunks wants them
     total = np.zeros((parent.size, 3, 3))
     used = np.zeros((n_frames, parent.size), dtype=bool)
     for frames, R, _, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):

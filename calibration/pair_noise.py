@@ -34,7 +34,7 @@ THIRD_DIFFERENCE_GAIN = 20.0
 
 #: Bytes of residuals worked on at a time (a chunk of frames is cut shorter when many pairs are
 #: asked for).
-WORK_BYTES = 4 << 20
+WORK_BYTES = 2 << 20
 
 
 def pair_noise_variance(

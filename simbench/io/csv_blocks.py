@@ -354,6 +354,7 @@ def _arrange(path: Path, blocks: Blocks, scale: float, in_memory: bool | None) -
         if bad:
             notes.append(f"sensor {name}: {bad} row(s) with NaN or inf values (treated as missing)")
     R, p = store.arrays()
+    pa.default_memory_pool().release_unused()  # pyarrow's freed blocks, back to the system
     for start in range(0, n_frames, 1 << 16):  # to the valid flags in place, a slice at a time
         rows = state[start : start + (1 << 16)]
         rows[rows == NOT_FINITE] = ABSENT
