@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
+from child import PEAK_RSS  # benchmarks/child.py: the script's own folder is on the path
 
 from calibration.rotations import matrix_to_quat
 from simbench.sim.synthetic import random_tree, simulate_motion
@@ -73,16 +74,14 @@ def write_csv(path: Path, n_frames: int, n_sensors: int, chunk: int = 20_000) ->
     return dict(skeleton.parent_of)
 
 
-PRELUDE = """
+PRELUDE = (
+    PEAK_RSS
+    + """
 import json, sys, time
-def peak_rss_mib():
-    with open("/proc/self/status") as fh:
-        for line in fh:
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024
 path, truth = sys.argv[1], json.loads(sys.argv[2])
 out = {}
 """
+)
 
 STAGES = {
     "bytes": """
@@ -188,9 +187,16 @@ def main() -> None:
                 if "seconds" in case.get(stage, {}) and "seconds" in case.get("parse", {}):
                     case[f"{stage} / parse"] = case[stage]["seconds"] / case["parse"]["seconds"]
             out["cases"].append(case)
-    if args.save:
+    if args.save:  # cases of other sizes already saved are kept (run the sizes separately)
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "streaming.json").write_text(json.dumps(out, indent=2) + "\n")
+        saved = RESULTS / "streaming.json"
+        if saved.exists():
+            sizes = {(c["frames"], c["sensors"]) for c in out["cases"]}
+            kept = [
+                c for c in json.loads(saved.read_text())["cases"] if (c["frames"], c["sensors"]) not in sizes
+            ]
+            out["cases"] = sorted(kept + out["cases"], key=lambda c: (c["frames"], c["sensors"]))
+        saved.write_text(json.dumps(out, indent=2) + "\n")
 
 
 if __name__ == "__main__":
