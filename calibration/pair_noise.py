@@ -80,27 +80,31 @@ def pair_noise_variance(
     for _, R_chunk, p_chunk, ok_chunk in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         for start in range(0, R_chunk.shape[0], step):
             R, p, ok = (x[start : start + step] for x in (R_chunk, p_chunk, ok_chunk))
-            e = rotated(R)  # O'Brien eq. 8 for each pair: R_p l_p + p_p - R_c l_c - p_c, (c, P, 3)
-            e += p[:, parent]
-            e -= p[:, child]
-            both = ok[:, parent] & ok[:, child]  # (c, P)
+            # O'Brien eq. 8 for each pair, pair-major: R_p l_p + p_p - R_c l_c - p_c, (P, c, 3)
+            e = rotated(R)
+            p_t, ok_t = p.transpose(1, 0, 2), ok.T
+            e += p_t[parent]
+            e -= p_t[child]
+            both = ok_t[parent] & ok_t[child]  # (P, c)
             if carry is not None:
-                e, both = np.concatenate([carry[0], e]), np.concatenate([carry[1], both])
-            if e.shape[0] >= 4:
-                d3 = np.diff(e, n=3, axis=0)
-                sq = np.square(d3, out=d3).sum(axis=2)  # (c - 3, P)
-                usable = both[:-3] & both[1:-2] & both[2:-1] & both[3:]
-                sq[~usable] = 0.0
-                total += sq.sum(axis=0)
-                used += usable.sum(axis=0)
-            carry = (e[-3:], both[-3:])
+                e, both = np.concatenate([carry[0], e], axis=1), np.concatenate([carry[1], both], axis=1)
+            if e.shape[1] >= 4:
+                d3 = np.diff(e, n=3, axis=1)  # (P, c - 3, 3)
+                usable = both[:, :-3] & both[:, 1:-2] & both[:, 2:-1] & both[:, 3:]
+                d3[~usable] = 0.0
+                total += np.einsum("pfk,pfk->p", d3, d3)
+                used += np.count_nonzero(usable, axis=1)
+            carry = (e[:, -3:], both[:, -3:])
     return np.where(used > 0, total / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0)
 
 
 class _Rotated:
-    """``R_p l_p - R_c l_c`` of every pair from a slice of rotations: one matrix product per
-    sensor and side (its rotation times the centres of all its pairs), never the products of a
-    dense operator that is almost all zeros."""
+    """``R_p l_p - R_c l_c`` of every pair from a slice of rotations, pair-major ``(P, c, 3)``.
+
+    Each sensor's rotations multiply the centres of all its pairs at once (one batched product
+    over the sensors, the centres padded to the most pairs a sensor has), and each pair then
+    takes its two rows: no product with a dense operator that is almost all zeros, no scatter.
+    """
 
     def __init__(
         self,
@@ -112,16 +116,20 @@ class _Rotated:
     ) -> None:
         lp = np.asarray(joint_in_parent, dtype=float).reshape(-1, 3)
         lc = np.asarray(joint_in_child, dtype=float).reshape(-1, 3)
-        self.n_pairs = parent.size
-        self.terms = []  # (sensor, pairs, (3, m) centres with their sign)
-        for s in range(n):
-            for pairs, centres, sign in ((parent == s, lp, 1.0), (child == s, lc, -1.0)):
-                if pairs.any():
-                    self.terms.append((s, np.flatnonzero(pairs), sign * centres[pairs].T))
+        count = np.zeros(n, dtype=np.int64)
+        self.slot = np.zeros((2, parent.size), dtype=np.int64)  # each pair's row in its sensors' products
+        for side, sensors in enumerate((parent, child)):
+            for k, s in enumerate(sensors):
+                self.slot[side, k] = count[s]
+                count[s] += 1
+        self.centres = np.zeros((n, max(int(count.max(initial=0)), 1), 3))  # (n, m, 3), signed
+        self.centres[parent, self.slot[0]] = lp
+        self.centres[child, self.slot[1]] = -lc
+        self.parent, self.child = parent, child
 
     def __call__(self, R: np.ndarray) -> np.ndarray:
-        c = R.shape[0]
-        out = np.zeros((c, self.n_pairs, 3))
-        for s, pairs, centres in self.terms:
-            out[:, pairs] += (R[:, s].reshape(3 * c, 3) @ centres).reshape(c, 3, -1).transpose(0, 2, 1)
-        return out
+        c, n = R.shape[:2]
+        by_sensor = R.transpose(1, 3, 0, 2).reshape(n, 3, 3 * c)  # [s, b, (f, a)] = R[f, s, a, b]
+        products = self.centres @ by_sensor  # (n, m, 3c): each sensor's R l for all its pairs
+        out = products[self.parent, self.slot[0]] + products[self.child, self.slot[1]]  # (P, 3c)
+        return out.reshape(-1, c, 3)
