@@ -149,11 +149,12 @@ def orient(
     smooth_hz: float | None = None,
 ) -> Orientations:
     """Sensor orientations from accelerometer and magnetometer (Fontaine et al.; ``triad``,
-    ``wahba``, or the gyro-aided ``mahony`` reference), scored against the truth when there is one.
+    ``wahba``, or the gyro-aided references ``mahony`` and ``vqf``), scored against the truth
+    when there is one.
 
     Args:
         data: a Dataset with inertial data, or an IMU recording (e.g. a BROAD trial from :func:`read`).
-        method: ``fontaine``, ``triad``, ``wahba`` or ``mahony``.
+        method: one of :data:`simbench.orient.METHODS`.
         weighting: Fontaine's disturbance weighting.
         smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
     """

@@ -1,5 +1,11 @@
 """Orientation estimation over recordings: method dispatch, scoring and the orientation CSV.
 
+The gyro-free methods are the calibration core's (:mod:`calibration.orientation`); the gyro-aided
+references are Mahony's complementary filter (the core's, hand-written) and VQF (Laidig and Seel,
+"VQF: Highly accurate IMU orientation estimation with bias estimation and magnetic disturbance
+rejection", Information Fusion 91, 2023; the authors' ``vqf`` package, its offline variant, which
+also uses the samples after each one), by the authors of the BROAD benchmark.
+
 Errors follow BROAD's definitions (:func:`calibration.orientation.orientation_errors`): total,
 heading (about the vertical) and inclination, as RMSE in degrees over the samples to evaluate
 where both estimate and reference exist. Estimates are made and scored in ENU; the truth of
@@ -12,8 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import vqf
 
 from calibration.orientation import (
+    Estimate,
     Weighting,
     change_frame,
     fontaine,
@@ -26,7 +34,12 @@ from calibration.orientation import (
 from simbench.errors import InputError
 from simbench.io.imu import ImuRecording
 
-METHODS = ("fontaine", "triad", "wahba", "mahony")
+#: Every method :func:`estimate` knows: gyro-free (``fontaine``, ``triad``, ``wahba``) and the
+#: gyro-aided references (``mahony``, ``vqf``).
+METHODS = ("fontaine", "triad", "wahba", "mahony", "vqf")
+
+#: The methods that use the gyroscope.
+GYRO_AIDED = ("mahony", "vqf")
 
 
 @dataclass(frozen=True)
@@ -57,7 +70,7 @@ def estimate(
 
     Args:
         rec: the recording.
-        method: ``fontaine``, ``triad``, ``wahba`` or ``mahony`` (gyro-aided reference).
+        method: one of :data:`METHODS`.
         weighting: Fontaine's disturbance weighting (``fontaine`` and ``wahba``).
         smooth_hz: zero-phase smoothing cutoff, Hz: weighted by the disturbance weights for
             ``fontaine``, plain low-pass of the inputs for the others.
@@ -79,11 +92,54 @@ def estimate(
         est = fontaine(
             acc, mag, ref, weighting=w, valid=rec.valid, rate_hz=rec.rate_hz, temporal_hz=smooth_hz or None
         )
-    else:
+    elif method == "mahony":
         est = mahony(acc, rec.gyro, mag, rec.rate_hz, ref, valid=rec.valid)
+    else:
+        est = vqf_offline(acc, rec.gyro, mag, rec.rate_hz, valid=rec.valid)
     return OrientationRun(
         est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
     )
+
+
+def vqf_offline(
+    acc: np.ndarray, gyro: np.ndarray, mag: np.ndarray, rate_hz: float, *, valid: np.ndarray | None = None
+) -> Estimate:
+    """VQF's offline 9D orientation of each sensor (ENU, magnetic north along y, as ours).
+
+    Args:
+        acc, gyro, mag: ``(F, N, 3)`` in the sensor frame: m/s^2, rad/s, and any unit (uT).
+        rate_hz: sample rate, Hz.
+        valid: optional ``(F, N)`` mask. VQF runs through every sample, so a sample that is
+            masked or not finite is filled by linear interpolation in time from its neighbours
+            (held at the ends) and comes back NaN.
+
+    Returns:
+        The orientations ``R_w_s`` as ``(F, N, 4)`` scalar-first quaternions.
+    """
+    acc, gyro, mag = (np.asarray(x, dtype=float) for x in (acc, gyro, mag))
+    if not (acc.shape == gyro.shape == mag.shape and acc.ndim == 3 and acc.shape[-1] == 3):
+        raise InputError(
+            f"Expected acc, gyro and mag of one shape (frames, sensors, 3), got {acc.shape}, {gyro.shape}, "
+            f"{mag.shape}"
+        )
+    ok = np.isfinite(acc).all(axis=-1) & np.isfinite(gyro).all(axis=-1) & np.isfinite(mag).all(axis=-1)
+    if valid is not None:
+        ok &= np.asarray(valid, dtype=bool)
+    out = np.full((*acc.shape[:-1], 4), np.nan)
+    frames = np.arange(acc.shape[0], dtype=float)
+    for k in range(acc.shape[1]):
+        use = ok[:, k]
+        if use.sum() < 2:
+            continue
+        filled = [
+            np.ascontiguousarray(
+                np.column_stack([np.interp(frames, frames[use], x[use, k, i]) for i in range(3)])
+            )
+            for x in (gyro, acc, mag)
+        ]
+        q = vqf.offlineVQF(*filled, 1.0 / rate_hz)["quat9D"]
+        out[use, k] = q[use]
+    return Estimate(out, ok, "enu")
 
 
 def in_frame(q_enu: np.ndarray, frame: str) -> np.ndarray:

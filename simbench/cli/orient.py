@@ -7,7 +7,7 @@ import argparse
 from simbench.cli.types import positive_float
 from simbench.io.orientation_csv import write_orientation_csv
 from simbench.io.read import read_imu
-from simbench.orient import estimate, in_frame
+from simbench.orient import GYRO_AIDED, METHODS, estimate, in_frame
 from simbench.score import score_orientation
 
 
@@ -20,7 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "reference in the input, print BROAD's error figures.",
     )
     ori.add_argument("input", help="a simbench dataset (.h5) or a BROAD trial (.hdf5)")
-    ori.add_argument("--method", choices=("fontaine", "triad", "wahba", "mahony"), default="fontaine")
+    ori.add_argument("--method", choices=METHODS, default="fontaine")
     ori.add_argument(
         "--frame", choices=("enu", "ned"), default="enu", help="world frame of the output (default enu)"
     )
@@ -45,7 +45,7 @@ def cmd_orient(args: argparse.Namespace) -> int:
     print(
         f"  sensors: {len(rec.names)}   samples: {rec.time_s.size} at {rec.rate_hz:.6g} Hz   "
         f"method: {args.method}"
-        f"{'' if args.no_weighting or args.method in ('triad', 'mahony') else ' (disturbance weighting)'}"
+        f"{'' if args.no_weighting or args.method in ('triad', *GYRO_AIDED) else ' (disturbance weighting)'}"
     )
     print(
         f"  reference field from the data: {run.field_strength_ut:.1f} uT, inclination "

@@ -42,6 +42,7 @@ import numpy as np
 
 from simbench.errors import InputError, load_toml
 from simbench.experiments.metrics import CALIBRATION_METRICS
+from simbench.orient import METHODS
 from simbench.sim.plan import plan_session
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model
@@ -57,7 +58,7 @@ METRICS = {
 #: Keys of ``[base]``: fields of :class:`SessionConfig` (a missing one takes its default).
 BASE_KEYS = {"model", "motion", "sensors", "duration_s", "rate_hz"}
 #: Orientation methods a study may score (``orientation:<method>``).
-ORIENTATION_METHODS = ("fontaine", "triad", "wahba", "mahony")
+ORIENTATION_METHODS = METHODS
 DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
 STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
 PARAMETER_KEYS = {"name", "unit", "values", "low", "high", "log"}

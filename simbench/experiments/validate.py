@@ -162,7 +162,7 @@ def _orientation(plan: Plan) -> dict[str, Any]:
         "triad": {"method": "triad"},
         "fontaine": {"method": "fontaine"},
         "fontaine (1 Hz weighted smoothing)": {"method": "fontaine", "smooth_hz": 1.0},
-        "mahony (gyro-aided)": {"method": "mahony"},
+        "vqf (gyro-aided reference)": {"method": "vqf"},
     }.items():
         run = estimate(rec, **kw)
         scored = score_orientation(run.q_enu, rec.q_true, rec.names)
