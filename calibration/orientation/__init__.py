@@ -21,6 +21,9 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
   zero-phase temporal smoothing (:func:`smooth_vectors`, :func:`weighted_smooth`).
 - :mod:`.gauss_newton`: :func:`fontaine`, Fontaine et al.'s iterative estimator, Gauss-Newton on
   a rotation vector, started from TRIAD; both it and :func:`wahba` take the weights.
+- :mod:`.magnetometer`: :func:`fit_magnetometer`, hard and soft iron from a recording's own
+  samples by an ellipsoid fit, with whether the samples determine it and how steady it makes
+  the field strength (:class:`MagnetometerCalibration`).
 - :mod:`.complementary`: :func:`mahony`, a gyro-aided reference (Mahony's explicit
   complementary filter), so users can see how far gyro-free estimation is from an established
   fusion filter.
@@ -33,6 +36,7 @@ aligned with inputs.
 from calibration.orientation.complementary import mahony
 from calibration.orientation.disturbance import Weighting, smooth_vectors, weighted_smooth
 from calibration.orientation.gauss_newton import fontaine
+from calibration.orientation.magnetometer import MagnetometerCalibration, fit_magnetometer
 from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
 from calibration.orientation.world import (
     FRAMES,
@@ -54,9 +58,11 @@ __all__ = [
     "MIN_SIN_ANGLE",
     "R_NED_ENU",
     "Estimate",
+    "MagnetometerCalibration",
     "Reference",
     "Weighting",
     "change_frame",
+    "fit_magnetometer",
     "fontaine",
     "mahony",
     "orientation_errors",

@@ -1,0 +1,176 @@
+"""Magnetometer calibration from a recording's own samples: hard and soft iron by an ellipsoid fit.
+
+A magnetometer on a sensor board measures ``m = S^-1 b + h``: the Earth field ``b`` (constant
+strength ``B`` in the world) distorted by the board's soft iron ``S^-1`` (a symmetric matrix near
+the identity) and offset by its hard iron ``h``. As the sensor turns, ``m`` traces the ellipsoid
+``(m - h)^T A (m - h) = 1`` with ``A = S^T S / B^2``. Fontaine et al. name this: magnetometers need
+re-calibration where the environment changes, and a bad calibration must be detected.
+
+**Fit.** The quadric ``m^T M m + 2 n^T m = 1`` is linear in its nine coefficients
+(``x^2, y^2, z^2, 2yz, 2xz, 2xy, 2x, 2y, 2z``; the scale fixed by the right-hand side, which
+needs the origin off the ellipsoid: a hard iron smaller than the field), solved by least squares
+over every valid sample. Then ``h = -M^-1 n``, ``A = M / (1 + h^T M h)``, and the correction
+``b = S (m - h)`` with ``S = B A^(1/2)``, ``B = det(A)^(-1/6)`` (the geometric mean of the semi-axes:
+the calibrated field keeps the recording's strength).
+
+**Is it determined?** Turning about one axis only traces a circle of the ellipsoid: the fit is
+then singular along the axis. The nine coefficients' covariance (the least-squares residual's
+variance times ``(D^T D)^-1``) is carried to the three semi-axes by a numerical Jacobian; the fit
+is ``determined`` when every semi-axis is known to :data:`AXIS_TOLERANCE` (its standard error over
+its length), the unit-free test the data's own scatter makes. The directions the samples cover
+are reported too (the spread of the calibrated directions along their principal axes).
+
+**Is it good?** The relative spread of ``|b|`` after calibration (robust: 1.4826 MAD over the
+median) against the spread of ``|m|`` before: a calibration that does not make the strength
+steadier than it was, or leaves it spread by more than the fit's own residual suggests, is
+reported as bad by the caller.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration.errors import CalibrationError, CalibrationInputError
+
+#: Largest standard error of a semi-axis, over its length, of a determined fit (1 %).
+AXIS_TOLERANCE = 0.01
+
+#: Fewest samples for a fit (nine coefficients and their scatter).
+MIN_SAMPLES = 30
+
+
+@dataclass(frozen=True)
+class MagnetometerCalibration:
+    """Hard and soft iron of one magnetometer, from its samples.
+
+    Attributes:
+        hard_iron: ``(3,)`` offset ``h``, in the samples' unit.
+        soft_iron: ``(3, 3)`` symmetric correction ``S``: ``b = S (m - h)``.
+        field_strength: ``B``, the calibrated field's strength, in the samples' unit.
+        axes: ``(3,)`` semi-axes of the fitted ellipsoid, largest first, in the samples' unit.
+        axis_error: ``(3,)`` their standard errors over their lengths.
+        determined: every semi-axis known to :data:`AXIS_TOLERANCE`.
+        coverage: ``(3,)`` spread of the calibrated directions along their principal axes
+            (standard deviation of the unit vectors' components, largest first; 0.58 each for
+            directions all over the sphere, one of them near 0 for turns about one axis).
+        spread_before, spread_after: robust relative spread of ``|m|`` and of ``|b|``.
+        n_samples: samples used.
+    """
+
+    hard_iron: np.ndarray
+    soft_iron: np.ndarray
+    field_strength: float
+    axes: np.ndarray
+    axis_error: np.ndarray
+    determined: bool
+    coverage: np.ndarray
+    spread_before: float
+    spread_after: float
+    n_samples: int
+
+    def apply(self, mag: np.ndarray) -> np.ndarray:
+        """``(..., 3)`` calibrated field ``S (m - h)`` of raw samples ``(..., 3)``."""
+        return (np.asarray(mag, dtype=float) - self.hard_iron) @ self.soft_iron.T
+
+
+def _design(m: np.ndarray) -> np.ndarray:
+    x, y, z = m.T
+    return np.column_stack([x * x, y * y, z * z, 2 * y * z, 2 * x * z, 2 * x * y, 2 * x, 2 * y, 2 * z])
+
+
+def _ellipsoid(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(h, A)`` of the quadric coefficients ``v`` (9,); raises when it is not an ellipsoid."""
+    a, b, c, f, g, hh, p, q, r = v
+    M = np.array([[a, hh, g], [hh, b, f], [g, f, c]])
+    n = np.array([p, q, r])
+    h = -np.linalg.solve(M, n)
+    A = M / (1.0 + h @ M @ h)
+    return h, A
+
+
+def _semi_axes(v: np.ndarray) -> np.ndarray:
+    _, A = _ellipsoid(v)
+    return np.sort(1.0 / np.sqrt(np.linalg.eigvalsh(A)))[::-1]
+
+
+def _spread(x: np.ndarray) -> float:
+    med = float(np.median(x))
+    return float(1.4826 * np.median(np.abs(x - med)) / med) if med > 0 else float("inf")
+
+
+def fit_magnetometer(mag: np.ndarray, valid: np.ndarray | None = None) -> MagnetometerCalibration:
+    """Fit hard and soft iron to one magnetometer's samples (module docstring).
+
+    Args:
+        mag: ``(F, 3)`` raw samples in the sensor frame, any unit.
+        valid: optional ``(F,)`` mask; non-finite samples are always left out.
+
+    Raises:
+        CalibrationInputError: not ``(F, 3)``.
+        CalibrationError: fewer than :data:`MIN_SAMPLES` samples, or samples that do not lie on
+            an ellipsoid (the quadric fitted is not one: a field that is not constant, or samples
+            from too few directions to tell).
+    """
+    m = np.asarray(mag, dtype=float)
+    if m.ndim != 2 or m.shape[1] != 3:
+        raise CalibrationInputError(f"Expected mag of shape (frames, 3), got {m.shape}")
+    use = np.isfinite(m).all(axis=1)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    m = m[use]
+    if m.shape[0] < MIN_SAMPLES:
+        raise CalibrationError(f"a magnetometer fit needs at least {MIN_SAMPLES} samples, got {m.shape[0]}")
+    scale = float(np.median(np.linalg.norm(m, axis=1)))  # work near unit size: the design is then well scaled
+    D = _design(m / scale)
+    v, *_ = np.linalg.lstsq(D, np.ones(len(m)), rcond=None)
+    try:
+        h, A = _ellipsoid(v)
+        w, U = np.linalg.eigh(A)
+    except np.linalg.LinAlgError:
+        raise CalibrationError("the magnetometer samples do not lie on an ellipsoid") from None
+    if not np.all(w > 0):
+        raise CalibrationError(
+            "the magnetometer samples do not lie on an ellipsoid (the fitted quadric is not closed): "
+            "too few directions, or a field that changes"
+        )
+    axes = np.sort(1.0 / np.sqrt(w))[::-1]
+    # the coefficients' covariance, carried to the semi-axes
+    dof = max(len(m) - 9, 1)
+    sigma2 = float(np.sum((D @ v - 1.0) ** 2) / dof)
+    gram = D.T @ D
+    cond = np.linalg.cond(gram)
+    if cond > 1e14:
+        axis_error = np.full(3, np.inf)
+    else:
+        cov = sigma2 * np.linalg.inv(gram)
+        step = 1e-7 * np.maximum(np.abs(v), 1e-12)
+        J = np.empty((3, 9))
+        for k in range(9):
+            dv = np.zeros(9)
+            dv[k] = step[k]
+            try:
+                J[:, k] = (_semi_axes(v + dv) - _semi_axes(v - dv)) / (2 * step[k])
+            except np.linalg.LinAlgError:
+                J[:, k] = np.inf
+        axis_error = np.sqrt(np.maximum(np.einsum("ik,kl,il->i", J, cov, J), 0.0)) / axes
+    W = (U * np.sqrt(w)) @ U.T  # A^(1/2), symmetric
+    strength = float(np.prod(axes) ** (1.0 / 3.0))
+    soft = strength * W
+    hard = h * scale
+    b = (m - hard) @ soft.T
+    u = b / np.linalg.norm(b, axis=1, keepdims=True)
+    coverage = np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(u.T)))[::-1].clip(min=0.0))
+    return MagnetometerCalibration(
+        hard_iron=hard,
+        soft_iron=soft,
+        field_strength=strength * scale,
+        axes=axes * scale,
+        axis_error=axis_error,
+        determined=bool(np.all(axis_error <= AXIS_TOLERANCE)),
+        coverage=coverage,
+        spread_before=_spread(np.linalg.norm(m, axis=1)),
+        spread_after=_spread(np.linalg.norm(b, axis=1)),
+        n_samples=int(m.shape[0]),
+    )

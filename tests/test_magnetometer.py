@@ -1,0 +1,68 @@
+"""Magnetometer calibration by an ellipsoid fit (issue 15, part 3): a known hard and soft iron is
+recovered to 1 %, turns about one axis are reported as not determining it, and the calibration
+makes the field strength steady."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from calibration.errors import CalibrationError
+from calibration.orientation.magnetometer import fit_magnetometer
+from calibration.rotations import rotvec_to_matrix
+
+FIELD_W = 48.0 * np.array([0.0, np.cos(np.deg2rad(66.0)), -np.sin(np.deg2rad(66.0))])  # ENU, uT
+
+
+def raw_samples(R, soft_true, hard_true, noise_ut, rng):
+    """``m = S^-1 R^T b_w + h + noise`` for rotations ``R_w_s`` (F, 3, 3)."""
+    b_s = np.einsum("fji,j->fi", R, FIELD_W)
+    return b_s @ np.linalg.inv(soft_true).T + hard_true + rng.normal(scale=noise_ut, size=b_s.shape)
+
+
+SOFT = np.array([[1.12, 0.06, -0.03], [0.06, 0.91, 0.04], [-0.03, 0.04, 1.02]])  # symmetric, near I
+HARD = np.array([12.0, -7.5, 20.0])  # uT
+
+
+def test_known_hard_and_soft_iron_recovered_to_one_percent():
+    rng = np.random.default_rng(3)
+    R = rotvec_to_matrix(rng.normal(size=(3000, 3)) * 2.0)  # turned every way
+    cal = fit_magnetometer(raw_samples(R, SOFT, HARD, 0.3, rng))
+    # the scale of S is not observable (only |b| is): S is known up to its determinant
+    expected = SOFT / np.cbrt(np.linalg.det(SOFT))
+    assert np.linalg.norm(cal.soft_iron - expected) / np.linalg.norm(expected) < 0.01
+    assert np.linalg.norm(cal.hard_iron - HARD) / np.linalg.norm(FIELD_W) < 0.01
+    assert cal.determined and cal.axis_error.max() < 0.01
+    assert cal.coverage.min() > 0.5  # directions all over the sphere: about 0.58 each
+    assert cal.field_strength == pytest.approx(48.0 / np.cbrt(np.linalg.det(SOFT)), rel=0.01)
+    assert cal.spread_after < 0.2 * cal.spread_before  # the strength is steady once calibrated
+
+
+def test_exact_samples_give_the_exact_calibration():
+    rng = np.random.default_rng(4)
+    R = rotvec_to_matrix(rng.normal(size=(200, 3)) * 2.0)
+    cal = fit_magnetometer(raw_samples(R, SOFT, HARD, 0.0, rng))
+    np.testing.assert_allclose(cal.hard_iron, HARD, atol=1e-9)
+    np.testing.assert_allclose(cal.soft_iron, SOFT / np.cbrt(np.linalg.det(SOFT)), atol=1e-11)
+    b = cal.apply(raw_samples(R, SOFT, HARD, 0.0, rng))
+    np.testing.assert_allclose(np.linalg.norm(b, axis=1), cal.field_strength, rtol=1e-11)
+
+
+def test_turns_about_one_axis_do_not_determine_the_fit():
+    rng = np.random.default_rng(5)
+    angle = rng.uniform(-np.pi, np.pi, 2000)
+    tilt = rotvec_to_matrix(np.array([0.3, -0.2, 0.0]))
+    R = tilt @ rotvec_to_matrix(angle[:, None] * np.array([0.0, 0.0, 1.0]))  # about one axis only
+    try:
+        cal = fit_magnetometer(raw_samples(R, SOFT, HARD, 0.3, rng))
+    except CalibrationError:
+        return  # no closed ellipsoid fits a circle: also "not determined"
+    assert not cal.determined
+    assert cal.coverage.min() < 0.1 * cal.coverage.max()
+
+
+def test_too_few_samples_and_bad_shapes_are_refused():
+    with pytest.raises(CalibrationError, match="at least 30 samples"):
+        fit_magnetometer(np.ones((10, 3)))
+    with pytest.raises(ValueError, match=r"shape \(frames, 3\)"):
+        fit_magnetometer(np.ones((100, 2)))
