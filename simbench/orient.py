@@ -15,15 +15,19 @@ alignment (an output in NED is converted after scoring).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 import vqf
 
+from calibration.errors import CalibrationError
 from calibration.orientation import (
     Estimate,
+    MagnetometerCalibration,
     Weighting,
     change_frame,
+    fit_magnetometer,
     fontaine,
     mahony,
     reference_from_data,
@@ -145,3 +149,65 @@ def vqf_offline(
 def in_frame(q_enu: np.ndarray, frame: str) -> np.ndarray:
     """Orientations in the output frame (``enu`` or ``ned``)."""
     return change_frame(q_enu, "enu", frame)
+
+
+#: A fit is applied only where it at least halves the spread of the field strength: raw samples
+#: that are already as steady are already calibrated (BROAD's: 2.0 % -> 1.8 %), and a fit would
+#: only add its own error.
+SPREAD_GAIN = 0.5
+
+
+def calibrate_magnetometers(
+    rec: ImuRecording,
+) -> tuple[ImuRecording, dict[str, MagnetometerCalibration | str]]:
+    """Each sensor's magnetometer calibrated from its own samples (hard and soft iron by an
+    ellipsoid fit, :func:`calibration.orientation.fit_magnetometer`), applied where it is worth
+    it (:func:`applies`).
+
+    Returns:
+        The recording with the calibrated magnetometers (a sensor whose fit does not apply keeps
+        its raw samples), and per sensor its fit or why there is none.
+    """
+    mag = np.array(rec.mag, dtype=float)
+    fits: dict[str, MagnetometerCalibration | str] = {}
+    for k, name in enumerate(rec.names):
+        try:
+            fit = fit_magnetometer(rec.mag[:, k], rec.valid[:, k])
+        except CalibrationError as exc:
+            fits[name] = str(exc)
+            continue
+        fits[name] = fit
+        if applies(fit):
+            mag[:, k] = fit.apply(rec.mag[:, k])
+    applied = [n for n, f in fits.items() if not isinstance(f, str) and applies(f)]
+    note = (
+        f"magnetometers calibrated from the recording: {len(applied)} of {len(fits)} "
+        f"({', '.join(applied) or 'none'})"
+    )
+    return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, note)), fits
+
+
+def applies(fit: MagnetometerCalibration) -> bool:
+    """The samples determine the fit, and it makes the field strength steadier by
+    :data:`SPREAD_GAIN` at least."""
+    return fit.determined and fit.spread_after <= SPREAD_GAIN * fit.spread_before
+
+
+def describe_fit(fit: MagnetometerCalibration | str) -> str:
+    """One line on a sensor's magnetometer fit (or why there is none)."""
+    if isinstance(fit, str):
+        return f"not calibrated: {fit}"
+    if applies(fit):
+        verdict = "applied"
+    elif not fit.determined:
+        verdict = f"not applied: the semi-axes are known to {100 * fit.axis_error.max():.2g} % only"
+    else:
+        verdict = "not applied: the raw field strength is about as steady (already calibrated)"
+    soft = float(np.linalg.norm(fit.soft_iron - np.eye(3), 2))
+    hard = ", ".join(f"{x:.3g}" for x in fit.hard_iron)
+    return (
+        f"{verdict}; hard iron ({hard}), soft iron {100 * soft:.2g} % from identity, field "
+        f"{fit.field_strength:.4g}; |m| spread {100 * fit.spread_before:.2g} % -> "
+        f"{100 * fit.spread_after:.2g} %; "
+        f"directions covered {', '.join(f'{x:.2f}' for x in fit.coverage)} (0.58 each all round)"
+    )

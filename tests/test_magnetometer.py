@@ -9,7 +9,7 @@ import pytest
 
 from calibration.errors import CalibrationError
 from calibration.orientation.magnetometer import fit_magnetometer
-from calibration.rotations import rotvec_to_matrix
+from calibration.rotations import matrix_to_quat, rotvec_to_matrix
 
 FIELD_W = 48.0 * np.array([0.0, np.cos(np.deg2rad(66.0)), -np.sin(np.deg2rad(66.0))])  # ENU, uT
 
@@ -66,3 +66,49 @@ def test_too_few_samples_and_bad_shapes_are_refused():
         fit_magnetometer(np.ones((10, 3)))
     with pytest.raises(ValueError, match=r"shape \(frames, 3\)"):
         fit_magnetometer(np.ones((100, 2)))
+
+
+def test_calibration_of_a_recording_applies_only_where_it_pays():
+    """Three sensors turned every way: one with a consumer-grade hard and soft iron (calibrated:
+    TRIAD's error falls from tens of degrees to a fraction of one), one already calibrated (left
+    as it is), one turned about one axis only (not determined: left as it is)."""
+    from simbench.io.imu import ImuRecording
+    from simbench.orient import calibrate_magnetometers, estimate
+    from simbench.score import score_orientation
+
+    rng = np.random.default_rng(7)
+    n = 3000
+    R = rotvec_to_matrix(rng.normal(size=(n, 3, 3)) * 2.0)
+    R[:, 2] = rotvec_to_matrix(rng.uniform(-np.pi, np.pi, (n, 1)) * np.array([0.0, 0.0, 1.0]))
+    mag = np.stack(
+        [
+            raw_samples(R[:, 0], SOFT, HARD, 0.2, rng),
+            raw_samples(R[:, 1], np.eye(3), np.zeros(3), 0.2, rng),
+            raw_samples(R[:, 2], SOFT, HARD, 0.2, rng),
+        ],
+        axis=1,
+    )
+    acc = np.einsum("fsji,j->fsi", R, [0.0, 0.0, 9.81])
+    rec = ImuRecording(
+        names=("consumer", "calibrated", "one_axis"),
+        time_s=np.arange(n) / 100.0,
+        acc=acc,
+        gyro=np.zeros_like(acc),
+        mag=mag,
+        valid=np.ones((n, 3), dtype=bool),
+        q_true=matrix_to_quat(R),
+        evaluate=None,
+        rate_hz=100.0,
+        source="test",
+    )
+    fixed, fits = calibrate_magnetometers(rec)
+    np.testing.assert_array_equal(fixed.mag[:, 1:], rec.mag[:, 1:])  # left as they are
+    assert fits["consumer"].determined and fits["calibrated"].determined
+    assert isinstance(fits["one_axis"], str) or not fits["one_axis"].determined
+
+    def total(r):
+        return score_orientation(estimate(r, "triad").q_enu, r.q_true, r.names).per_sensor["consumer"][
+            "total_deg"
+        ]
+
+    assert total(rec) > 10.0 and total(fixed) < 1.0

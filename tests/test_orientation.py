@@ -262,6 +262,11 @@ def test_orient_command_on_a_dataset(tmp_path, capsys):
         float(line.split()[1]) for line in out.splitlines() if line.strip().startswith(("chest", "head"))
     ]
     assert all(0 < e < 1.0 for e in total)
+    # a static session shows the magnetometers one direction: no fit is determined, none applied
+    assert main(["orient", str(h5), "--calibrate-mag"]) == 0
+    out = capsys.readouterr().out
+    assert "magnetometers calibrated from the recording: 0 of 6 (none)" in out
+    assert out.count("magnetometer chest: not ") == 1
 
 
 def test_orient_bad_input(tmp_path, capsys):

@@ -7,7 +7,7 @@ import argparse
 from simbench.cli.types import positive_float
 from simbench.io.orientation_csv import write_orientation_csv
 from simbench.io.read import read_imu
-from simbench.orient import GYRO_AIDED, METHODS, estimate, in_frame
+from simbench.orient import GYRO_AIDED, METHODS, calibrate_magnetometers, describe_fit, estimate, in_frame
 from simbench.score import score_orientation
 
 
@@ -27,6 +27,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ori.add_argument("--csv", metavar="OUT", help="write time,sensor,qw,qx,qy,qz (NaN where not estimated)")
     ori.add_argument("--no-weighting", action="store_true", help="fixed weights (no disturbance weighting)")
     ori.add_argument(
+        "--calibrate-mag",
+        action="store_true",
+        help="fit each magnetometer's hard and soft iron to the recording's own samples and apply it "
+        "where the samples determine it",
+    )
+    ori.add_argument(
         "--smooth-hz",
         type=positive_float,
         default=None,
@@ -39,6 +45,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_orient(args: argparse.Namespace) -> int:
     """``simbench orient``: sensor orientations from accelerometer and magnetometer."""
     rec = read_imu(args.input)
+    fits = {}
+    if args.calibrate_mag:
+        rec, fits = calibrate_magnetometers(rec)
     run = estimate(rec, args.method, weighting=not args.no_weighting, smooth_hz=args.smooth_hz)
     n_total = run.ok.size
     print(f"simbench orient: {rec.source}")
@@ -55,6 +64,8 @@ def cmd_orient(args: argparse.Namespace) -> int:
     print(f"  estimated {int(run.ok.sum())} of {n_total} sensor samples ({masked} masked by the reader)")
     for note in rec.notes:
         print(f"  note: {note}")
+    for name, fit in fits.items():
+        print(f"  magnetometer {name}: {describe_fit(fit)}")
     if rec.q_true is not None:
         print("\n  error against the reference (BROAD definitions, both in ENU), RMSE in degrees")
         print(f"  {'sensor':<16}{'total':>9}{'heading':>9}{'inclin.':>9}{'samples':>9}")
