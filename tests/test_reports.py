@@ -15,6 +15,7 @@ from simbench.experiments import baseline as bl
 from simbench.experiments import validate
 from simbench.experiments.obrien import human_trial, human_trials, linkage_experiment
 from simbench.experiments.pool import worker_pool
+from simbench.experiments.realism import DEFAULT_DATA_DIR
 from simbench.experiments.validate import Plan
 
 
@@ -42,6 +43,14 @@ def test_quick_validate_writes_a_complete_report(quick_report):
     for row in ("Neck - Left Shoulder", "Between Shoulders", "Right Lower Leg", "Left Upper Arm"):
         assert row in md
     results = json.loads((quick_report / "results.json").read_text())
+    # every estimator on each BROAD trial at hand, against TRIAD and the target
+    broad = results["orientation"]["broad"]
+    assert set(broad) == {p.stem for p in DEFAULT_DATA_DIR.glob("broad_*.hdf5")}
+    for trial, r in broad.items():
+        assert f"### BROAD trial {trial}" in md and r["methods"]["triad"]["ratio_to_triad"] == 1.0
+        ratio = r["methods"]["fontaine"]["total_deg"] / r["methods"]["triad"]["total_deg"]
+        assert r["target_met"] == (ratio <= r["target_ratio"])
+        assert r["methods"]["vqf (gyro-aided reference)"]["ratio_to_triad"] < 0.5
     s = results["summary"]
     assert s["linkage_sets"] == 2 and 0 < s["linkage_max_error_cm"] < 5
     assert s["slip_found"] is True

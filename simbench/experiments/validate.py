@@ -44,8 +44,9 @@ from simbench.experiments.obrien import (
     rigid_pair_scale,
 )
 from simbench.experiments.pool import worker_pool
-from simbench.experiments.realism import run_realism
+from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
+from simbench.io.imu import read_broad
 from simbench.orient import estimate
 from simbench.score import score_orientation
 from simbench.sim.sensor_config import parse_sensor_config
@@ -158,12 +159,7 @@ def _orientation(plan: Plan) -> dict[str, Any]:
         "time_s": np.asarray(rec.time_s).tolist(),
         "methods": {},
     }
-    for label, kw in {
-        "triad": {"method": "triad"},
-        "fontaine": {"method": "fontaine"},
-        "fontaine (1 Hz weighted smoothing)": {"method": "fontaine", "smooth_hz": 1.0},
-        "vqf (gyro-aided reference)": {"method": "vqf"},
-    }.items():
+    for label, kw in ORIENTATION_METHODS.items():
         run = estimate(rec, **kw)
         scored = score_orientation(run.q_enu, rec.q_true, rec.names)
         out["methods"][label] = {
@@ -171,6 +167,47 @@ def _orientation(plan: Plan) -> dict[str, Any]:
             "heading_rmse_deg": scored.heading_rmse_deg,
             "inclination_rmse_deg": scored.inclination_rmse_deg,
             "per_frame_deg": np.nan_to_num(scored.per_frame_deg).tolist(),
+        }
+    out["broad"] = _broad_orientation()
+    return out
+
+
+#: The orientation estimators the report compares: gyro-free, then the gyro-aided reference.
+ORIENTATION_METHODS: dict[str, dict[str, Any]] = {
+    "triad": {"method": "triad"},
+    "fontaine": {"method": "fontaine"},
+    "fontaine (1 Hz weighted smoothing)": {"method": "fontaine", "smooth_hz": 1.0},
+    "vqf (gyro-aided reference)": {"method": "vqf"},
+}
+
+#: Issue 15's targets for the default gyro-free estimator, as a fraction of TRIAD's total RMSE:
+#: by the kind of BROAD trial its file name says (the first that matches).
+BROAD_TARGETS = (("magnet", 0.6), ("undisturbed", 0.8), ("", 1.0))
+
+
+def _broad_orientation() -> dict[str, Any]:
+    """Every estimator on each BROAD trial at hand (``broad_*.hdf5`` in ``../shared/data``),
+    scored with BROAD's definitions, with its ratio to TRIAD and the default estimator's target;
+    ``{}`` without the recordings."""
+    out: dict[str, Any] = {}
+    for path in sorted(DEFAULT_DATA_DIR.glob("broad_*.hdf5")):
+        rec = read_broad(path)
+        scores = {}
+        for label, kw in ORIENTATION_METHODS.items():
+            run = estimate(rec, **kw)
+            s = score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate).per_sensor
+            scores[label] = {
+                k: float(np.mean([v[k] for v in s.values()]))
+                for k in ("total_deg", "heading_deg", "inclination_deg")
+            }
+        triad_total = scores["triad"]["total_deg"]
+        target = next(t for word, t in BROAD_TARGETS if word in path.stem)
+        ratio = scores["fontaine"]["total_deg"] / triad_total
+        out[path.stem] = {
+            "methods": {k: {**v, "ratio_to_triad": v["total_deg"] / triad_total} for k, v in scores.items()},
+            "default": "fontaine",
+            "target_ratio": target,
+            "target_met": bool(ratio <= target),
         }
     return out
 

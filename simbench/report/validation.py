@@ -192,7 +192,29 @@ def _slip_and_orientation(slip: dict[str, Any], orientation: dict[str, Any]) -> 
         "",
         markdown_table(["estimator", "total RMSE (deg)", "heading", "inclination"], errors),
         "",
+        *_broad_orientation(orientation.get("broad", {})),
     ]
+
+
+def _broad_orientation(broad: dict[str, Any]) -> list[str]:
+    """Each estimator on the BROAD trials at hand, against TRIAD and the default's target."""
+    out = []
+    for trial, r in broad.items():
+        rows = [
+            [k, v["total_deg"], v["heading_deg"], v["inclination_deg"], v["ratio_to_triad"]]
+            for k, v in r["methods"].items()
+        ]
+        verdict = "met" if r["target_met"] else "**not met**"
+        out += [
+            f"### BROAD trial {trial} (real IMU, optical reference)",
+            "",
+            markdown_table(["estimator", "total RMSE (deg)", "heading", "inclination", "x TRIAD"], rows),
+            "",
+            f"Target for the default gyro-free estimator ({r['default']}): at most {r['target_ratio']:g} x "
+            f"TRIAD's total RMSE: {verdict} ({r['methods'][r['default']]['ratio_to_triad']:.2f} x).",
+            "",
+        ]
+    return out
 
 
 def _figures_and_provenance(results: dict[str, Any], images: dict[str, str]) -> list[str]:
