@@ -198,7 +198,11 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
     if isinstance(fit, str):
         return f"not calibrated: {fit}"
     if applies(fit):
-        verdict = "applied"
+        verdict = (
+            "applied"
+            if fit.model == "ellipsoid"
+            else "applied (hard iron only: too few directions for the soft iron)"
+        )
     elif not fit.determined:
         verdict = f"not applied: the semi-axes are known to {100 * fit.axis_error.max():.2g} % only"
     else:

@@ -20,6 +20,12 @@ is ``determined`` when every semi-axis is known to :data:`AXIS_TOLERANCE` (its s
 its length), the unit-free test the data's own scatter makes. The directions the samples cover
 are reported too (the spread of the calibrated directions along their principal axes).
 
+**Fewer directions: hard iron only.** A body segment that hardly turns (pelvis, torso) shows
+its magnetometer too few directions for nine coefficients. The hard iron alone, the sphere
+``|m - h| = B`` (four coefficients, linear in ``h`` and ``B^2 - |h|^2``), needs fewer: when the
+ellipsoid is not determined, the sphere is fitted, and used when its centre is known to
+:data:`AXIS_TOLERANCE` of ``B`` (soft iron then taken as the identity; ``model`` says which).
+
 **Is it good?** The relative spread of ``|b|`` after calibration (robust: 1.4826 MAD over the
 median) against the spread of ``|m|`` before: a calibration that does not make the strength
 steadier than it was, or leaves it spread by more than the fit's own residual suggests, is
@@ -57,6 +63,7 @@ class MagnetometerCalibration:
             directions all over the sphere, one of them near 0 for turns about one axis).
         spread_before, spread_after: robust relative spread of ``|m|`` and of ``|b|``.
         n_samples: samples used.
+        model: ``"ellipsoid"`` (hard and soft iron) or ``"hard iron"`` (the sphere).
     """
 
     hard_iron: np.ndarray
@@ -69,6 +76,7 @@ class MagnetometerCalibration:
     spread_before: float
     spread_after: float
     n_samples: int
+    model: str = "ellipsoid"
 
     def apply(self, mag: np.ndarray) -> np.ndarray:
         """``(..., 3)`` calibrated field ``S (m - h)`` of raw samples ``(..., 3)``."""
@@ -101,17 +109,20 @@ def _spread(x: np.ndarray) -> float:
 
 
 def fit_magnetometer(mag: np.ndarray, valid: np.ndarray | None = None) -> MagnetometerCalibration:
-    """Fit hard and soft iron to one magnetometer's samples (module docstring).
+    """Fit hard and soft iron to one magnetometer's samples, or the hard iron alone where the
+    samples do not determine the soft iron (module docstring).
 
     Args:
         mag: ``(F, 3)`` raw samples in the sensor frame, any unit.
         valid: optional ``(F,)`` mask; non-finite samples are always left out.
 
+    Returns:
+        The ellipsoid when it is determined; otherwise the sphere (``determined`` says whether
+        its centre is).
+
     Raises:
         CalibrationInputError: not ``(F, 3)``.
-        CalibrationError: fewer than :data:`MIN_SAMPLES` samples, or samples that do not lie on
-            an ellipsoid (the quadric fitted is not one: a field that is not constant, or samples
-            from too few directions to tell).
+        CalibrationError: fewer than :data:`MIN_SAMPLES` samples, or samples on no sphere.
     """
     m = np.asarray(mag, dtype=float)
     if m.ndim != 2 or m.shape[1] != 3:
@@ -122,6 +133,53 @@ def fit_magnetometer(mag: np.ndarray, valid: np.ndarray | None = None) -> Magnet
     m = m[use]
     if m.shape[0] < MIN_SAMPLES:
         raise CalibrationError(f"a magnetometer fit needs at least {MIN_SAMPLES} samples, got {m.shape[0]}")
+    try:
+        ellipsoid = _fit_ellipsoid(m)
+        if ellipsoid.determined:
+            return ellipsoid
+    except CalibrationError:
+        pass
+    return _fit_sphere(m)
+
+
+def _fit_sphere(m: np.ndarray) -> MagnetometerCalibration:
+    """The hard iron alone: ``|m|^2 = 2 m.h + (B^2 - |h|^2)``, linear least squares."""
+    scale = float(np.median(np.linalg.norm(m, axis=1)))
+    x = m / scale
+    D = np.column_stack([2 * x, np.ones(len(x))])
+    y = np.sum(x * x, axis=1)
+    v, *_ = np.linalg.lstsq(D, y, rcond=None)
+    h = v[:3]
+    r2 = float(v[3] + h @ h)
+    if not r2 > 0:
+        raise CalibrationError("the magnetometer samples lie on no sphere: a field that changes")
+    r = np.sqrt(r2)
+    gram = D.T @ D
+    if np.linalg.cond(gram) > 1e14:
+        error = np.full(3, np.inf)
+    else:
+        sigma2 = float(np.sum((D @ v - y) ** 2) / max(len(x) - 4, 1))
+        error = np.sqrt(np.diag(sigma2 * np.linalg.inv(gram))[:3]) / r
+    hard = h * scale
+    b = m - hard
+    u = b / np.linalg.norm(b, axis=1, keepdims=True)
+    return MagnetometerCalibration(
+        hard_iron=hard,
+        soft_iron=np.eye(3),
+        field_strength=r * scale,
+        axes=np.full(3, r * scale),
+        axis_error=np.sort(error)[::-1],
+        determined=bool(np.all(error <= AXIS_TOLERANCE)),
+        coverage=np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(u.T)))[::-1].clip(min=0.0)),
+        spread_before=_spread(np.linalg.norm(m, axis=1)),
+        spread_after=_spread(np.linalg.norm(b, axis=1)),
+        n_samples=int(m.shape[0]),
+        model="hard iron",
+    )
+
+
+def _fit_ellipsoid(m: np.ndarray) -> MagnetometerCalibration:
+    """The ellipsoid fit of ``(F, 3)`` finite samples (module docstring)."""
     scale = float(np.median(np.linalg.norm(m, axis=1)))  # work near unit size: the design is then well scaled
     D = _design(m / scale)
     v, *_ = np.linalg.lstsq(D, np.ones(len(m)), rcond=None)
