@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from simbench.io.dataset import Dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
-from simbench.orient import estimate
+from simbench.orient import calibrate_magnetometers, estimate
 from simbench.score import CalibrationScore, OrientationScore, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.sensor_config import SensorConfig
@@ -132,6 +133,9 @@ class Orientations:
         names: ``(N,)`` sensor names.
         method: the method used.
         score: errors against the reference (BROAD's definitions), or ``None`` without one.
+        magnetometers: per sensor its magnetometer fit
+            (:class:`calibration.orientation.MagnetometerCalibration`, applied where
+            :func:`simbench.orient.applies`) or why there is none; ``None`` when not asked for.
     """
 
     q_w_s: np.ndarray
@@ -139,6 +143,7 @@ class Orientations:
     names: tuple[str, ...]
     method: str
     score: OrientationScore | None
+    magnetometers: dict[str, Any] | None = None
 
 
 def orient(
@@ -147,6 +152,7 @@ def orient(
     *,
     weighting: bool = True,
     smooth_hz: float | None = None,
+    calibrate_mag: bool = True,
 ) -> Orientations:
     """Sensor orientations from accelerometer and magnetometer (Fontaine et al.; ``triad``,
     ``wahba``, or the gyro-aided references ``mahony`` and ``vqf``), scored against the truth
@@ -157,13 +163,20 @@ def orient(
         method: one of :data:`simbench.orient.METHODS`.
         weighting: Fontaine's disturbance weighting.
         smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
+        calibrate_mag: calibrate each magnetometer from the recording's own samples first
+            (:func:`simbench.orient.calibrate_magnetometers`; applied only where it pays).
     """
     rec = data.imu() if isinstance(data, Dataset) else data
     if not isinstance(rec, ImuRecording):
         raise InputError(f"Expected a Dataset or an ImuRecording, got {type(data).__name__}")
+    fits = None
+    if calibrate_mag:
+        rec, fits = calibrate_magnetometers(rec)
     run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
-    return Orientations(q_w_s=run.q_enu, ok=run.ok, names=rec.names, method=method, score=scored)
+    return Orientations(
+        q_w_s=run.q_enu, ok=run.ok, names=rec.names, method=method, score=scored, magnetometers=fits
+    )
 
 
 __all__ = ["Orientations", "calibrate", "orient", "read", "score", "simulate"]

@@ -130,18 +130,17 @@ def test_consumer_magnetometers_calibrated_from_the_session_come_close_to_indust
     """Issue 15's target: the humanoid exercise with `mems-consumer` (uncalibrated hard and soft
     iron), its magnetometers calibrated from the session itself, within 1.5 x the orientation error
     of `mems-industrial`; uncalibrated, it is three times worse."""
-    from simbench.orient import calibrate_magnetometers, estimate
-    from simbench.score import score_orientation
+    from simbench.api import orient
     from simbench.sim.session import SessionConfig, run_session
 
     def error(preset, calibrate):
-        rec = run_session(
+        ds = run_session(
             SessionConfig(model="humanoid", motion="exercise", duration_s=12.0, seed=31, sensors=preset)
-        ).imu()
-        if calibrate:
-            rec = calibrate_magnetometers(rec)[0]
-        return score_orientation(estimate(rec, "fontaine").q_enu, rec.q_true, rec.names).total_rmse_deg
+        )
+        run = orient(ds, "fontaine", calibrate_mag=calibrate)  # the API's default calibrates
+        assert (run.magnetometers is not None) == calibrate
+        return run.score.total_rmse_deg
 
-    industrial = error("mems-industrial", False)
+    industrial = error("mems-industrial", True)
     assert error("mems-consumer", False) > 2.5 * industrial
     assert error("mems-consumer", True) < 1.5 * industrial

@@ -28,9 +28,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ori.add_argument("--no-weighting", action="store_true", help="fixed weights (no disturbance weighting)")
     ori.add_argument(
         "--calibrate-mag",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=True,
         help="fit each magnetometer's hard and soft iron to the recording's own samples and apply it "
-        "where the samples determine it",
+        "where the samples determine it and it steadies the field strength (default: on)",
     )
     ori.add_argument(
         "--smooth-hz",
