@@ -106,29 +106,44 @@ def block_jackknife(
     """
     parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
     n_frames, n_j = int(R_w_s.shape[0]), parent.size
-    ata = np.zeros((n_blocks, n_j, 6, 6))
-    atb = np.zeros((n_blocks, n_j, 6))
+    blocks = np.zeros((n_blocks, n_j, 16))  # per block and joint: frames, R_p^T R_c, R_p^T b, R_c^T b
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         block = np.arange(frames.start, frames.stop) * n_blocks // n_frames  # non-decreasing
         starts = np.flatnonzero(np.r_[True, block[1:] != block[:-1]])
         w = (ok[:, parent] & ok[:, child]).astype(float)  # (c, J)
-        A = np.concatenate([R[:, parent], -R[:, child]], axis=-1) * w[..., None, None]  # (c, J, 3, 6)
-        At = A.swapaxes(-1, -2)
+        R_p, R_c = R[:, parent] * w[..., None, None], R[:, child] * w[..., None, None]
         b = p[:, child] - p[:, parent]
-        # each frame's normal equations, summed over the runs of frames of one block
-        ata[block[starts]] += np.add.reduceat(At @ A, starts, axis=0)
-        atb[block[starts]] += np.add.reduceat((At @ b[..., None])[..., 0], starts, axis=0)
+        # each frame's normal equations A^T A, A^T b with A = [R_p, -R_c]: the rotations make the
+        # diagonal blocks w I, so only R_p^T R_c and the two R^T b are summed (a quarter of A^T A's
+        # products), over the runs of frames of one block
+        R_pt = R_p.swapaxes(-1, -2)
+        sums = np.concatenate(
+            [
+                w[..., None],
+                (R_pt @ R_c).reshape(*w.shape, 9),
+                (R_pt @ b[..., None])[..., 0],
+                (R_c.swapaxes(-1, -2) @ b[..., None])[..., 0],
+            ],
+            axis=-1,
+        )  # (c, J, 16)
+        blocks[block[starts]] += np.add.reduceat(sums, starts, axis=0)
+    ata = np.zeros((n_blocks, n_j, 6, 6))
+    eye = np.eye(3)
+    ata[..., :3, :3] = ata[..., 3:, 3:] = blocks[..., :1, None] * eye
+    ata[..., :3, 3:] = -blocks[..., 1:10].reshape(n_blocks, n_j, 3, 3)
+    ata[..., 3:, :3] = np.swapaxes(ata[..., :3, 3:], -1, -2)
+    atb = np.concatenate([blocks[..., 10:13], -blocks[..., 13:16]], axis=-1)
     full_ata, full_atb = ata.sum(axis=0), atb.sum(axis=0)
     out = np.full(n_j, np.nan)
     for k in range(n_j):
         _, vecs = np.linalg.eigh(full_ata[k])
         keep = vecs[:, ::-1][:, : int(rank[k])]  # the strongest directions of the full fit
-        fits = []
-        for blk in range(n_blocks):
-            m = keep.T @ (full_ata[k] - ata[blk, k]) @ keep
-            v = keep.T @ (full_atb[k] - atb[blk, k])
-            fits.append(keep @ np.linalg.lstsq(m, v, rcond=None)[0])
-        x = np.array(fits)
+        m = keep.T @ (full_ata[k] - ata[:, k]) @ keep  # (blocks, r, r): each block left out
+        v = (full_atb[k] - atb[:, k]) @ keep  # (blocks, r)
+        try:
+            x = np.linalg.solve(m, v[..., None])[..., 0] @ keep.T
+        except np.linalg.LinAlgError:  # a block whose removal leaves a direction unseen
+            x = np.array([keep @ np.linalg.lstsq(m[b], v[b], rcond=None)[0] for b in range(n_blocks)])
         dev = x - x.mean(axis=0)
         var = (n_blocks - 1) / n_blocks * np.sum(dev**2, axis=0)  # jackknife variance per coordinate
         out[k] = float(np.sqrt(max(var[:3].sum(), var[3:].sum())))
