@@ -13,6 +13,7 @@ carried by the Dataset and applied by :func:`score`.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -21,12 +22,13 @@ import numpy as np
 
 from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
+from calibration.orientation import Skeleton
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
-from simbench.orient import calibrate_magnetometers, estimate
+from simbench.orient import DEFAULT_METHOD, calibrate_magnetometers, estimate, skeleton_from_calibration
 from simbench.score import CalibrationScore, OrientationScore, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.sensor_config import SensorConfig
@@ -148,19 +150,24 @@ class Orientations:
 
 def orient(
     data: Dataset | ImuRecording,
-    method: str = "fontaine",
+    method: str = DEFAULT_METHOD,
     *,
+    skeleton: Skeleton | str | os.PathLike[str] | None = None,
     weighting: bool = True,
     smooth_hz: float | None = None,
     calibrate_mag: bool = True,
 ) -> Orientations:
-    """Sensor orientations from accelerometer and magnetometer (Fontaine et al.; ``triad``,
-    ``wahba``, or the gyro-aided references ``mahony`` and ``vqf``), scored against the truth
-    when there is one.
+    """Sensor orientations from accelerometer and magnetometer, scored against the truth when
+    there is one: by default every sensor over the whole recording at once, on the skeleton when
+    one is given (``skeleton``); or per sample (Fontaine et al., ``triad``, ``wahba``); or the
+    gyro-aided references ``mahony`` and ``vqf``.
 
     Args:
         data: a Dataset with inertial data, or an IMU recording (e.g. a BROAD trial from :func:`read`).
         method: one of :data:`simbench.orient.METHODS`.
+        skeleton: for the ``skeleton`` method, a calibration JSON of the same sensors (``simbench
+            calibrate --json``) or a :class:`calibration.orientation.Skeleton` over the
+            recording's sensors; ``None``: each sensor on its own.
         weighting: Fontaine's disturbance weighting.
         smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
         calibrate_mag: calibrate each magnetometer from the recording's own samples first
@@ -169,10 +176,12 @@ def orient(
     rec = data.imu() if isinstance(data, Dataset) else data
     if not isinstance(rec, ImuRecording):
         raise InputError(f"Expected a Dataset or an ImuRecording, got {type(data).__name__}")
+    if skeleton is not None and not isinstance(skeleton, Skeleton):
+        skeleton = skeleton_from_calibration(skeleton, rec.names)
     fits = None
     if calibrate_mag:
         rec, fits = calibrate_magnetometers(rec)
-    run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz)
+    run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return Orientations(
         q_w_s=run.q_enu, ok=run.ok, names=rec.names, method=method, score=scored, magnetometers=fits

@@ -1,6 +1,9 @@
 """Orientation estimation over recordings: method dispatch, scoring and the orientation CSV.
 
-The gyro-free methods are the calibration core's (:mod:`calibration.orientation`); the gyro-aided
+The gyro-free methods are the calibration core's (:mod:`calibration.orientation`): the default,
+``skeleton``, estimates every sensor over the whole recording at once, on the skeleton of a
+calibration when one is given (:func:`skeleton_from_calibration`), each sensor on its own
+otherwise; the per-sample ``fontaine``, ``triad`` and ``wahba`` stay as named methods. The gyro-aided
 references are Mahony's complementary filter (the core's, hand-written) and VQF (Laidig and Seel,
 "VQF: Highly accurate IMU orientation estimation with bias estimation and magnetic disturbance
 rejection", Information Fusion 91, 2023; the authors' ``vqf`` package, its offline variant, which
@@ -16,6 +19,7 @@ alignment (an output in NED is converted after scoring).
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,22 +29,28 @@ from calibration.errors import CalibrationError
 from calibration.orientation import (
     Estimate,
     MagnetometerCalibration,
+    Skeleton,
     Weighting,
     change_frame,
     fit_magnetometer,
     fontaine,
     mahony,
     reference_from_data,
+    skeleton_orientation,
     smooth_vectors,
     triad,
     wahba,
 )
 from simbench.errors import InputError
+from simbench.io.calibration_json import calibration_joints, read_calibration_json
 from simbench.io.imu import ImuRecording
 
-#: Every method :func:`estimate` knows: gyro-free (``fontaine``, ``triad``, ``wahba``) and the
-#: gyro-aided references (``mahony``, ``vqf``).
-METHODS = ("fontaine", "triad", "wahba", "mahony", "vqf")
+#: Every method :func:`estimate` knows: gyro-free (``skeleton``, the default; the per-sample
+#: ``fontaine``, ``triad``, ``wahba``) and the gyro-aided references (``mahony``, ``vqf``).
+METHODS = ("skeleton", "fontaine", "triad", "wahba", "mahony", "vqf")
+
+#: The default method.
+DEFAULT_METHOD = "skeleton"
 
 #: The methods that use the gyroscope.
 GYRO_AIDED = ("mahony", "vqf")
@@ -65,7 +75,12 @@ class OrientationRun:
 
 
 def estimate(
-    rec: ImuRecording, method: str = "fontaine", *, weighting: bool = True, smooth_hz: float | None = None
+    rec: ImuRecording,
+    method: str = DEFAULT_METHOD,
+    *,
+    weighting: bool = True,
+    smooth_hz: float | None = None,
+    skeleton: Skeleton | None = None,
 ) -> OrientationRun:
     """Estimate every sensor's orientation at every sample (ENU).
 
@@ -77,10 +92,23 @@ def estimate(
         method: one of :data:`METHODS`.
         weighting: Fontaine's disturbance weighting (``fontaine`` and ``wahba``).
         smooth_hz: zero-phase smoothing cutoff, Hz: weighted by the disturbance weights for
-            ``fontaine``, plain low-pass of the inputs for the others.
+            ``fontaine``, plain low-pass of the inputs for the others (``skeleton`` chooses its
+            own levels and ignores it).
+        skeleton: for ``skeleton``, the body's tree and joints over ``rec``'s sensors (e.g.
+            :func:`skeleton_from_calibration`); ``None``: every sensor on its own. The reference
+            field then comes from the roots' samples.
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
+    if skeleton is not None and method != "skeleton":
+        raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
+    if method == "skeleton":
+        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, valid=rec.valid)
+        roots = (skeleton or Skeleton.none(len(rec.names))).roots
+        ref = reference_from_data(rec.acc[:, roots], rec.mag[:, roots], "enu", valid=rec.valid[:, roots])
+        return OrientationRun(
+            est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
+        )
     acc, mag = rec.acc, rec.mag
     if smooth_hz and method != "fontaine":  # Fontaine's estimator smooths with its weights
         acc = smooth_vectors(acc, rec.rate_hz, smooth_hz)
@@ -144,6 +172,36 @@ def vqf_offline(
         q = vqf.offlineVQF(*filled, 1.0 / rate_hz)["quat9D"]
         out[use, k] = q[use]
     return Estimate(out, ok, "enu")
+
+
+def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ...]) -> Skeleton:
+    """The skeleton of a calibration JSON (``simbench calibrate --json``, or a dataset's
+    ``--truth-json``) over a recording's sensors: its tree and its joints in the sensors' frames.
+
+    The calibration must be of the same sensors mounted as in the recording (e.g. made from the
+    session's magnetic-tracker poses, or from an earlier session without re-mounting). Sensors
+    that the calibration leaves out are their own roots.
+
+    Raises:
+        InputError: the file is not a calibration JSON, is not in metres, names sensors the
+            recording lacks, or its joints do not form a tree.
+    """
+    doc = read_calibration_json(path)
+    units = doc.get("units", "m")
+    if units != "m":
+        raise InputError(f"{path}, key units: expected 'm', got {units!r}")
+    joints = calibration_joints(doc, names, source=path)
+    n = len(names)
+    parent = np.full(n, -1)
+    lp = np.zeros((n, 3))
+    lc = np.zeros((n, 3))
+    parent[joints.child_index] = joints.parent_index
+    lp[joints.child_index] = joints.joint_in_parent
+    lc[joints.child_index] = joints.joint_in_child
+    try:
+        return Skeleton(parent, lp, lc)
+    except CalibrationError as exc:
+        raise InputError(f"{path}: the joints are not a tree over the recording's sensors: {exc}") from None
 
 
 def in_frame(q_enu: np.ndarray, frame: str) -> np.ndarray:

@@ -24,6 +24,10 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
 - :mod:`.magnetometer`: :func:`fit_magnetometer`, hard and soft iron from a recording's own
   samples by an ellipsoid fit, with whether the samples determine it and how steady it makes
   the field strength (:class:`MagnetometerCalibration`).
+- :mod:`.skeleton`: :func:`skeleton_orientation`, every segment at once over the whole
+  recording, on the calibrated skeleton (:class:`Skeleton`): each sensor's linear acceleration
+  predicted from the chain's motion instead of ignored, heading carried across spans the data do
+  not determine; without a skeleton, a smoother with priors on acceleration (:class:`Priors`).
 - :mod:`.complementary`: :func:`mahony`, a gyro-aided reference (Mahony's explicit
   complementary filter), so users can see how far gyro-free estimation is from an established
   fusion filter.
@@ -37,6 +41,7 @@ from calibration.orientation.complementary import mahony
 from calibration.orientation.disturbance import Weighting, smooth_vectors, weighted_smooth
 from calibration.orientation.gauss_newton import fontaine
 from calibration.orientation.magnetometer import MagnetometerCalibration, fit_magnetometer
+from calibration.orientation.skeleton import Priors, Skeleton, skeleton_orientation
 from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
 from calibration.orientation.world import (
     FRAMES,
@@ -59,7 +64,9 @@ __all__ = [
     "R_NED_ENU",
     "Estimate",
     "MagnetometerCalibration",
+    "Priors",
     "Reference",
+    "Skeleton",
     "Weighting",
     "change_frame",
     "fit_magnetometer",
@@ -68,6 +75,7 @@ __all__ = [
     "orientation_errors",
     "reference",
     "reference_from_data",
+    "skeleton_orientation",
     "smooth_vectors",
     "triad",
     "wahba",

@@ -1,13 +1,23 @@
-"""``simbench orient``: sensor orientations from accelerometer and magnetometer (Fontaine et al.)."""
+"""``simbench orient``: sensor orientations from accelerometer and magnetometer (sourceless)."""
 
 from __future__ import annotations
 
 import argparse
 
 from simbench.cli.types import positive_float
+from simbench.errors import InputError
 from simbench.io.orientation_csv import write_orientation_csv
 from simbench.io.read import read_imu
-from simbench.orient import GYRO_AIDED, METHODS, calibrate_magnetometers, describe_fit, estimate, in_frame
+from simbench.orient import (
+    DEFAULT_METHOD,
+    GYRO_AIDED,
+    METHODS,
+    calibrate_magnetometers,
+    describe_fit,
+    estimate,
+    in_frame,
+    skeleton_from_calibration,
+)
 from simbench.score import score_orientation
 
 
@@ -15,12 +25,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``orient`` subcommand to ``simbench``'s subparsers."""
     ori = sub.add_parser(
         "orient",
-        help="sensor orientations from accelerometer and magnetometer (sourceless, Fontaine et al.)",
+        help="sensor orientations from accelerometer and magnetometer (sourceless)",
         description="Estimate sensor orientations from accelerometer and magnetometer readings; with a "
-        "reference in the input, print BROAD's error figures.",
+        "reference in the input, print BROAD's error figures. The default method estimates every sensor "
+        "over the whole recording at once, on the skeleton of --skeleton when given.",
     )
     ori.add_argument("input", help="a simbench dataset (.h5) or a BROAD trial (.hdf5)")
-    ori.add_argument("--method", choices=METHODS, default="fontaine")
+    ori.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD)
+    ori.add_argument(
+        "--skeleton",
+        metavar="CALIBRATION.json",
+        help="the skeleton method's joints and tree: a calibration of the same sensors (simbench calibrate "
+        "--json, e.g. on the session's tracker poses); without it each sensor is estimated on its own",
+    )
     ori.add_argument(
         "--frame", choices=("enu", "ned"), default="enu", help="world frame of the output (default enu)"
     )
@@ -46,16 +63,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_orient(args: argparse.Namespace) -> int:
     """``simbench orient``: sensor orientations from accelerometer and magnetometer."""
     rec = read_imu(args.input)
+    skeleton = None
+    if args.skeleton is not None:
+        if args.method != "skeleton":
+            raise InputError(f"--skeleton is for --method skeleton, not {args.method}")
+        skeleton = skeleton_from_calibration(args.skeleton, rec.names)
     fits = {}
     if args.calibrate_mag:
         rec, fits = calibrate_magnetometers(rec)
-    run = estimate(rec, args.method, weighting=not args.no_weighting, smooth_hz=args.smooth_hz)
+    run = estimate(
+        rec, args.method, weighting=not args.no_weighting, smooth_hz=args.smooth_hz, skeleton=skeleton
+    )
     n_total = run.ok.size
     print(f"simbench orient: {rec.source}")
     print(
         f"  sensors: {len(rec.names)}   samples: {rec.time_s.size} at {rec.rate_hz:.6g} Hz   "
         f"method: {args.method}"
-        f"{'' if args.no_weighting or args.method in ('triad', *GYRO_AIDED) else ' (disturbance weighting)'}"
+        f"{'' if args.no_weighting or args.method in UNWEIGHTED else ' (disturbance weighting)'}"
+        f"{skeleton_line(skeleton) if args.method == 'skeleton' else ''}"
     )
     print(
         f"  reference field from the data: {run.field_strength_ut:.1f} uT, inclination "
@@ -80,3 +105,15 @@ def cmd_orient(args: argparse.Namespace) -> int:
         write_orientation_csv(args.csv, rec, in_frame(run.q_enu, args.frame))
         print(f"\n  wrote {args.csv}")
     return 0
+
+
+#: Methods without Fontaine's disturbance weighting.
+UNWEIGHTED = ("triad", "skeleton", *GYRO_AIDED)
+
+
+def skeleton_line(skeleton) -> str:
+    """What the skeleton method stands on, for the header."""
+    if skeleton is None:
+        return " (no skeleton: each sensor on its own)"
+    joints = int((skeleton.parent >= 0).sum())
+    return f" ({joints} joints, {int((skeleton.parent < 0).sum())} root(s))"

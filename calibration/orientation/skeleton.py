@@ -1,0 +1,453 @@
+"""Skeleton-aware sourceless orientation: every segment at once, over the whole recording.
+
+Fontaine et al. name the per-sample method's limit (linear acceleration at the end of a limb)
+and its remedy ("human models and constraints"). Here the orientations ``R_k(t)`` of all ``N``
+sensors over all frames are the unknowns of one least-squares problem. With the skeleton from a
+calibration (each joint located in its parent's and its child's sensor frame, O'Brien et al.)
+the accelerometers need not point up: a joint's acceleration is the same seen from both sides,
+
+    R_p f_p + d2/dt2 (R_p l_p)  =  R_c f_c + d2/dt2 (R_c l_c)        (world frame, m/s^2)
+
+with ``f`` the measured specific forces and ``l_p``, ``l_c`` the joint in the parent's and the
+child's sensor frame: gravity cancels, and each sensor's linear acceleration is what the chain's
+motion (the second derivative of the joint positions the orientations give) makes it. Gravity
+enters through the roots, whose acceleration is small (a prior). The residuals, each divided by
+its prior standard deviation (:class:`Priors`):
+
+- magnetometer: ``R_k m_k / |m_k| - b_w`` (the field's direction; 2 degrees of freedom);
+- root: ``R_r f_r - g up_w`` (the root's own acceleration, a zero-mean prior);
+- joint: the equation above, second derivatives by central differences;
+- smoothness: the change of each sensor's angular increment ``log(R(t+1) R(t)^T)`` from one frame
+  to the next (its angular acceleration, a zero-mean prior): across a span where the data say
+  little (a magnetic disturbance, a gap) the orientation is carried from the span's ends.
+
+Without a skeleton every sensor is its own root: the estimate is then a smoother of the two
+vectors with a prior on the sensor's acceleration and angular acceleration.
+
+**Solver.** Levenberg-Marquardt on left perturbations ``R <- exp([d]x) R``. Frames couple only
+to their neighbours, so with the unknowns ordered frame by frame the normal equations are a band
+matrix (half-bandwidth ``9N - 1``), solved by banded Cholesky (LAPACK ``pbtrf``): the cost is
+linear in the number of frames. To reach the right minimum from the per-sample estimate (which
+is tens of degrees off where limbs accelerate), the problem is solved coarse to fine in time
+(:data:`LEVELS_HZ`: first at 5 Hz on inputs low-passed at 2 Hz, then at 20 Hz on inputs
+low-passed at 8 Hz, each level started from the previous one); the result is interpolated
+(slerp) to every sample. Long recordings are solved in overlapping segments
+(:data:`SEGMENT_S`), so memory does not grow with the recording.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import LinAlgError, solveh_banded
+from scipy.spatial.transform import Rotation, Slerp
+
+from calibration.errors import CalibrationInputError
+from calibration.orientation.disturbance import Weighting, smooth_vectors
+from calibration.orientation.gauss_newton import fontaine
+from calibration.orientation.world import (
+    Estimate,
+    Reference,
+    measured_directions,
+    quat_where,
+    reference_from_data,
+)
+from calibration.rotations import matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix, skew
+
+#: The levels' rates, Hz, coarse to fine; each level's inputs are low-passed at 0.4 times its
+#: rate (0.8 of its Nyquist frequency).
+LEVELS_HZ = (5.0, 20.0)
+
+#: Longest span solved at once, s; longer recordings are cut into segments that overlap by
+#: :data:`OVERLAP_S` and are joined in the middle of the overlap.
+SEGMENT_S = 120.0
+OVERLAP_S = 10.0
+
+
+@dataclass(frozen=True)
+class Priors:
+    """Standard deviations of the residuals (module docstring): what each is expected to be.
+
+    Attributes:
+        mag_rad: the measured field's direction, rad (sensor noise and small disturbances).
+        joint_acc: the joint equation, m/s^2 (accelerometer noise, skin motion, a skeleton
+            that is not exact).
+        root_acc: a root's own acceleration, m/s^2 (a standing or walking person's pelvis:
+            0.1-0.4 m/s^2 RMS in simbench's humanoid; a hand-held IMU more).
+        angular_acc: each sensor's angular acceleration, rad/s^2 per axis (the humanoid's
+            segments: 5-25 rad/s^2 RMS at 20 Hz; the prior is loose so as not to flatten real
+            motion).
+    """
+
+    mag_rad: float = 0.05
+    joint_acc: float = 0.3
+    root_acc: float = 0.5
+    angular_acc: float = 60.0
+
+    def __post_init__(self) -> None:
+        for name in ("mag_rad", "joint_acc", "root_acc", "angular_acc"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise CalibrationInputError(f"Priors.{name} must be > 0, got {v}")
+
+
+@dataclass(frozen=True)
+class Skeleton:
+    """The body's tree over sensors and its joints, as a calibration gives them.
+
+    Attributes:
+        parent: ``(N,)`` parent index of each sensor, ``-1`` for a root (several roots: a
+            forest; all ``-1``: no skeleton).
+        joint_in_parent: ``(N, 3)`` for each child sensor, its inboard joint in the parent
+            sensor's frame, m (roots' rows ignored).
+        joint_in_child: ``(N, 3)`` the same joint in the child sensor's own frame, m.
+    """
+
+    parent: np.ndarray
+    joint_in_parent: np.ndarray
+    joint_in_child: np.ndarray
+
+    def __post_init__(self) -> None:
+        parent = np.asarray(self.parent)
+        n = parent.shape[0] if parent.ndim == 1 else -1
+        if parent.ndim != 1 or not np.issubdtype(parent.dtype, np.integer):
+            raise CalibrationInputError(
+                f"Expected parent as (N,) integers, got {parent.dtype} {parent.shape}"
+            )
+        if np.any((parent < -1) | (parent >= n)) or np.any(parent == np.arange(n)):
+            raise CalibrationInputError(
+                f"parent indices must be -1 or another sensor in [0, {n}), got {parent}"
+            )
+        for name in ("joint_in_parent", "joint_in_child"):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != (n, 3) or not np.isfinite(arr).all():
+                raise CalibrationInputError(f"Expected {name} as ({n}, 3) finite numbers, got {arr.shape}")
+        # every sensor reaches a root: no cycles
+        for k in range(n):
+            seen, j = 0, k
+            while parent[j] >= 0:
+                j, seen = parent[j], seen + 1
+                if seen > n:
+                    raise CalibrationInputError(f"parent indices form a cycle through sensor {k}")
+
+    @classmethod
+    def none(cls, n: int) -> Skeleton:
+        """No skeleton: ``n`` independent sensors."""
+        return cls(np.full(n, -1), np.zeros((n, 3)), np.zeros((n, 3)))
+
+    @property
+    def roots(self) -> np.ndarray:
+        return np.flatnonzero(np.asarray(self.parent) < 0)
+
+    @property
+    def children(self) -> np.ndarray:
+        return np.flatnonzero(np.asarray(self.parent) >= 0)
+
+
+@dataclass
+class _Problem:
+    """The residuals of one level (module docstring) and their Jacobian."""
+
+    acc: np.ndarray  # (F, N, 3) m/s^2, zeros where unusable
+    mag_dir: np.ndarray  # (F, N, 3) unit, zeros where unusable
+    use: np.ndarray  # (F, N) usable samples
+    dt: float
+    skeleton: Skeleton
+    ref: Reference
+    priors: Priors
+    mag_weight: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.mag_weight = self.use.astype(float)
+
+    def residuals(self, R: np.ndarray, jacobian: bool = False):
+        """The stacked residual vector, and with ``jacobian`` the sparse Jacobian in ``d``."""
+        f, n = self.use.shape
+        dt, pri, sk = self.dt, self.priors, self.skeleton
+        res: list[np.ndarray] = []
+        blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # row ids, col ids, 3x3
+        row = 0
+
+        def col(t: np.ndarray, k: np.ndarray) -> np.ndarray:
+            return t * n + k
+
+        # magnetometer: R m - b
+        Rm = np.einsum("fnij,fnj->fni", R, self.mag_dir)
+        w = (self.mag_weight / pri.mag_rad)[..., None]
+        res.append((w * (Rm - self.ref.field_dir_w)).reshape(-1))
+        if jacobian:
+            ids = np.arange(f * n)
+            blocks.append((ids, ids, (-w[..., None] * skew(Rm)).reshape(-1, 3, 3)))
+        row += f * n
+        # roots: R f - g up
+        Rf = np.einsum("fnij,fnj->fni", R, self.acc)
+        roots = sk.roots
+        wr = (self.use[:, roots] / pri.root_acc)[..., None]
+        res.append((wr * (Rf[:, roots] - self.ref.gravity * self.ref.up_w)).reshape(-1))
+        if jacobian:
+            t = np.repeat(np.arange(f), roots.size)
+            k = np.tile(roots, f)
+            rid = row + np.arange(f * roots.size)
+            blocks.append((rid, col(t, k), (-wr[..., None] * skew(Rf[:, roots])).reshape(-1, 3, 3)))
+        row += f * roots.size
+        # joints: R_p f_p + D2(R_p l_p) - R_c f_c - D2(R_c l_c)
+        c = sk.children
+        if c.size and f > 2:
+            p = np.asarray(sk.parent)[c]
+            Lp = np.einsum("fkij,kj->fki", R[:, p], np.asarray(sk.joint_in_parent, dtype=float)[c])
+            Lc = np.einsum("fkij,kj->fki", R[:, c], np.asarray(sk.joint_in_child, dtype=float)[c])
+
+            def d2(x: np.ndarray) -> np.ndarray:
+                return (x[2:] - 2 * x[1:-1] + x[:-2]) / dt**2
+
+            wj = (self.use[1:-1, p] & self.use[1:-1, c]) / pri.joint_acc
+            res.append((wj[..., None] * (Rf[1:-1, p] - Rf[1:-1, c] + d2(Lp) - d2(Lc))).reshape(-1))
+            if jacobian:
+                t = np.arange(1, f - 1)[:, None]
+                rid = row + np.arange((f - 2) * c.size).reshape(f - 2, c.size)
+                W = wj[..., None, None]
+                blocks.append((rid, col(t, p[None]), -W * skew(Rf[1:-1, p])))
+                blocks.append((rid, col(t, c[None]), W * skew(Rf[1:-1, c])))
+                for j, cf in zip((-1, 0, 1), (1.0, -2.0, 1.0), strict=True):
+                    sl = slice(1 + j, f - 1 + j)
+                    blocks.append((rid, col(t + j, p[None]), -cf / dt**2 * W * skew(Lp[sl])))
+                    blocks.append((rid, col(t + j, c[None]), cf / dt**2 * W * skew(Lc[sl])))
+            row += (f - 2) * c.size
+        # smoothness: change of the world angular increment
+        if f > 2:
+            s = pri.angular_acc * dt**2
+            inc = matrix_to_rotvec(R[1:] @ np.swapaxes(R[:-1], -1, -2))
+            res.append(((inc[1:] - inc[:-1]) / s).reshape(-1))
+            if jacobian:
+                t = np.arange(1, f - 1)[:, None]
+                k = np.arange(n)[None]
+                rid = row + np.arange((f - 2) * n).reshape(f - 2, n)
+                eye = np.broadcast_to(np.eye(3) / s, (f - 2, n, 3, 3))
+                for j, cf in zip((-1, 0, 1), (1.0, -2.0, 1.0), strict=True):
+                    blocks.append((rid, col(t + j, k), cf * eye))
+            row += (f - 2) * n
+        r = np.concatenate(res)
+        if not jacobian:
+            return r
+        rb = np.concatenate([b[0].ravel() for b in blocks])
+        cb = np.concatenate([np.broadcast_to(b[1], b[0].shape).ravel() for b in blocks])
+        B = np.concatenate([b[2].reshape(-1, 3, 3) for b in blocks])
+        ii = np.broadcast_to(3 * rb[:, None, None] + np.arange(3)[None, :, None], B.shape)
+        jj = np.broadcast_to(3 * cb[:, None, None] + np.arange(3)[None, None, :], B.shape)
+        J = sp.csr_matrix((B.ravel(), (ii.ravel(), jj.ravel())), shape=(3 * row, 3 * f * n))
+        return r, J
+
+
+def _banded(H: sp.spmatrix) -> np.ndarray:
+    """The upper band of a symmetric sparse matrix in LAPACK's ``(u + 1, n)`` layout."""
+    U = sp.triu(H).tocoo()
+    u = int((U.col - U.row).max(initial=0))
+    ab = np.zeros((u + 1, H.shape[0]))
+    ab[u + U.row - U.col, U.col] = U.data
+    return ab
+
+
+def _levenberg_marquardt(
+    problem: _Problem, R: np.ndarray, max_iter: int, rel_tol: float = 1e-6
+) -> tuple[np.ndarray, int]:
+    """Minimise the problem's cost from ``R`` ``(F, N, 3, 3)``; return it and the iterations."""
+    f, n = problem.use.shape
+    lam = 1e-3
+    r, J = problem.residuals(R, jacobian=True)
+    cost = float(r @ r)
+    iterations = 0
+    for iterations in range(1, max_iter + 1):
+        H = (J.T @ J).tocsr()
+        g = J.T @ r
+        ab = _banded(H)
+        diag = ab[-1].copy()
+        floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
+        while True:
+            ab[-1] = diag * (1 + lam) + floor
+            try:
+                d = solveh_banded(ab, -g, lower=False, check_finite=False).reshape(f, n, 3)
+            except LinAlgError:
+                d = None
+            if d is not None:
+                R_new = rotvec_to_matrix(d) @ R
+                r_new = problem.residuals(R_new)
+                cost_new = float(r_new @ r_new)
+                if cost_new < cost:
+                    break
+            if lam > 1e10:
+                return R, iterations
+            lam *= 10
+        gain = (cost - cost_new) / cost
+        R, cost = R_new, cost_new
+        lam = max(lam / 3, 1e-9)
+        if gain < rel_tol:
+            break
+        r, J = problem.residuals(R, jacobian=True)
+    return R, iterations
+
+
+def _interpolate(R: np.ndarray, t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
+    """Slerp each sensor's orientations ``(Fc, N, 3, 3)`` at times ``t_from`` to ``t_to``
+    (held beyond the ends)."""
+    if R.shape[0] == 1:
+        return np.broadcast_to(R, (t_to.size, *R.shape[1:])).copy()
+    out = np.empty((t_to.size, *R.shape[1:]))
+    t = np.clip(t_to, t_from[0], t_from[-1])
+    for k in range(R.shape[1]):
+        out[:, k] = Slerp(t_from, Rotation.from_matrix(R[:, k]))(t).as_matrix()
+    return out
+
+
+def _fill_start(q: np.ndarray) -> np.ndarray:
+    """Per-sample start ``(F, N, 4)`` with NaN rows filled from the nearest earlier (else later)
+    estimate of the sensor, identity where a sensor has none."""
+    q = q.copy()
+    for k in range(q.shape[1]):
+        ok = np.isfinite(q[:, k]).all(axis=-1)
+        if not ok.any():
+            q[:, k] = [1.0, 0.0, 0.0, 0.0]
+            continue
+        idx = np.where(ok, np.arange(q.shape[0]), -1)
+        idx = np.maximum.accumulate(idx)
+        idx[idx < 0] = np.flatnonzero(ok)[0]
+        q[:, k] = q[idx, k]
+    return q
+
+
+def _solve_span(
+    acc: np.ndarray,
+    mag: np.ndarray,
+    ok: np.ndarray,
+    rate_hz: float,
+    skeleton: Skeleton,
+    ref: Reference,
+    priors: Priors,
+    levels_hz: tuple[float, ...],
+    max_iter: int,
+    fine_iter: int,
+) -> tuple[np.ndarray, int]:
+    """The coarse-to-fine solve of one span; ``(F, N, 3, 3)`` at every sample, and iterations."""
+    f = acc.shape[0]
+    acc = np.where(ok[..., None], acc, np.nan)
+    mag = np.where(ok[..., None], mag, np.nan)
+    R = None
+    t_prev = None
+    total = 0
+    for level_hz in levels_hz:
+        k = max(1, round(rate_hz / level_hz))
+        if k > 1 and f // k < 3:
+            continue
+        cut = 0.4 * rate_hz / k
+        a = smooth_vectors(acc, rate_hz, cut)[::k] if k > 1 else acc.copy()
+        m = smooth_vectors(mag, rate_hz, cut)[::k] if k > 1 else mag.copy()
+        t_level = np.arange(0, f, k, dtype=float)
+        _, m_dir, use = measured_directions(a, m, ref, None)
+        if R is None:
+            start = fontaine(a, m, ref, weighting=Weighting(), valid=use)
+            R = quat_to_matrix(_fill_start(start.q_w_s))
+        else:
+            R = _interpolate(R, t_prev, t_level)
+        problem = _Problem(
+            np.where(use[..., None], a, 0.0),
+            np.where(use[..., None], m_dir, 0.0),
+            use,
+            k / rate_hz,
+            skeleton,
+            ref,
+            priors,
+        )
+        R, it = _levenberg_marquardt(problem, R, max_iter if level_hz == levels_hz[0] else fine_iter)
+        total += it
+        t_prev = t_level
+    if R is None:  # too short for any level: the per-sample estimate
+        _a_dir, m_dir, use = measured_directions(acc, mag, ref, None)
+        return quat_to_matrix(_fill_start(fontaine(acc, mag, ref, valid=use).q_w_s)), 0
+    return _interpolate(R, t_prev, np.arange(f, dtype=float)), total
+
+
+def skeleton_orientation(
+    acc: np.ndarray,
+    mag: np.ndarray,
+    rate_hz: float,
+    skeleton: Skeleton | None = None,
+    ref: Reference | None = None,
+    *,
+    valid: np.ndarray | None = None,
+    priors: Priors | None = None,
+    levels_hz: tuple[float, ...] = LEVELS_HZ,
+    max_iter: int = 40,
+    fine_iter: int = 10,
+    segment_s: float = SEGMENT_S,
+) -> Estimate:
+    """Every sensor's orientation over the recording, jointly on the skeleton (module docstring).
+
+    Args:
+        acc, mag: ``(F, N, 3)`` measured specific force (m/s^2) and field (any unit) in each
+            sensor's frame, frames first, at a constant rate.
+        rate_hz: sample rate, Hz.
+        skeleton: the tree and its joints in the sensors' frames, m (``None``: every sensor on
+            its own).
+        ref: reference vectors; default from the data (:func:`reference_from_data`) of the
+            roots' samples only: a root accelerates least, and a limb's accelerations would bias
+            the gravity and the field's inclination.
+        valid: optional ``(F, N)`` mask of usable samples.
+        priors: the residuals' standard deviations (:class:`Priors`).
+        levels_hz: the coarse-to-fine levels' rates, Hz.
+        max_iter: Levenberg-Marquardt iterations per level at most.
+        segment_s: longest span solved at once, s.
+
+    Returns:
+        The orientations ``R_w_s`` (``ref``'s frame) at every sample; NaN where the sample was
+        not usable (NaN or near-zero input, or masked), although the solve carries every
+        sensor through such spans.
+    """
+    acc = np.asarray(acc, dtype=float)
+    mag = np.asarray(mag, dtype=float)
+    if acc.ndim != 3 or acc.shape[-1] != 3 or mag.shape != acc.shape:
+        raise CalibrationInputError(
+            f"Expected acc and mag of one shape (frames, sensors, 3), got {acc.shape} and {mag.shape}"
+        )
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise CalibrationInputError(f"rate_hz must be > 0, got {rate_hz}")
+    f, n = acc.shape[:2]
+    skeleton = skeleton or Skeleton.none(n)
+    if np.asarray(skeleton.parent).shape != (n,):
+        raise CalibrationInputError(
+            f"the skeleton has {np.asarray(skeleton.parent).shape[0]} sensors, the data {n}"
+        )
+    priors = priors or Priors()
+    if valid is not None and np.shape(valid) != (f, n):
+        raise CalibrationInputError(f"Expected valid of shape {(f, n)}, got {np.shape(valid)}")
+    if ref is None:
+        roots = skeleton.roots
+        v = None if valid is None else np.asarray(valid, dtype=bool)[:, roots]
+        ref = reference_from_data(acc[:, roots], mag[:, roots], valid=v)
+    _, _, ok = measured_directions(acc, mag, ref, valid)
+    R = np.empty((f, n, 3, 3))
+    seg = max(round(segment_s * rate_hz), 8)
+    over = min(round(OVERLAP_S * rate_hz), seg // 4)
+    iterations = 0
+    start = 0
+    kept = 0  # first frame not yet written
+    while kept < f:
+        stop = min(start + seg, f)
+        Rs, it = _solve_span(
+            acc[start:stop],
+            mag[start:stop],
+            ok[start:stop],
+            rate_hz,
+            skeleton,
+            ref,
+            priors,
+            levels_hz,
+            max_iter,
+            fine_iter,
+        )
+        iterations += it
+        keep_to = f if stop == f else stop - over // 2
+        R[kept:keep_to] = Rs[kept - start : keep_to - start]
+        kept = keep_to
+        start = stop - over
+    return Estimate(quat_where(R, ok), ok, ref.frame, iterations=iterations)
