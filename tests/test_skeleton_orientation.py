@@ -1,0 +1,278 @@
+"""The skeleton-aware sourceless estimator (issue 15, part 1): on an analytic chain whose limbs
+accelerate by more than 1 g, where the per-sample methods are tens of degrees off, it recovers
+the orientations from accelerometer and magnetometer alone; heading is carried across a
+magnetic disturbance; bad inputs are refused; the calibration JSON becomes its skeleton."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import simbench as sb
+from calibration.errors import CalibrationInputError
+from calibration.orientation import (
+    Skeleton,
+    orientation_errors,
+    reference,
+    skeleton_orientation,
+    triad,
+)
+from calibration.orientation.world import quat_where
+from calibration.rotations import rotvec_to_matrix
+from simbench.cli import main
+from simbench.io.dataset import write_dataset
+from simbench.orient import estimate, skeleton_from_calibration
+
+FIELD_W = np.array([0.0, 25.0, -43.3])  # ENU, uT: 50 uT, 60 degrees down
+G = 9.81
+
+# a three-segment chain: the root turns about its own origin (no acceleration); each joint in the
+# parent's and the child's sensor frame, m
+PARENT = np.array([-1, 0, 1])
+LP = np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0], [0.2, 0.0, 0.03]])
+LC = np.array([[0.0, 0.0, 0.0], [-0.15, 0.02, 0.0], [-0.1, 0.0, 0.0]])
+AMP = np.array([[0.6, 0.5, 0.4], [1.0, 0.6, 0.8], [0.9, 1.0, 0.5]])  # rad
+FREQ = np.array([[0.31, 0.43, 0.27], [0.7, 0.55, 0.9], [0.8, 1.1, 0.65]])  # Hz
+
+
+def chain_rotations(t: np.ndarray) -> np.ndarray:
+    """``R_w_s`` ``(T, 3, 3, 3)``: each sensor's rotation vector a sum of sines."""
+    v = AMP[None] * np.sin(2 * np.pi * FREQ[None] * t[:, None, None] + np.arange(3)[None, None, :])
+    return rotvec_to_matrix(v)
+
+
+def chain_positions(t: np.ndarray) -> np.ndarray:
+    """Sensor origins ``(T, 3, 3)`` by forward kinematics from the root at the origin, m."""
+    R = chain_rotations(t)
+    p = np.zeros((t.size, 3, 3))
+    for c in (1, 2):
+        joint = p[:, PARENT[c]] + R[:, PARENT[c]] @ LP[c]
+        p[:, c] = joint - R[:, c] @ LC[c]
+    return p
+
+
+def chain_session(rate_hz: float = 100.0, seconds: float = 20.0):
+    """Noise-free readings of the chain: the specific force from the exact acceleration (a
+    five-point second derivative at 1 ms, error ~1e-10 m/s^2) and the Earth field."""
+    t = np.arange(round(rate_hz * seconds)) / rate_hz
+    R = chain_rotations(t)
+    h = 1e-3
+    p = [chain_positions(t + k * h) for k in (-2, -1, 0, 1, 2)]
+    a = (-p[0] + 16 * p[1] - 30 * p[2] + 16 * p[3] - p[4]) / (12 * h * h)
+    acc = np.einsum("tkji,tkj->tki", R, a + np.array([0.0, 0.0, G]))
+    mag = np.einsum("tkji,j->tki", R, FIELD_W)
+    return t, R, acc, mag
+
+
+def total_deg(q_est: np.ndarray, R_true: np.ndarray) -> np.ndarray:
+    return np.rad2deg(orientation_errors(q_est, quat_where(R_true, np.ones(R_true.shape[:2], bool)))[..., 0])
+
+
+REF = reference("enu", field_strength_ut=float(np.linalg.norm(FIELD_W)), inclination_deg=60.0, gravity=G)
+
+
+def test_strong_accelerations_recovered_where_per_sample_methods_fail():
+    _, R, acc, mag = chain_session()
+    linear = np.abs(np.linalg.norm(acc, axis=-1) - G)
+    assert linear.max() > G  # the limbs accelerate by more than 1 g
+    per_sample = total_deg(triad(acc, mag, REF).q_w_s, R)
+    est = skeleton_orientation(acc, mag, 100.0, Skeleton(PARENT, LP, LC))
+    err = total_deg(est.q_w_s, R)
+    assert est.ok.all() and np.isfinite(est.q_w_s).all()
+    rms_triad = np.sqrt(np.mean(per_sample**2))
+    rms = np.sqrt(np.mean(err**2))
+    assert rms_triad > 30.0
+    # the 20 Hz level low-passes at 8 Hz and slerps between its samples: most frames within a
+    # degree; a span of about a second settles in a wrong minimum (the problem is not convex)
+    assert np.median(err) < 1.0
+    assert np.mean(err < 2.0) > 0.9
+    assert rms < 0.15 * rms_triad
+    # without the skeleton the same data give no such gain: the accelerations are unexplained
+    alone = total_deg(skeleton_orientation(acc, mag, 100.0).q_w_s, R)
+    assert np.median(alone) > 5 * np.median(err)
+
+
+def test_reference_from_the_roots_equals_the_true_one_when_the_root_is_still():
+    _, _R, acc, mag = chain_session(seconds=8.0)
+    sk = Skeleton(PARENT, LP, LC)
+    from_data = skeleton_orientation(acc, mag, 100.0, sk)
+    given = skeleton_orientation(acc, mag, 100.0, sk, ref=REF)
+    assert np.max(orientation_errors(from_data.q_w_s, given.q_w_s)[..., 0]) < np.deg2rad(0.05)
+
+
+def test_heading_carried_through_a_dipole_pass():
+    """One sensor turning steadily about the vertical; for 2 s a magnet near it adds a field of
+    60 % of the Earth's: the per-sample estimate follows the disturbed field, the disturbance
+    weighting carries the heading across from the span's ends. The weighting sees the field
+    strength only (the dip is measured against an accelerometer that limbs turn), so the magnet's
+    field here has a part along the Earth's; one added at right angles changes the strength only
+    to second order at the span's ends and is carried less well (measured: 19.8 degrees of
+    heading in the span against TRIAD's 33.2)."""
+    rate = 100.0
+    t = np.arange(2000) / rate
+    yaw = 0.4 * t  # rad
+    v = np.stack([0.2 * np.sin(0.5 * t), 0.15 * np.cos(0.3 * t), yaw], axis=-1)
+    R = rotvec_to_matrix(v)[:, None]
+    acc = np.einsum("tkji,j->tki", R, np.array([0.0, 0.0, G]))
+    field = np.broadcast_to(FIELD_W, (t.size, 3)).copy()
+    span = (t >= 9.0) & (t < 11.0)
+    ramp = np.sin(np.pi * (t[span] - 9.0) / 2.0) ** 2  # the magnet approaches and leaves
+    toward = np.array([0.6, 0.5, -0.6]) / np.linalg.norm([0.6, 0.5, -0.6])  # across and along the field
+    field[span] += 0.6 * np.linalg.norm(FIELD_W) * ramp[:, None] * toward
+    mag = np.einsum("tkji,tj->tki", R, field)
+    rng = np.random.default_rng(4)
+    acc += rng.normal(scale=0.02, size=acc.shape)
+    mag += rng.normal(scale=0.1, size=mag.shape)
+    truth = quat_where(R, np.ones(R.shape[:2], bool))
+
+    def heading_in_span(q):
+        e = np.rad2deg(orientation_errors(q, truth)[:, 0, 1])
+        return np.sqrt(np.mean(e[span] ** 2)), np.sqrt(np.mean(e[~span] ** 2))
+
+    tri, _ = heading_in_span(triad(acc, mag, REF).q_w_s)
+    carried = skeleton_orientation(acc, mag, rate, weigh_disturbance=True)
+    inside, outside = heading_in_span(carried.q_w_s)
+    assert tri > 10.0  # the disturbed field turns the per-sample heading
+    assert inside < 0.3 * tri
+    assert outside < 1.0
+
+
+def test_gaps_and_bad_samples_come_back_nan_and_the_rest_is_estimated():
+    _, _R, acc, mag = chain_session(seconds=6.0)
+    acc = acc.copy()
+    acc[100:130, 2] = np.nan
+    valid = np.ones(acc.shape[:2], bool)
+    valid[300:320, 1] = False
+    est = skeleton_orientation(acc, mag, 100.0, Skeleton(PARENT, LP, LC), valid=valid)
+    assert not est.ok[100:130, 2].any() and np.isnan(est.q_w_s[100:130, 2]).all()
+    assert not est.ok[300:320, 1].any()
+    assert est.ok.sum() == acc.shape[0] * 3 - 30 - 20
+    assert np.isfinite(est.q_w_s[est.ok]).all()
+
+
+def test_long_recordings_are_solved_in_segments_that_join():
+    _, R, acc, mag = chain_session(seconds=30.0)
+    sk = Skeleton(PARENT, LP, LC)
+    whole = skeleton_orientation(acc, mag, 100.0, sk)
+    cut = skeleton_orientation(acc, mag, 100.0, sk, segment_s=12.0)
+    e_whole, e_cut = total_deg(whole.q_w_s, R), total_deg(cut.q_w_s, R)
+    assert np.median(e_cut) < 1.0 and abs(np.median(e_cut) - np.median(e_whole)) < 0.2
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (
+            dict(parent=np.array([-1, 0]), joint_in_parent=np.zeros((2, 3)), joint_in_child=np.zeros((3, 3))),
+            "joint_in_child",
+        ),
+        (
+            dict(
+                parent=np.array([1, 0, -1]), joint_in_parent=np.zeros((3, 3)), joint_in_child=np.zeros((3, 3))
+            ),
+            "cycle",
+        ),
+        (
+            dict(
+                parent=np.array([-1, 0, 0]),
+                joint_in_parent=np.full((3, 3), np.nan),
+                joint_in_child=np.zeros((3, 3)),
+            ),
+            "finite",
+        ),
+        (
+            dict(
+                parent=np.array([-1, 5, 0]), joint_in_parent=np.zeros((3, 3)), joint_in_child=np.zeros((3, 3))
+            ),
+            "parent indices",
+        ),
+        (
+            dict(
+                parent=np.array([-1.0, 0.0, 0.0]),
+                joint_in_parent=np.zeros((3, 3)),
+                joint_in_child=np.zeros((3, 3)),
+            ),
+            "integers",
+        ),
+    ],
+)
+def test_bad_skeletons_are_refused(kwargs, match):
+    with pytest.raises(CalibrationInputError, match=match):
+        Skeleton(**kwargs)
+
+
+def test_bad_inputs_are_refused():
+    _, _, acc, mag = chain_session(seconds=2.0)
+    with pytest.raises(CalibrationInputError, match="one shape"):
+        skeleton_orientation(acc[..., :2], mag, 100.0)
+    with pytest.raises(CalibrationInputError, match="rate_hz"):
+        skeleton_orientation(acc, mag, 0.0)
+    with pytest.raises(CalibrationInputError, match="skeleton has 2 sensors"):
+        skeleton_orientation(acc, mag, 100.0, Skeleton(np.array([-1, 0]), np.zeros((2, 3)), np.zeros((2, 3))))
+    with pytest.raises(CalibrationInputError, match="valid"):
+        skeleton_orientation(acc, mag, 100.0, valid=np.ones((3, 3), bool))
+
+
+def test_a_calibration_json_becomes_the_skeleton(tmp_path):
+    names = ("pelvis", "thigh", "shank", "extra")
+    doc = {
+        "units": "m",
+        "joints": [
+            {
+                "parent": "pelvis",
+                "child": "thigh",
+                "joint_in_parent": [0.1, 0, 0],
+                "joint_in_child": [0, 0.2, 0],
+            },
+            {
+                "parent": "thigh",
+                "child": "shank",
+                "joint_in_parent": [0, -0.2, 0],
+                "joint_in_child": [0, 0.21, 0],
+            },
+        ],
+    }
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps(doc))
+    sk = skeleton_from_calibration(path, names)
+    assert sk.parent.tolist() == [-1, 0, 1, -1]  # the sensor the calibration leaves out is a root
+    assert sk.joint_in_parent[2].tolist() == [0, -0.2, 0] and sk.joint_in_child[1].tolist() == [0, 0.2, 0]
+    with pytest.raises(sb.InputError, match="sensors the data lacks"):
+        skeleton_from_calibration(path, ("pelvis", "thigh"))
+    path.write_text(json.dumps({**doc, "units": "mm"}))
+    with pytest.raises(sb.InputError, match="units"):
+        skeleton_from_calibration(path, names)
+    cyc = {
+        "units": "m",
+        "joints": [*doc["joints"], {**doc["joints"][0], "parent": "shank", "child": "pelvis"}],
+    }
+    path.write_text(json.dumps(cyc))
+    with pytest.raises(sb.InputError, match=r"not a tree|cycle"):
+        skeleton_from_calibration(path, names)
+
+
+def test_orient_on_a_simulated_session_with_its_calibrated_skeleton(tmp_path, capsys):
+    """The whole path: simulate, calibrate the tracker poses to a JSON, orient with it."""
+    ds = sb.simulate(model="humanoid", motion="exercise", sensors="mems-industrial", duration_s=30, seed=11)
+    data = tmp_path / "s.h5"
+    write_dataset(data, ds)
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(data), "--json", str(cal), "--no-slip"]) == 0
+    capsys.readouterr()
+    assert main(["orient", str(data), "--skeleton", str(cal)]) == 0
+    out = capsys.readouterr().out
+    assert "method: skeleton (15 joints, 1 root(s))" in out
+    with_skeleton = sb.orient(ds, skeleton=cal)
+    alone = sb.orient(ds)
+    per_sample = sb.orient(ds, method="fontaine")
+    assert with_skeleton.method == "skeleton"
+    # measured: 3.4 degrees against Fontaine's 22.4 (a 12 s session is worse: its first seconds,
+    # violent from the first frame, are a large share; see the validation report)
+    assert with_skeleton.score.total_rmse_deg < 0.3 * per_sample.score.total_rmse_deg
+    assert with_skeleton.score.total_rmse_deg < alone.score.total_rmse_deg
+    rec = ds.imu()
+    assert estimate(rec, "skeleton").q_enu.shape == (*rec.acc.shape[:2], 4)
+    assert main(["orient", str(data), "--method", "triad", "--skeleton", str(cal)]) == 2
+    assert "--skeleton is for --method skeleton" in capsys.readouterr().err
