@@ -48,7 +48,8 @@ def test_quick_validate_writes_a_complete_report(quick_report):
     assert set(broad) == {p.stem for p in DEFAULT_DATA_DIR.glob("broad_*.hdf5")}
     for trial, r in broad.items():
         assert f"### BROAD trial {trial}" in md and r["methods"]["triad"]["ratio_to_triad"] == 1.0
-        ratio = r["methods"]["fontaine"]["total_deg"] / r["methods"]["triad"]["total_deg"]
+        assert r["default"] == "skeleton"
+        ratio = r["methods"][r["default"]]["total_deg"] / r["methods"]["triad"]["total_deg"]
         assert r["target_met"] == (ratio <= r["target_ratio"])
         assert r["methods"]["vqf (gyro-aided reference)"]["ratio_to_triad"] < 0.5
     s = results["summary"]

@@ -43,7 +43,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.linalg import LinAlgError, solveh_banded
 from scipy.spatial.transform import Rotation, Slerp
 
@@ -192,35 +191,34 @@ class _Problem:
         return self.use & (w < 0.5)
 
     def residuals(self, R: np.ndarray, jacobian: bool = False):
-        """The stacked residual vector, and with ``jacobian`` the sparse Jacobian in ``d``."""
+        """The stacked residual vector; with ``jacobian`` also its blocks: per residual group a
+        list of ``(columns, v)``, ``columns`` the block columns (frame * N + sensor) of the
+        group's rows and ``v`` the derivative of each row's residual by that column's
+        perturbation ``d``: every such 3 x 3 block is a cross product, ``[v]x`` with ``v``
+        ``(rows..., 3)``, or a multiple of the identity, ``v I`` with ``v`` a scalar (the
+        smoothness rows)."""
         f, n = self.use.shape
         dt, pri, sk = self.dt, self.priors, self.skeleton
         res: list[np.ndarray] = []
-        blocks: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # row ids, col ids, 3x3
-        row = 0
+        groups: list[list[tuple[np.ndarray, np.ndarray]]] = []
 
         def col(t: np.ndarray, k: np.ndarray) -> np.ndarray:
             return t * n + k
 
+        frames = np.arange(f)[:, None]
         # magnetometer: R m - b
         Rm = np.einsum("fnij,fnj->fni", R, self.mag_dir)
         w = (self.mag_weight / pri.mag_rad)[..., None]
         res.append((w * (Rm - self.ref.field_dir_w)).reshape(-1))
         if jacobian:
-            ids = np.arange(f * n)
-            blocks.append((ids, ids, (-w[..., None] * skew(Rm)).reshape(-1, 3, 3)))
-        row += f * n
+            groups.append([(col(frames, np.arange(n)[None]), -w * Rm)])
         # roots: R f - g up
         Rf = np.einsum("fnij,fnj->fni", R, self.acc)
         roots = sk.roots
         wr = (self.use[:, roots] / pri.root_acc)[..., None]
         res.append((wr * (Rf[:, roots] - self.ref.gravity * self.ref.up_w)).reshape(-1))
         if jacobian:
-            t = np.repeat(np.arange(f), roots.size)
-            k = np.tile(roots, f)
-            rid = row + np.arange(f * roots.size)
-            blocks.append((rid, col(t, k), (-wr[..., None] * skew(Rf[:, roots])).reshape(-1, 3, 3)))
-        row += f * roots.size
+            groups.append([(col(frames, roots[None]), -wr * Rf[:, roots])])
         # joints: R_p f_p + D2(R_p l_p) - R_c f_c - D2(R_c l_c)
         c = sk.children
         if c.size and f > 2:
@@ -234,48 +232,120 @@ class _Problem:
             wj = (self.use[1:-1, p] & self.use[1:-1, c]) / pri.joint_acc
             res.append((wj[..., None] * (Rf[1:-1, p] - Rf[1:-1, c] + d2(Lp) - d2(Lc))).reshape(-1))
             if jacobian:
-                t = np.arange(1, f - 1)[:, None]
-                rid = row + np.arange((f - 2) * c.size).reshape(f - 2, c.size)
-                W = wj[..., None, None]
-                blocks.append((rid, col(t, p[None]), -W * skew(Rf[1:-1, p])))
-                blocks.append((rid, col(t, c[None]), W * skew(Rf[1:-1, c])))
-                for j, cf in zip((-1, 0, 1), (1.0, -2.0, 1.0), strict=True):
-                    sl = slice(1 + j, f - 1 + j)
-                    blocks.append((rid, col(t + j, p[None]), -cf / dt**2 * W * skew(Lp[sl])))
-                    blocks.append((rid, col(t + j, c[None]), cf / dt**2 * W * skew(Lc[sl])))
-            row += (f - 2) * c.size
+                t = frames[1:-1]
+                W = wj[..., None]
+                h = 1.0 / dt**2
+                groups.append(
+                    [
+                        (col(t - 1, p[None]), -h * W * Lp[:-2]),
+                        (col(t, p[None]), -W * (Rf[1:-1, p] - 2 * h * Lp[1:-1])),
+                        (col(t + 1, p[None]), -h * W * Lp[2:]),
+                        (col(t - 1, c[None]), h * W * Lc[:-2]),
+                        (col(t, c[None]), W * (Rf[1:-1, c] - 2 * h * Lc[1:-1])),
+                        (col(t + 1, c[None]), h * W * Lc[2:]),
+                    ]
+                )
         # smoothness: change of the world angular increment
         if f > 2:
             s = pri.angular_acc * dt**2
             inc = matrix_to_rotvec(R[1:] @ np.swapaxes(R[:-1], -1, -2))
             res.append(((inc[1:] - inc[:-1]) / s).reshape(-1))
             if jacobian:
-                t = np.arange(1, f - 1)[:, None]
+                t = frames[1:-1]
                 k = np.arange(n)[None]
-                rid = row + np.arange((f - 2) * n).reshape(f - 2, n)
-                eye = np.broadcast_to(np.eye(3) / s, (f - 2, n, 3, 3))
-                for j, cf in zip((-1, 0, 1), (1.0, -2.0, 1.0), strict=True):
-                    blocks.append((rid, col(t + j, k), cf * eye))
-            row += (f - 2) * n
+                Jl = _log_jacobian_inverse(inc) / s  # (F-1, N, 3, 3): d inc_t / d(delta_{t+1})
+                Jr = np.swapaxes(Jl, -1, -2)  # -d inc_t / d(delta_t)
+                groups.append(
+                    [
+                        (col(t - 1, k), Jr[:-1]),
+                        (col(t, k), -Jr[1:] - Jl[:-1]),
+                        (col(t + 1, k), Jl[1:]),
+                    ]
+                )
         r = np.concatenate(res)
         if not jacobian:
             return r
-        rb = np.concatenate([b[0].ravel() for b in blocks])
-        cb = np.concatenate([np.broadcast_to(b[1], b[0].shape).ravel() for b in blocks])
-        B = np.concatenate([b[2].reshape(-1, 3, 3) for b in blocks])
-        ii = np.broadcast_to(3 * rb[:, None, None] + np.arange(3)[None, :, None], B.shape)
-        jj = np.broadcast_to(3 * cb[:, None, None] + np.arange(3)[None, None, :], B.shape)
-        J = sp.csr_matrix((B.ravel(), (ii.ravel(), jj.ravel())), shape=(3 * row, 3 * f * n))
-        return r, J
+        return r, groups
 
 
-def _banded(H: sp.spmatrix) -> np.ndarray:
-    """The upper band of a symmetric sparse matrix in LAPACK's ``(u + 1, n)`` layout."""
-    U = sp.triu(H).tocoo()
-    u = int((U.col - U.row).max(initial=0))
-    ab = np.zeros((u + 1, H.shape[0]))
-    ab[u + U.row - U.col, U.col] = U.data
-    return ab
+def _log_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
+    """``J_l^-1(phi)`` ``(..., 3, 3)``: ``log(exp(d) exp(phi)) = phi + J_l^-1(phi) d`` to first
+    order in ``d`` (and ``J_r^-1 = (J_l^-1)^T`` for a perturbation on the right)."""
+    theta = np.linalg.norm(phi, axis=-1)[..., None, None]
+    K = skew(phi)
+    small = theta < 1e-4
+    t = np.where(small, 1.0, theta)
+    c = np.where(small, 1.0 / 12.0, 1.0 / t**2 - (1 + np.cos(t)) / (2 * t * np.sin(t)))
+    return np.eye(3) - 0.5 * K + c * (K @ K)
+
+
+def _normal_equations(
+    r: np.ndarray, groups: list[list[tuple[np.ndarray, np.ndarray]]], n_blocks: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``J^T J`` in LAPACK's upper band layout ``(u + 1, 3 n_blocks)`` and ``J^T r``, from the
+    residual blocks (:meth:`_Problem.residuals`) without forming ``J``. For cross-product blocks
+    ``[a]x^T [b]x = (a . b) I - b a^T`` and ``[a]x^T r = r x a``; each pair of a group's blocks is
+    summed (``bincount``) into 3 x 3 blocks by block row and offset, then laid out in the band."""
+    offsets: list[np.ndarray] = []
+    block_rows: list[np.ndarray] = []
+    products: list[np.ndarray] = []
+    g = np.zeros(3 * n_blocks)
+    eye = np.eye(3)
+    start = 0
+    for blocks in groups:
+        shape = np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))
+        size = int(np.prod(shape))
+        rg = r[start : start + 3 * size].reshape(size, 3)
+        start += 3 * size
+        flat = []
+        for c, v in blocks:
+            v = np.asarray(v, dtype=float)
+            tail = v.shape[len(shape) :]
+            flat.append((np.broadcast_to(c, shape).reshape(-1), v.reshape(-1, *tail) if v.ndim else v))
+        for a, (ca, va) in enumerate(flat):
+            if va.ndim == 3:
+                ga = np.einsum("rki,rk->ri", va, rg)
+            else:
+                ga = np.cross(rg, va) if va.ndim else va * rg
+            g += np.bincount((3 * ca[:, None] + np.arange(3)).ravel(), ga.ravel(), minlength=g.size)
+            for b in range(a, len(flat)):
+                cb, vb = flat[b]
+                if va.ndim == 3 or vb.ndim == 3:  # general 3 x 3 blocks
+                    Ma = va if va.ndim == 3 else (skew(va) if va.ndim else va * eye)
+                    Mb = vb if vb.ndim == 3 else (skew(vb) if vb.ndim else vb * eye)
+                    P = np.einsum("rki,rkj->rij", Ma, Mb)
+                elif va.ndim and vb.ndim:
+                    P = np.einsum("ri,ri->r", va, vb)[:, None, None] * eye - vb[:, :, None] * va[:, None, :]
+                elif va.ndim or vb.ndim:  # [a]x^T (s I) = -s [a]x, and (s I)^T [b]x = s [b]x
+                    P = -vb * skew(va) if va.ndim else va * skew(vb)
+                else:
+                    P = np.broadcast_to(va * vb * eye, (size, 3, 3))
+                if b == a:
+                    offsets.append(np.zeros_like(ca))
+                    block_rows.append(ca)
+                    products.append(P.reshape(-1, 9))
+                    continue
+                d = cb - ca
+                P = np.where((d < 0)[:, None, None], np.swapaxes(P, -1, -2), P)
+                P = np.where((d == 0)[:, None, None], P + np.swapaxes(P, -1, -2), P)
+                offsets.append(np.abs(d))
+                block_rows.append(np.minimum(ca, cb))
+                products.append(P.reshape(-1, 9))
+    off = np.concatenate(offsets)
+    top = int(off.max(initial=0))
+    index = (off * n_blocks + np.concatenate(block_rows))[:, None] * 9 + np.arange(9)
+    Hb = np.bincount(
+        index.ravel(), np.concatenate(products).ravel(), minlength=(top + 1) * n_blocks * 9
+    ).reshape(top + 1, n_blocks, 3, 3)
+    u = 3 * top + 2
+    ab = np.zeros((u + 1, 3 * n_blocks))
+    for o in range(top + 1):
+        for i in range(3):
+            for j in range(3):
+                if o == 0 and i > j:
+                    continue
+                ab[u - 3 * o + i - j, 3 * o + j :: 3] = Hb[o, : n_blocks - o, i, j]
+    return ab, g
 
 
 def _levenberg_marquardt(
@@ -284,13 +354,11 @@ def _levenberg_marquardt(
     """Minimise the problem's cost from ``R`` ``(F, N, 3, 3)``; return it and the iterations."""
     f, n = problem.use.shape
     lam = 1e-3
-    r, J = problem.residuals(R, jacobian=True)
+    r, groups = problem.residuals(R, jacobian=True)
     cost = float(r @ r)
     iterations = 0
     for iterations in range(1, max_iter + 1):
-        H = (J.T @ J).tocsr()
-        g = J.T @ r
-        ab = _banded(H)
+        ab, g = _normal_equations(r, groups, f * n)
         diag = ab[-1].copy()
         floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
         while True:
@@ -313,7 +381,7 @@ def _levenberg_marquardt(
         lam = max(lam / 3, 1e-9)
         if gain < rel_tol:
             break
-        r, J = problem.residuals(R, jacobian=True)
+        r, groups = problem.residuals(R, jacobian=True)
     return R, iterations
 
 
@@ -409,7 +477,7 @@ def skeleton_orientation(
     valid: np.ndarray | None = None,
     priors: Priors | None = None,
     levels_hz: tuple[float, ...] = LEVELS_HZ,
-    max_iter: int = 40,
+    max_iter: int = 25,
     fine_iter: int = 10,
     segment_s: float = SEGMENT_S,
     weigh_disturbance: bool = False,
