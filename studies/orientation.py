@@ -3,10 +3,12 @@
     .venv/bin/python studies/orientation.py [--json studies/results/orientation.json]
 
 1. Simulation (humanoid, 30 s): orientation error of every estimator against the exact actual
-   orientations, for the ``mems-industrial`` and ``mems-consumer`` presets, at rest (``static``)
-   and in motion (``exercise``); with and without Fontaine's disturbance weighting (and weighted
-   smoothing at 1 Hz); near a ferromagnetic object (a 2 A m^2 dipole 40 cm in front of the
-   chest).
+   orientations, for the ``mems-industrial`` and ``mems-consumer`` presets (magnetometers
+   calibrated from the recording first, as ``simbench orient`` does), at rest (``static``) and in
+   motion (``exercise``, ``walk``); the skeleton method without a skeleton, on the skeleton
+   calibrated from the session's own tracker poses, and on the true skeleton; with and without
+   Fontaine's disturbance weighting (and weighted smoothing at 1 Hz); near a ferromagnetic object
+   (a 2 A m^2 dipole 40 cm in front of the chest).
 2. Posture (Fontaine 3.2): the humanoid's hands and feet placed by forward kinematics from the
    estimated orientations (exact joint offsets, true root position), against the truth.
 3. Real data: the two BROAD trials, every estimator, BROAD's error definitions. One setting for
@@ -23,15 +25,19 @@ import numpy as np
 
 import simbench as sb
 from calibration.hierarchy import hierarchy_from_parents
+from calibration.orientation import Skeleton
 from calibration.posture import joint_positions, sensor_positions
 from calibration.rotations import quat_to_matrix
 from simbench.io.imu import read_broad
-from simbench.orient import estimate
+from simbench.orient import calibrate_magnetometers, estimate
 from simbench.score import score_orientation
 from simbench.sim.sensor_config import SensorConfig, parse_sensor_config
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 VARIANTS = {
+    "skeleton (calibrated skeleton)": dict(method="skeleton", skeleton="calibrated"),
+    "skeleton (true skeleton)": dict(method="skeleton", skeleton="truth"),
+    "skeleton (no skeleton)": dict(method="skeleton"),
     "triad": dict(method="triad"),
     "wahba": dict(method="wahba"),
     "fontaine (no weighting)": dict(method="fontaine", weighting=False),
@@ -39,6 +45,9 @@ VARIANTS = {
     "fontaine (weighting, 1 Hz)": dict(method="fontaine", smooth_hz=1.0),
     "mahony (gyro)": dict(method="mahony"),
 }
+
+#: The estimators whose posture (hands and feet placed by forward kinematics) is scored.
+POSTURE_VARIANTS = ("skeleton (calibrated skeleton)", "triad", "fontaine (weighting, 1 Hz)", "mahony (gyro)")
 
 
 #: Near a ferromagnetic object: a 2 A m^2 dipole 40 cm in front of the chest, quieter sensors.
@@ -60,16 +69,37 @@ def mean_scores(scores: dict[str, dict[str, float]]) -> dict[str, float]:
 
 
 def simulated(motion: str, sensors: str | SensorConfig):
-    """A 30 s humanoid session and its inertial recording (truth: the on-skin orientations)."""
+    """A 30 s humanoid session and its inertial recording (truth: the on-skin orientations),
+    magnetometers calibrated from the recording where it pays."""
     ds = sb.simulate(model="humanoid", motion=motion, duration_s=30.0, seed=11, sensors=sensors)
-    return ds, ds.imu()
+    rec, _ = calibrate_magnetometers(ds.imu())
+    return ds, rec
 
 
-def posture_error(ds, rec, method_kwargs) -> dict[str, float]:
-    run = estimate(rec, **method_kwargs)
+def skeletons(ds) -> dict[str, Skeleton]:
+    """The session's skeleton as calibrated from its tracker poses, and the true one."""
+    cal = sb.calibrate(ds)
+    lp, lc = cal.joint_arrays()
+    tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
+    tlp, tlc = ds.truth_joint_arrays()
+    return {
+        "calibrated": Skeleton(np.asarray(cal.hierarchy.parent), lp, lc),
+        "truth": Skeleton(np.asarray(tree.parent), tlp, tlc),
+    }
+
+
+def run(ds, rec, kw, skels):
+    kw = dict(kw)
+    if "skeleton" in kw:
+        kw["skeleton"] = skels[kw["skeleton"]]
+    return estimate(rec, **kw)
+
+
+def posture_error(ds, rec, method_kwargs, skels) -> dict[str, float]:
+    est = run(ds, rec, method_kwargs, skels)
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
     lp, lc = ds.truth_joint_arrays()
-    R = quat_to_matrix(np.where(np.isfinite(run.q_enu), run.q_enu, np.nan))
+    R = quat_to_matrix(np.where(np.isfinite(est.q_enu), est.q_enu, np.nan))
     root = ds.truth.actual.p_w_s[:, 0]
     J = joint_positions(R, tree, lp, lc, root_w=root)
     P = sensor_positions(R, tree, J, lc)
@@ -87,38 +117,52 @@ def main() -> None:
     args = parser.parse_args()
     results: dict = {"simulation": {}, "disturbance": {}, "posture_cm": {}, "broad": {}}
     for preset in ("mems-industrial", "mems-consumer"):
-        for motion in ("static", "exercise"):
+        for motion in ("static", "exercise", "walk"):
             ds, rec = simulated(motion, preset)
-            row = {v: mean_scores(score(estimate(rec, **kw), rec)) for v, kw in VARIANTS.items()}
+            skels = skeletons(ds)
+            row = {v: mean_scores(score(run(ds, rec, kw, skels), rec)) for v, kw in VARIANTS.items()}
             results["simulation"][f"{preset} / {motion}"] = row
-            if preset == "mems-industrial" and motion == "exercise":
-                results["posture_cm"] = {
-                    v: posture_error(ds, rec, VARIANTS[v])
-                    for v in ("triad", "fontaine (weighting, 1 Hz)", "mahony (gyro)")
+            print(f"{preset} / {motion}: done", flush=True)
+            if preset == "mems-industrial" and motion in ("exercise", "walk"):
+                results["posture_cm"][motion] = {
+                    v: posture_error(ds, rec, VARIANTS[v], skels)
+                    for v in (
+                        "skeleton (calibrated skeleton)",
+                        "triad",
+                        "fontaine (weighting, 1 Hz)",
+                        "mahony (gyro)",
+                    )
                 }
-    _, rec = simulated("exercise", parse_sensor_config(MAGNET, "the magnet case"))
-    results["disturbance"] = {v: mean_scores(score(estimate(rec, **kw), rec)) for v, kw in VARIANTS.items()}
+    ds, rec = simulated("exercise", parse_sensor_config(MAGNET, "the magnet case"))
+    skels = skeletons(ds)
+    results["disturbance"] = {
+        v: mean_scores(score(run(ds, rec, kw, skels), rec)) for v, kw in VARIANTS.items()
+    }
     for trial in ("broad_02_undisturbed_slow_rotation_B", "broad_30_disturbed_stationary_magnet_C"):
         path = DATA / f"{trial}.hdf5"
         if path.is_file():
             rec = read_broad(path)
             results["broad"][trial] = {
-                v: score(estimate(rec, **kw), rec)["imu"] for v, kw in VARIANTS.items()
+                v: score(estimate(rec, **kw), rec)["imu"]
+                for v, kw in VARIANTS.items()
+                if "skeleton" not in kw
             }
+            results["broad"][trial]["skeleton (no skeleton)"] = score(estimate(rec, "skeleton"), rec)["imu"]
 
     def table(title: str, rows: dict[str, dict[str, float]]) -> None:
         print(f"\n{title}")
-        print(f"  {'estimator':<30}{'total':>8}{'heading':>9}{'inclin.':>9}  (RMSE, degrees)")
+        print(f"  {'estimator':<32}{'total':>8}{'heading':>9}{'inclin.':>9}  (RMSE, degrees)")
         for v, s in rows.items():
-            print(f"  {v:<30}{s['total_deg']:>8.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}")
+            print(f"  {v:<32}{s['total_deg']:>8.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}")
 
     for cond, rows in results["simulation"].items():
         table(f"humanoid, {cond}", rows)
     table("humanoid, exercise, a 2 A m^2 dipole 40 cm in front of the chest", results["disturbance"])
-    print("\nposture: hand and foot sensors placed from estimated orientations")
-    print("(mems-industrial, exercise), RMS error in cm")
-    for v, s in results["posture_cm"].items():
-        print(f"  {v:<30}" + "".join(f"{k} {x:6.2f}  " for k, x in s.items()))
+    for motion, rows in results["posture_cm"].items():
+        print("\nposture: hand and foot sensors placed from estimated orientations")
+        print(f"(mems-industrial, {motion}), RMS error in cm")
+        for v, s in rows.items():
+            print(f"  {v:<32}" + "".join(f"{k} {x:6.2f}  " for k, x in s.items()))
     for trial, rows in results["broad"].items():
         table(f"BROAD {trial}", rows)
     if args.json:
