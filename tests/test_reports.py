@@ -44,6 +44,10 @@ def test_quick_validate_writes_a_complete_report(quick_report):
         assert row in md
     results = json.loads((quick_report / "results.json").read_text())
     # every estimator on each BROAD trial at hand, against TRIAD and the target
+    ori = results["orientation"]
+    assert ori["default"] == "skeleton"
+    assert ori["target_met"] == (ori["methods"]["skeleton"]["total_rmse_deg"] <= 8)
+    assert "Target for the default gyro-free estimator (skeleton): total RMSE at most 8 degrees" in md
     broad = results["orientation"]["broad"]
     assert set(broad) == {p.stem for p in DEFAULT_DATA_DIR.glob("broad_*.hdf5")}
     for trial, r in broad.items():

@@ -176,8 +176,16 @@ def _orientation(plan: Plan) -> dict[str, Any]:
             "inclination_rmse_deg": scored.inclination_rmse_deg,
             "per_frame_deg": np.nan_to_num(scored.per_frame_deg).tolist(),
         }
+    out["default"] = DEFAULT_METHOD
+    out["target_deg"] = SIMULATION_TARGET_DEG
+    out["target_met"] = bool(out["methods"][DEFAULT_METHOD]["total_rmse_deg"] <= SIMULATION_TARGET_DEG)
     out["broad"] = _broad_orientation()
     return out
+
+
+#: Issue 15's target for the default gyro-free estimator on the humanoid exercise with
+#: ``mems-industrial`` sensors: total RMSE, degrees.
+SIMULATION_TARGET_DEG = 8.0
 
 
 #: The orientation estimators the report compares: gyro-free, then the gyro-aided reference.

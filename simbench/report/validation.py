@@ -199,7 +199,22 @@ def _slip_and_orientation(slip: dict[str, Any], orientation: dict[str, Any]) -> 
         "",
         markdown_table(["estimator", "total RMSE (deg)", "heading", "inclination"], errors),
         "",
+        *_simulation_target(orientation),
         *_broad_orientation(orientation.get("broad", {})),
+    ]
+
+
+def _simulation_target(orientation: dict[str, Any]) -> list[str]:
+    """The default estimator's simulation target, met or not."""
+    if "target_deg" not in orientation:
+        return []
+    d = orientation["default"]
+    verdict = "met" if orientation["target_met"] else "**not met**"
+    return [
+        f"Target for the default gyro-free estimator ({d}): total RMSE at most "
+        f"{orientation['target_deg']:g} degrees: {verdict} "
+        f"({orientation['methods'][d]['total_rmse_deg']:.2f} degrees).",
+        "",
     ]
 
 
