@@ -180,7 +180,8 @@ def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ..
 
     The calibration must be of the same sensors mounted as in the recording (e.g. made from the
     session's magnetic-tracker poses, or from an earlier session without re-mounting). Sensors
-    that the calibration leaves out are their own roots.
+    that the calibration leaves out are their own roots; a joint it found single-axis is a hinge
+    about its axis (``axis_in_parent``, ``axis_in_child``).
 
     Raises:
         InputError: the file is not a calibration JSON, is not in metres, names sensors the
@@ -198,10 +199,34 @@ def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ..
     parent[joints.child_index] = joints.parent_index
     lp[joints.child_index] = joints.joint_in_parent
     lc[joints.child_index] = joints.joint_in_child
+    a_p = np.zeros((n, 3))
+    a_c = np.zeros((n, 3))
+    for k, entry in enumerate(doc["joints"]):
+        if not joints.single_axis[k]:
+            continue
+        axes = [entry.get("axis_in_parent"), entry.get("axis_in_child")]
+        if not all(_is_vector(a) for a in axes):
+            raise InputError(
+                f"{path}: joints[{k}] is single-axis but its axis_in_parent and axis_in_child are not "
+                f"3 finite numbers each: {axes}"
+            )
+        a_p[joints.child_index[k]], a_c[joints.child_index[k]] = (
+            np.asarray(a) / np.linalg.norm(a) for a in axes
+        )
     try:
-        return Skeleton(parent, lp, lc)
+        return Skeleton(parent, lp, lc, a_p, a_c)
     except CalibrationError as exc:
         raise InputError(f"{path}: the joints are not a tree over the recording's sensors: {exc}") from None
+
+
+def _is_vector(a: object) -> bool:
+    """3 finite numbers, not all zero."""
+    return (
+        isinstance(a, list)
+        and len(a) == 3
+        and all(isinstance(x, int | float) and not isinstance(x, bool) and np.isfinite(x) for x in a)
+        and any(x != 0 for x in a)
+    )
 
 
 def in_frame(q_enu: np.ndarray, frame: str) -> np.ndarray:

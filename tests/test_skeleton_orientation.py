@@ -20,7 +20,7 @@ from calibration.orientation import (
     triad,
 )
 from calibration.orientation.world import quat_where
-from calibration.rotations import rotvec_to_matrix
+from calibration.rotations import quat_to_matrix, rotvec_to_matrix
 from simbench.cli import main
 from simbench.io.dataset import write_dataset
 from simbench.orient import estimate, skeleton_from_calibration
@@ -43,9 +43,9 @@ def chain_rotations(t: np.ndarray) -> np.ndarray:
     return rotvec_to_matrix(v)
 
 
-def chain_positions(t: np.ndarray) -> np.ndarray:
+def chain_positions(t: np.ndarray, rotations=chain_rotations) -> np.ndarray:
     """Sensor origins ``(T, 3, 3)`` by forward kinematics from the root at the origin, m."""
-    R = chain_rotations(t)
+    R = rotations(t)
     p = np.zeros((t.size, 3, 3))
     for c in (1, 2):
         joint = p[:, PARENT[c]] + R[:, PARENT[c]] @ LP[c]
@@ -53,13 +53,13 @@ def chain_positions(t: np.ndarray) -> np.ndarray:
     return p
 
 
-def chain_session(rate_hz: float = 100.0, seconds: float = 20.0):
+def chain_session(rate_hz: float = 100.0, seconds: float = 20.0, rotations=chain_rotations):
     """Noise-free readings of the chain: the specific force from the exact acceleration (a
     five-point second derivative at 1 ms, error ~1e-10 m/s^2) and the Earth field."""
     t = np.arange(round(rate_hz * seconds)) / rate_hz
-    R = chain_rotations(t)
+    R = rotations(t)
     h = 1e-3
-    p = [chain_positions(t + k * h) for k in (-2, -1, 0, 1, 2)]
+    p = [chain_positions(t + k * h, rotations) for k in (-2, -1, 0, 1, 2)]
     a = (-p[0] + 16 * p[1] - 30 * p[2] + 16 * p[3] - p[4]) / (12 * h * h)
     acc = np.einsum("tkji,tkj->tki", R, a + np.array([0.0, 0.0, G]))
     mag = np.einsum("tkji,j->tki", R, FIELD_W)
@@ -92,6 +92,42 @@ def test_strong_accelerations_recovered_where_per_sample_methods_fail():
     # without the skeleton the same data give no such gain: the accelerations are unexplained
     alone = total_deg(skeleton_orientation(acc, mag, 100.0).q_w_s, R)
     assert np.median(alone) > 5 * np.median(err)
+
+
+HINGE_P = np.array([0.0, 0.6, 0.8])  # the last joint's axis in its parent's (sensor 1's) frame
+HINGE_Q = rotvec_to_matrix(np.array([0.3, -0.5, 0.2]))  # the child sensor's mounting on its segment
+
+
+def hinged_rotations(t: np.ndarray) -> np.ndarray:
+    """The chain with its last joint a hinge: ``R_2 = R_1 rot(a_p, theta(t)) Q``, so that
+    ``R_2 a_c = R_1 a_p`` with ``a_c = Q^T a_p``."""
+    R = chain_rotations(t)
+    theta = 1.2 * np.sin(2 * np.pi * 0.9 * t) + 0.3
+    R[:, 2] = R[:, 1] @ rotvec_to_matrix(theta[:, None] * HINGE_P) @ HINGE_Q
+    return R
+
+
+def test_a_hinge_keeps_its_axis_common_to_both_sensors():
+    _, R, acc, mag = chain_session(seconds=12.0, rotations=hinged_rotations)
+    a_p = np.zeros((3, 3))
+    a_c = np.zeros((3, 3))
+    a_p[2], a_c[2] = HINGE_P, HINGE_Q.T @ HINGE_P
+    assert np.allclose(R[:, 2] @ a_c[2], R[:, 1] @ a_p[2])  # the generator is a hinge
+    hinge = Skeleton(PARENT, LP, LC, a_p, a_c)
+    ball = Skeleton(PARENT, LP, LC)
+    with_axis = skeleton_orientation(acc, mag, 100.0, hinge)
+    without = skeleton_orientation(acc, mag, 100.0, ball)
+
+    def axis_angle_deg(est):
+        Rs = quat_to_matrix(est.q_w_s)
+        u, v = Rs[:, 1] @ a_p[2], Rs[:, 2] @ a_c[2]
+        return np.rad2deg(np.arccos(np.clip(np.sum(u * v, axis=-1), -1, 1)))
+
+    # measured: the axes 0.16 degrees apart (median) with the hinge, 0.40 without; total RMSE
+    # 0.55 against 0.85 degrees
+    assert np.median(axis_angle_deg(with_axis)) < 0.5 * np.median(axis_angle_deg(without))
+    e_with, e_without = total_deg(with_axis.q_w_s, R), total_deg(without.q_w_s, R)
+    assert np.sqrt(np.mean(e_with**2)) < np.sqrt(np.mean(e_without**2)) < 2.0
 
 
 def test_reference_from_the_roots_equals_the_true_one_when_the_root_is_still():
@@ -203,6 +239,21 @@ def test_bad_skeletons_are_refused(kwargs, match):
         Skeleton(**kwargs)
 
 
+def test_bad_hinge_axes_are_refused():
+    zeros = np.zeros((3, 3))
+    unit = np.array([[0, 0, 0], [0, 0, 1.0], [0, 0, 0]])
+    with pytest.raises(CalibrationInputError, match="both"):
+        Skeleton(PARENT, LP, LC, unit, None)
+    with pytest.raises(CalibrationInputError, match="unit vectors"):
+        Skeleton(PARENT, LP, LC, 2 * unit, unit)
+    with pytest.raises(CalibrationInputError, match="unit vectors"):
+        Skeleton(PARENT, LP, LC, unit, zeros)
+    with pytest.raises(CalibrationInputError, match="root"):
+        Skeleton(PARENT, LP, LC, np.roll(unit, -1, axis=0), np.roll(unit, -1, axis=0))
+    with pytest.raises(CalibrationInputError, match="finite"):
+        Skeleton(PARENT, LP, LC, unit * np.nan, unit)
+
+
 def test_bad_inputs_are_refused():
     _, _, acc, mag = chain_session(seconds=2.0)
     with pytest.raises(CalibrationInputError, match="one shape"):
@@ -243,6 +294,19 @@ def test_a_calibration_json_becomes_the_skeleton(tmp_path):
         skeleton_from_calibration(path, ("pelvis", "thigh"))
     path.write_text(json.dumps({**doc, "units": "mm"}))
     with pytest.raises(sb.InputError, match="units"):
+        skeleton_from_calibration(path, names)
+    knee = {
+        **doc["joints"][1],
+        "single_axis": True,
+        "axis_in_parent": [0, 0, 2.0],
+        "axis_in_child": [0, 1.0, 0],
+    }
+    path.write_text(json.dumps({**doc, "joints": [doc["joints"][0], knee]}))
+    sk = skeleton_from_calibration(path, names)
+    assert sk.hinges.tolist() == [2]
+    assert sk.hinge_in_parent[2].tolist() == [0, 0, 1] and sk.hinge_in_child[2].tolist() == [0, 1, 0]
+    path.write_text(json.dumps({**doc, "joints": [doc["joints"][0], {**knee, "axis_in_child": None}]}))
+    with pytest.raises(sb.InputError, match="single-axis but its axis"):
         skeleton_from_calibration(path, names)
     cyc = {
         "units": "m",
