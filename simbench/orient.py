@@ -30,8 +30,10 @@ from calibration.orientation import (
     Estimate,
     MagnetometerCalibration,
     Skeleton,
+    SpanCalibration,
     Weighting,
     change_frame,
+    fit_disturbed_spans,
     fit_magnetometer,
     fontaine,
     mahony,
@@ -245,7 +247,10 @@ def calibrate_magnetometers(
 ) -> tuple[ImuRecording, dict[str, MagnetometerCalibration | str]]:
     """Each sensor's magnetometer calibrated from its own samples (hard and soft iron by an
     ellipsoid fit, :func:`calibration.orientation.fit_magnetometer`), applied where it is worth
-    it (:func:`applies`).
+    it (:func:`applies`); then each span where the field strength departs from the recording's
+    (a magnet attached to the sensor for a while) fitted and recalibrated on its own samples
+    where they determine it (:func:`calibration.orientation.fit_disturbed_spans`; the recording's
+    notes say which).
 
     Returns:
         The recording with the calibrated magnetometers (a sensor whose fit does not apply keeps
@@ -263,11 +268,30 @@ def calibrate_magnetometers(
         if applies(fit):
             mag[:, k] = fit.apply(rec.mag[:, k])
     applied = [n for n, f in fits.items() if not isinstance(f, str) and applies(f)]
-    note = (
+    notes = [
         f"magnetometers calibrated from the recording: {len(applied)} of {len(fits)} "
         f"({', '.join(applied) or 'none'})"
-    )
-    return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, note)), fits
+    ]
+    for k, name in enumerate(rec.names):
+        spans = fit_disturbed_spans(mag[:, k], rec.rate_hz, rec.valid[:, k])
+        for span in spans:
+            if span.applied:
+                mag[span.start : span.stop, k] = span.fit.apply(mag[span.start : span.stop, k])
+        if spans:
+            notes.append(describe_spans(name, spans, rec.time_s))
+    return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, *notes)), fits
+
+
+def describe_spans(name: str, spans: list[SpanCalibration], time_s: np.ndarray) -> str:
+    """One line on a sensor's spans of a different field, and which were recalibrated."""
+    parts = []
+    for s in spans:
+        when = f"{time_s[s.start]:.1f}-{time_s[s.stop - 1]:.1f} s"
+        if s.applied:
+            parts.append(f"{when} recalibrated ({s.fit.model}, |b| spread {100 * s.fit.spread_after:.2g} %)")
+        else:
+            parts.append(f"{when} left to the estimator")
+    return f"magnetometer {name}: field strength departs in {len(spans)} span(s): " + "; ".join(parts)
 
 
 def applies(fit: MagnetometerCalibration) -> bool:

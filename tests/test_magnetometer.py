@@ -144,3 +144,51 @@ def test_consumer_magnetometers_calibrated_from_the_session_come_close_to_indust
     industrial = error("mems-industrial", True)
     assert error("mems-consumer", False) > 2.5 * industrial
     assert error("mems-consumer", True) < 1.5 * industrial
+
+
+def test_a_magnet_attached_for_a_while_is_found_and_recalibrated():
+    """A sensor turning every way for 60 s; from 20 s to 40 s a magnet rides on it (a hard iron
+    of 60 % of the field, constant in the sensor frame): one span is found there, fitted on its
+    own samples, and recalibrated; the rest is left alone."""
+    from calibration.orientation.magnetometer import fit_disturbed_spans
+
+    rng = np.random.default_rng(8)
+    rate = 50.0
+    t = np.arange(3000) / rate
+    v = np.stack([2.5 * np.sin(0.31 * t), 2.0 * np.sin(0.23 * t + 1), 2.8 * np.sin(0.17 * t + 2)], axis=-1)
+    R = rotvec_to_matrix(v)
+    mag = raw_samples(R, np.eye(3), np.zeros(3), 0.2, rng)
+    ride = (t >= 20.0) & (t < 40.0)
+    magnet = 0.6 * 48.0 * np.array([0.6, -0.48, 0.64])
+    mag[ride] += magnet
+    spans = fit_disturbed_spans(mag, rate)
+    assert len(spans) == 1
+    span = spans[0]
+    assert abs(span.start / rate - 20.0) < 1.0 and abs(span.stop / rate - 40.0) < 1.0  # where |m| departs
+    assert span.applied
+    assert np.linalg.norm(span.fit.hard_iron - magnet) / 48.0 < 0.01
+    fixed = span.fit.apply(mag[span.start : span.stop])
+    truth = np.einsum("fji,j->fi", R[span.start : span.stop], FIELD_W)
+    angle = np.rad2deg(
+        np.arccos(np.clip(np.sum(fixed * truth, 1) / np.linalg.norm(fixed, axis=1) / 48.0, -1, 1))
+    )
+    assert np.median(angle) < 1.0  # the field's direction is back
+    assert fit_disturbed_spans(raw_samples(R, np.eye(3), np.zeros(3), 0.2, rng), rate) == []  # clean: nothing
+
+
+def test_a_field_that_changes_in_the_world_is_not_recalibrated():
+    """A magnet the sensor passes: the extra field is fixed in the world, not in the sensor, so
+    the span's samples lie on no ellipsoid and the span is left to the estimator."""
+    from calibration.orientation.magnetometer import fit_disturbed_spans
+
+    rng = np.random.default_rng(9)
+    rate = 50.0
+    t = np.arange(3000) / rate
+    v = np.stack([2.5 * np.sin(0.31 * t), 2.0 * np.sin(0.23 * t + 1), 2.8 * np.sin(0.17 * t + 2)], axis=-1)
+    R = rotvec_to_matrix(v)
+    world = np.broadcast_to(FIELD_W, (t.size, 3)).copy()
+    near = (t >= 20.0) & (t < 40.0)
+    world[near] += 0.6 * 48.0 * np.sin(np.pi * (t[near] - 20.0) / 20.0)[:, None] * np.array([1.0, 0.0, 0.3])
+    mag = np.einsum("fji,fj->fi", R, world) + rng.normal(scale=0.2, size=(t.size, 3))
+    spans = fit_disturbed_spans(mag, rate)
+    assert spans and not any(s.applied for s in spans)

@@ -23,7 +23,9 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
   a rotation vector, started from TRIAD; both it and :func:`wahba` take the weights.
 - :mod:`.magnetometer`: :func:`fit_magnetometer`, hard and soft iron from a recording's own
   samples by an ellipsoid fit, with whether the samples determine it and how steady it makes
-  the field strength (:class:`MagnetometerCalibration`).
+  the field strength (:class:`MagnetometerCalibration`); and spans of the recording where
+  the field strength departs (a magnet attached for a while), each recalibrated on its own
+  samples where they determine it (:func:`fit_disturbed_spans`).
 - :mod:`.skeleton`: :func:`skeleton_orientation`, every segment at once over the whole
   recording, on the calibrated skeleton (:class:`Skeleton`): each sensor's linear acceleration
   predicted from the chain's motion instead of ignored, heading carried across spans the data do
@@ -40,7 +42,13 @@ aligned with inputs.
 from calibration.orientation.complementary import mahony
 from calibration.orientation.disturbance import Weighting, smooth_vectors, weighted_smooth
 from calibration.orientation.gauss_newton import fontaine
-from calibration.orientation.magnetometer import MagnetometerCalibration, fit_magnetometer
+from calibration.orientation.magnetometer import (
+    MagnetometerCalibration,
+    SpanCalibration,
+    disturbed_spans,
+    fit_disturbed_spans,
+    fit_magnetometer,
+)
 from calibration.orientation.skeleton import Priors, Skeleton, skeleton_orientation
 from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
 from calibration.orientation.world import (
@@ -67,8 +75,11 @@ __all__ = [
     "Priors",
     "Reference",
     "Skeleton",
+    "SpanCalibration",
     "Weighting",
     "change_frame",
+    "disturbed_spans",
+    "fit_disturbed_spans",
     "fit_magnetometer",
     "fontaine",
     "mahony",

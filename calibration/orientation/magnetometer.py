@@ -232,3 +232,115 @@ def _fit_ellipsoid(m: np.ndarray) -> MagnetometerCalibration:
         spread_after=_spread(np.linalg.norm(b, axis=1)),
         n_samples=int(m.shape[0]),
     )
+
+
+#: A sample departs from the recording's field strength when ``| |m| / B - 1 |`` exceeds this
+#: many robust standard deviations of the recording's own (1.4826 MAD): a Gaussian sample does
+#: so once in 500 million.
+SPAN_THRESHOLD = 6.0
+
+#: Departing samples closer than this in time, s, belong to one span; a span whose fit does not
+#: apply is tried again split at gaps longer than :data:`SPAN_SPLIT_S` (a magnet that moves
+#: with the sensor leaves the field strength near the Earth's at some orientations, so one
+#: attachment shows as departures with gaps; two attachments in a row are two hard irons).
+SPAN_GAP_S = 5.0
+SPAN_SPLIT_S = 1.0
+
+
+@dataclass(frozen=True)
+class SpanCalibration:
+    """A span of a recording whose magnetometer sees a different field: a magnet attached to
+    the sensor, or carried with it, for a while (Fontaine et al.: "magnetometers need
+    re-calibration where the environment changes").
+
+    Attributes:
+        start, stop: the span's samples ``[start, stop)``.
+        fit: the fit of the span's own samples, or ``None`` if it has too few.
+        applied: the fit is determined and brings the span's field strength back to the
+            recording's (within :data:`SPAN_THRESHOLD` of its spread, relative, and its spread
+            within a factor 2 of the recording's): the span is calibrated with it. Otherwise it
+            stays as it was, and the estimator has to carry the heading across it.
+    """
+
+    start: int
+    stop: int
+    fit: MagnetometerCalibration | None
+    applied: bool
+
+
+def disturbed_spans(
+    mag: np.ndarray,
+    rate_hz: float,
+    valid: np.ndarray | None = None,
+    strength: float | None = None,
+    gap_s: float = SPAN_GAP_S,
+) -> tuple[list[tuple[int, int]], float]:
+    """Spans ``[start, stop)`` of samples whose field strength departs from the recording's.
+
+    Args:
+        mag: ``(F, 3)`` (calibrated) samples.
+        rate_hz: sample rate, Hz.
+        valid: optional ``(F,)`` mask.
+        strength: the field strength ``B`` (default: the median ``|m|``).
+
+    Returns:
+        The spans (departing samples joined across gaps shorter than ``gap_s``), and the robust
+        relative spread of ``|m|`` they were judged by.
+    """
+    m = np.asarray(mag, dtype=float)
+    n = np.linalg.norm(m, axis=1)
+    use = np.isfinite(n) & (n > 0)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    if use.sum() < MIN_SAMPLES:
+        return [], float("nan")
+    B = float(np.median(n[use])) if strength is None else float(strength)
+    x = n / B - 1.0
+    spread = 1.4826 * float(np.median(np.abs(x[use] - np.median(x[use]))))
+    if not spread > 0:
+        return [], spread
+    out = np.flatnonzero(use & (np.abs(x - np.median(x[use])) > SPAN_THRESHOLD * spread))
+    if out.size == 0:
+        return [], spread
+    gap = max(1, round(gap_s * rate_hz))
+    breaks = np.flatnonzero(np.diff(out) > gap)
+    starts = np.r_[out[0], out[breaks + 1]]
+    stops = np.r_[out[breaks], out[-1]] + 1
+    return list(zip(starts.tolist(), stops.tolist(), strict=True)), spread
+
+
+def fit_disturbed_spans(
+    mag: np.ndarray, rate_hz: float, valid: np.ndarray | None = None, strength: float | None = None
+) -> list[SpanCalibration]:
+    """Each span where the field strength departs (:func:`disturbed_spans`), fitted on its own
+    samples (:func:`fit_magnetometer`) and judged: a magnet that moves with the sensor is a new
+    hard (and soft) iron for as long as it stays, which the span's own turns determine; a field
+    that changes in the world (a magnet the sensor passes) fits no ellipsoid and is left to the
+    estimator."""
+    m = np.asarray(mag, dtype=float)
+    spans, spread = disturbed_spans(m, rate_hz, valid, strength)
+    fine, _ = disturbed_spans(m, rate_hz, valid, strength, gap_s=SPAN_SPLIT_S)
+    n = np.linalg.norm(m, axis=1)
+    use = np.isfinite(n) & (n > 0)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    B = float(np.median(n[use])) if strength is None else float(strength)
+
+    def judged(a: int, b: int) -> SpanCalibration:
+        try:
+            fit = fit_magnetometer(m[a:b], use[a:b])
+        except CalibrationError:
+            return SpanCalibration(a, b, None, False)
+        ok = (
+            fit.determined
+            and abs(fit.field_strength / B - 1.0) <= SPAN_THRESHOLD * spread
+            and fit.spread_after <= 2.0 * spread
+        )
+        return SpanCalibration(a, b, fit, bool(ok))
+
+    out = []
+    for a, b in spans:
+        whole = judged(a, b)
+        parts = [(c, d) for c, d in fine if a <= c and d <= b]
+        out += [whole] if whole.applied or len(parts) < 2 else [judged(c, d) for c, d in parts]
+    return out
