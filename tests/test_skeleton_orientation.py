@@ -14,6 +14,7 @@ import simbench as sb
 from calibration.errors import CalibrationInputError
 from calibration.orientation import (
     Skeleton,
+    disturbed_spans,
     orientation_errors,
     reference,
     skeleton_orientation,
@@ -168,9 +169,17 @@ def test_heading_carried_through_a_dipole_pass():
         return np.sqrt(np.mean(e[span] ** 2)), np.sqrt(np.mean(e[~span] ** 2))
 
     tri, _ = heading_in_span(triad(acc, mag, REF).q_w_s)
+    assert tri > 10.0  # the disturbed field turns the per-sample heading
     carried = skeleton_orientation(acc, mag, rate, weigh_disturbance=True)
     inside, outside = heading_in_span(carried.q_w_s)
-    assert tri > 10.0  # the disturbed field turns the per-sample heading
+    assert inside < 0.3 * tri
+    assert outside < 1.0
+    # or the span found in the data, the magnetometer left out there
+    spans, _ = disturbed_spans(mag[:, 0], rate)
+    assert len(spans) == 1 and abs(spans[0][0] / rate - 9.0) < 0.6 and abs(spans[0][1] / rate - 11.0) < 0.6
+    carry = np.zeros(mag.shape[:2], bool)
+    carry[spans[0][0] : spans[0][1]] = True
+    inside, outside = heading_in_span(skeleton_orientation(acc, mag, rate, carry=carry).q_w_s)
     assert inside < 0.3 * tri
     assert outside < 1.0
 
@@ -264,6 +273,8 @@ def test_bad_inputs_are_refused():
         skeleton_orientation(acc, mag, 100.0, Skeleton(np.array([-1, 0]), np.zeros((2, 3)), np.zeros((2, 3))))
     with pytest.raises(CalibrationInputError, match="valid"):
         skeleton_orientation(acc, mag, 100.0, valid=np.ones((3, 3), bool))
+    with pytest.raises(CalibrationInputError, match="carry"):
+        skeleton_orientation(acc, mag, 100.0, carry=np.ones((3, 3), bool))
 
 
 def test_a_calibration_json_becomes_the_skeleton(tmp_path):

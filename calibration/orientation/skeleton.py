@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import LinAlgError, solveh_banded
+from scipy.ndimage import maximum_filter1d
 from scipy.spatial.transform import Rotation, Slerp
 
 from calibration.errors import CalibrationInputError
@@ -491,6 +492,7 @@ def _solve_span(
     max_iter: int,
     fine_iter: int,
     weigh_disturbance: bool,
+    carry: np.ndarray | None,
 ) -> tuple[np.ndarray, int]:
     """The coarse-to-fine solve of one span; ``(F, N, 3, 3)`` at every sample, and iterations."""
     f = acc.shape[0]
@@ -528,6 +530,9 @@ def _solve_span(
         )
         if weigh_disturbance:
             problem.weigh_disturbance(np.nan_to_num(m))
+        if carry is not None:  # a level sample is carried if any sample it stands for is
+            near = maximum_filter1d(carry.astype(np.uint8), size=k, axis=0)[::k].astype(bool)
+            problem.mag_weight = np.where(near, 0.0, problem.mag_weight)
         R, it = _levenberg_marquardt(problem, R, max_iter if level_hz == levels_hz[0] else fine_iter)
         total += it
         t_prev = t_level
@@ -551,6 +556,7 @@ def skeleton_orientation(
     fine_iter: int = 10,
     segment_s: float = SEGMENT_S,
     weigh_disturbance: bool = False,
+    carry: np.ndarray | None = None,
 ) -> Estimate:
     """Every sensor's orientation over the recording, jointly on the skeleton (module docstring).
 
@@ -573,6 +579,13 @@ def skeleton_orientation(
             made the humanoid exercise worse (3.4 -> 5.6 degrees with clean fields, consumer
             sensors 17.8 -> 19.1) for a gain near a magnet (17.4 -> 15.6), and BROAD trial 30
             no better.
+        carry: optional ``(F, N)`` magnetometer samples not to use (a disturbance found in the
+            data, e.g. :func:`calibration.orientation.disturbed_spans`): the heading is carried
+            across them by the rest of the problem (joints, smoothness) from their ends. Not
+            used by :func:`simbench.orient.estimate`: on BROAD, carrying across the spans left
+            after recalibration paid nothing on the stationary-magnet trials (67.2 -> 66.9
+            degrees) and lost on attached-magnet trial 33 (26.6 -> 30.8, a 12 s span in which
+            the sensor turns), where the disturbed field still says more than nothing.
 
     Returns:
         The orientations ``R_w_s`` (``ref``'s frame) at every sample; NaN where the sample was
@@ -596,6 +609,10 @@ def skeleton_orientation(
     priors = priors or Priors()
     if valid is not None and np.shape(valid) != (f, n):
         raise CalibrationInputError(f"Expected valid of shape {(f, n)}, got {np.shape(valid)}")
+    if carry is not None:
+        carry = np.asarray(carry, dtype=bool)
+        if carry.shape != (f, n):
+            raise CalibrationInputError(f"Expected carry of shape {(f, n)}, got {carry.shape}")
     if ref is None:
         roots = skeleton.roots
         v = None if valid is None else np.asarray(valid, dtype=bool)[:, roots]
@@ -621,6 +638,7 @@ def skeleton_orientation(
             max_iter,
             fine_iter,
             weigh_disturbance,
+            None if carry is None else carry[start:stop],
         )
         iterations += it
         keep_to = f if stop == f else stop - over // 2
