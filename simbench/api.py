@@ -28,7 +28,13 @@ from simbench.io.dataset import Dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
-from simbench.orient import DEFAULT_METHOD, calibrate_magnetometers, estimate, skeleton_from_calibration
+from simbench.orient import (
+    DEFAULT_METHOD,
+    calibrate_magnetometers,
+    disturbed_fraction,
+    estimate,
+    skeleton_from_calibration,
+)
 from simbench.score import CalibrationScore, OrientationScore, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.sensor_config import SensorConfig
@@ -138,6 +144,8 @@ class Orientations:
         magnetometers: per sensor its magnetometer fit
             (:class:`calibration.orientation.MagnetometerCalibration`, applied where
             :func:`simbench.orient.applies`) or why there is none; ``None`` when not asked for.
+        disturbed: per sensor, the share of its samples whose magnetometer is still disturbed
+            after calibration (:func:`simbench.orient.disturbed_fraction`).
     """
 
     q_w_s: np.ndarray
@@ -146,6 +154,7 @@ class Orientations:
     method: str
     score: OrientationScore | None
     magnetometers: dict[str, Any] | None = None
+    disturbed: dict[str, float] | None = None
 
 
 def orient(
@@ -184,7 +193,13 @@ def orient(
     run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return Orientations(
-        q_w_s=run.q_enu, ok=run.ok, names=rec.names, method=method, score=scored, magnetometers=fits
+        q_w_s=run.q_enu,
+        ok=run.ok,
+        names=rec.names,
+        method=method,
+        score=scored,
+        magnetometers=fits,
+        disturbed=disturbed_fraction(rec),
     )
 
 

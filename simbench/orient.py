@@ -33,6 +33,7 @@ from calibration.orientation import (
     SpanCalibration,
     Weighting,
     change_frame,
+    disturbed_spans,
     fit_disturbed_spans,
     fit_magnetometer,
     fontaine,
@@ -280,6 +281,22 @@ def calibrate_magnetometers(
         if spans:
             notes.append(describe_spans(name, spans, rec.time_s))
     return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, *notes)), fits
+
+
+def disturbed_fraction(rec: ImuRecording) -> dict[str, float]:
+    """Per sensor, the fraction of its usable samples whose field strength still departs from the
+    recording's (:func:`calibration.orientation.disturbed_spans`, after whatever calibration
+    ``rec`` carries): where the magnetometer is disturbed and nothing recalibrated it, the
+    heading rests on the other terms (joints, smoothness) and on a disturbed field."""
+    out = {}
+    for k, name in enumerate(rec.names):
+        spans, _ = disturbed_spans(rec.mag[:, k], rec.rate_hz, rec.valid[:, k])
+        inside = np.zeros(rec.valid.shape[0], dtype=bool)
+        for a, b in spans:
+            inside[a:b] = True
+        usable = rec.valid[:, k] & np.isfinite(rec.mag[:, k]).all(axis=1)
+        out[name] = float((inside & usable).sum() / max(int(usable.sum()), 1))
+    return out
 
 
 def describe_spans(name: str, spans: list[SpanCalibration], time_s: np.ndarray) -> str:

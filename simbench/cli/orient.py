@@ -14,6 +14,7 @@ from simbench.orient import (
     METHODS,
     calibrate_magnetometers,
     describe_fit,
+    disturbed_fraction,
     estimate,
     in_frame,
     skeleton_from_calibration,
@@ -92,6 +93,10 @@ def cmd_orient(args: argparse.Namespace) -> int:
         print(f"  note: {note}")
     for name, fit in fits.items():
         print(f"  magnetometer {name}: {describe_fit(fit)}")
+    disturbed = {n: f for n, f in disturbed_fraction(rec).items() if f > 0}
+    if disturbed:
+        listed = ", ".join(f"{n} {100 * f:.1f} %" for n, f in disturbed.items())
+        print(f"  magnetic disturbance left after calibration (share of each sensor's samples): {listed}")
     if rec.q_true is not None:
         print("\n  error against the reference (BROAD definitions, both in ENU), RMSE in degrees")
         print(f"  {'sensor':<16}{'total':>9}{'heading':>9}{'inclin.':>9}{'samples':>9}")
