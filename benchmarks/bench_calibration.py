@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from child import PEAK_RSS  # benchmarks/child.py: the script's own folder is on the path
+from child import PEAK_RSS, capture_chunks  # benchmarks/child.py: the script's own folder is on the path
 
 from calibration import calibrate
 from simbench.sim.synthetic import random_tree, simulate_motion
@@ -92,21 +92,13 @@ def paper_case(repeats: int) -> dict:
 def write_large(path: Path, n_frames: int, n_sensors: int, chunk: int) -> list[str]:
     import h5py
 
-    skeleton = random_tree(n_sensors, np.random.default_rng(2))
+    skeleton, chunks = capture_chunks(n_frames, n_sensors, chunk)
     with h5py.File(path, "w") as fh:
         R_ds = fh.create_dataset(
             "R_w_s", (n_frames, n_sensors, 3, 3), dtype="f8", chunks=(4096, n_sensors, 3, 3)
         )
         p_ds = fh.create_dataset("p_w_s", (n_frames, n_sensors, 3), dtype="f8", chunks=(4096, n_sensors, 3))
-        for k, start in enumerate(range(0, n_frames, chunk)):
-            stop = min(start + chunk, n_frames)
-            cap = simulate_motion(
-                skeleton,
-                n_frames=stop - start,
-                rate_hz=120.0,
-                rng=np.random.default_rng((3, k)),
-                position_noise_m=0.004,
-            )
+        for start, stop, cap in chunks:
             R_ds[start:stop] = cap.R_w_s
             p_ds[start:stop] = cap.p_w_s
         fh.attrs["parent_of"] = json.dumps(skeleton.parent_of)

@@ -35,10 +35,9 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 import pyarrow.csv as pacsv
-from child import PEAK_RSS  # benchmarks/child.py: the script's own folder is on the path
+from child import PEAK_RSS, capture_chunks  # benchmarks/child.py: the script's own folder is on the path
 
 from calibration.rotations import matrix_to_quat
-from simbench.sim.synthetic import random_tree, simulate_motion
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -47,21 +46,13 @@ COLUMNS = ("time", "sensor", "x", "y", "z", "qw", "qx", "qy", "qz")
 
 def write_csv(path: Path, n_frames: int, n_sensors: int, chunk: int = 20_000) -> dict[str, str]:
     """A pose CSV, frame by frame; returns the true ``{child: parent}``."""
-    skeleton = random_tree(n_sensors, np.random.default_rng(2))
+    skeleton, chunks = capture_chunks(n_frames, n_sensors, chunk)
     names = np.array(skeleton.names)
     schema = pa.schema(
         [("time", pa.float64()), ("sensor", pa.string())] + [(c, pa.float64()) for c in COLUMNS[2:]]
     )
     with pacsv.CSVWriter(path, schema) as writer:
-        for k, start in enumerate(range(0, n_frames, chunk)):
-            stop = min(start + chunk, n_frames)
-            cap = simulate_motion(
-                skeleton,
-                n_frames=stop - start,
-                rate_hz=120.0,
-                rng=np.random.default_rng((3, k)),
-                position_noise_m=0.004,
-            )
+        for start, stop, cap in chunks:
             m = (stop - start) * n_sensors
             q = matrix_to_quat(cap.R_w_s).reshape(m, 4)
             p = cap.p_w_s.reshape(m, 3)

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import vqf
 
+from calibration import Calibration
 from calibration.errors import CalibrationError
 from calibration.orientation import (
     Estimate,
@@ -106,9 +107,10 @@ def estimate(
     if skeleton is not None and method != "skeleton":
         raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
     if method == "skeleton":
-        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, valid=rec.valid)
+        # the reference from the roots' samples, as skeleton_orientation would take it
         roots = (skeleton or Skeleton.none(len(rec.names))).roots
         ref = reference_from_data(rec.acc[:, roots], rec.mag[:, roots], "enu", valid=rec.valid[:, roots])
+        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, ref, valid=rec.valid)
         return OrientationRun(
             est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
         )
@@ -175,6 +177,15 @@ def vqf_offline(
         q = vqf.offlineVQF(*filled, 1.0 / rate_hz)["quat9D"]
         out[use, k] = q[use]
     return Estimate(out, ok, "enu")
+
+
+def skeleton_of(cal: Calibration) -> Skeleton:
+    """The tree and joints of a calibration in memory (:func:`calibration.calibrate`, e.g. of a
+    session's own tracker poses) as the skeleton method's skeleton, over the calibration's sensors.
+    Its single-axis joints are not made hinges here (:func:`skeleton_from_calibration` does):
+    a still session's fits turn single-axis for want of motion."""
+    lp, lc = cal.joint_arrays()
+    return Skeleton(np.asarray(cal.hierarchy.parent), lp, lc)
 
 
 def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ...]) -> Skeleton:

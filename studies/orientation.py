@@ -29,7 +29,7 @@ from calibration.orientation import Skeleton
 from calibration.posture import joint_positions, sensor_positions
 from calibration.rotations import quat_to_matrix
 from simbench.io.imu import read_broad
-from simbench.orient import calibrate_magnetometers, estimate
+from simbench.orient import calibrate_magnetometers, estimate, skeleton_of
 from simbench.score import score_orientation
 from simbench.sim.sensor_config import SensorConfig, parse_sensor_config
 
@@ -78,12 +78,10 @@ def simulated(motion: str, sensors: str | SensorConfig):
 
 def skeletons(ds) -> dict[str, Skeleton]:
     """The session's skeleton as calibrated from its tracker poses, and the true one."""
-    cal = sb.calibrate(ds)
-    lp, lc = cal.joint_arrays()
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
     tlp, tlc = ds.truth_joint_arrays()
     return {
-        "calibrated": Skeleton(np.asarray(cal.hierarchy.parent), lp, lc),
+        "calibrated": skeleton_of(sb.calibrate(ds)),
         "truth": Skeleton(np.asarray(tree.parent), tlp, tlc),
     }
 

@@ -268,6 +268,45 @@ class SpanCalibration:
     applied: bool
 
 
+@dataclass(frozen=True)
+class _Departures:
+    """One magnetometer's samples judged against the field strength ``B``: ``use`` ``(F,)``
+    usable, ``spread`` the robust relative spread of ``|m|``, ``out`` the departing samples'
+    indices (ascending)."""
+
+    use: np.ndarray
+    strength: float
+    spread: float
+    out: np.ndarray
+
+    def spans(self, rate_hz: float, gap_s: float) -> list[tuple[int, int]]:
+        """The departing samples joined across gaps shorter than ``gap_s``."""
+        if self.out.size == 0:
+            return []
+        gap = max(1, round(gap_s * rate_hz))
+        breaks = np.flatnonzero(np.diff(self.out) > gap)
+        starts = np.r_[self.out[0], self.out[breaks + 1]]
+        stops = np.r_[self.out[breaks], self.out[-1]] + 1
+        return list(zip(starts.tolist(), stops.tolist(), strict=True))
+
+
+def _departures(m: np.ndarray, valid: np.ndarray | None, strength: float | None) -> _Departures:
+    n = np.linalg.norm(m, axis=1)
+    use = np.isfinite(n) & (n > 0)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    none = np.zeros(0, dtype=int)
+    if use.sum() < MIN_SAMPLES:
+        return _Departures(use, float("nan"), float("nan"), none)
+    B = float(np.median(n[use])) if strength is None else float(strength)
+    x = n / B - 1.0
+    spread = 1.4826 * float(np.median(np.abs(x[use] - np.median(x[use]))))
+    if not spread > 0:
+        return _Departures(use, B, spread, none)
+    out = np.flatnonzero(use & (np.abs(x - np.median(x[use])) > SPAN_THRESHOLD * spread))
+    return _Departures(use, B, spread, out)
+
+
 def disturbed_spans(
     mag: np.ndarray,
     rate_hz: float,
@@ -287,26 +326,8 @@ def disturbed_spans(
         The spans (departing samples joined across gaps shorter than ``gap_s``), and the robust
         relative spread of ``|m|`` they were judged by.
     """
-    m = np.asarray(mag, dtype=float)
-    n = np.linalg.norm(m, axis=1)
-    use = np.isfinite(n) & (n > 0)
-    if valid is not None:
-        use &= np.asarray(valid, dtype=bool)
-    if use.sum() < MIN_SAMPLES:
-        return [], float("nan")
-    B = float(np.median(n[use])) if strength is None else float(strength)
-    x = n / B - 1.0
-    spread = 1.4826 * float(np.median(np.abs(x[use] - np.median(x[use]))))
-    if not spread > 0:
-        return [], spread
-    out = np.flatnonzero(use & (np.abs(x - np.median(x[use])) > SPAN_THRESHOLD * spread))
-    if out.size == 0:
-        return [], spread
-    gap = max(1, round(gap_s * rate_hz))
-    breaks = np.flatnonzero(np.diff(out) > gap)
-    starts = np.r_[out[0], out[breaks + 1]]
-    stops = np.r_[out[breaks], out[-1]] + 1
-    return list(zip(starts.tolist(), stops.tolist(), strict=True)), spread
+    d = _departures(np.asarray(mag, dtype=float), valid, strength)
+    return d.spans(rate_hz, gap_s), d.spread
 
 
 def fit_disturbed_spans(
@@ -318,13 +339,9 @@ def fit_disturbed_spans(
     that changes in the world (a magnet the sensor passes) fits no ellipsoid and is left to the
     estimator."""
     m = np.asarray(mag, dtype=float)
-    spans, spread = disturbed_spans(m, rate_hz, valid, strength)
-    fine, _ = disturbed_spans(m, rate_hz, valid, strength, gap_s=SPAN_SPLIT_S)
-    n = np.linalg.norm(m, axis=1)
-    use = np.isfinite(n) & (n > 0)
-    if valid is not None:
-        use &= np.asarray(valid, dtype=bool)
-    B = float(np.median(n[use])) if strength is None else float(strength)
+    d = _departures(m, valid, strength)
+    spans, fine = d.spans(rate_hz, SPAN_GAP_S), d.spans(rate_hz, SPAN_SPLIT_S)
+    use, B, spread = d.use, d.strength, d.spread
 
     def judged(a: int, b: int) -> SpanCalibration:
         try:

@@ -537,7 +537,7 @@ def _solve_span(
         total += it
         t_prev = t_level
     if R is None:  # too short for any level: the per-sample estimate
-        _a_dir, m_dir, use = measured_directions(acc, mag, ref, None)
+        *_, use = measured_directions(acc, mag, ref, None)
         return quat_to_matrix(_fill_start(fontaine(acc, mag, ref, valid=use).q_w_s)), 0
     return _interpolate(R, t_prev, np.arange(f, dtype=float)), total
 

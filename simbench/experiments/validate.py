@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 
 from calibration import calibrate, detect_slip
-from calibration.orientation import Skeleton
 from simbench.experiments.decisions import run_decisions
 from simbench.experiments.obrien import (
     HUMAN_PRESET,
@@ -51,7 +50,7 @@ from simbench.experiments.pool import worker_pool
 from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
 from simbench.io.imu import read_broad
-from simbench.orient import DEFAULT_METHOD, estimate
+from simbench.orient import DEFAULT_METHOD, estimate, skeleton_of
 from simbench.score import score_orientation
 from simbench.sim.sensor_config import parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
@@ -164,9 +163,7 @@ def _orientation(plan: Plan) -> dict[str, Any]:
         "methods": {},
     }
     poses = ds.poses()
-    cal = calibrate(poses.R_w_s, poses.p_w_s, poses.names, valid=poses.valid)
-    lp, lc = cal.joint_arrays()
-    skeleton = Skeleton(np.asarray(cal.hierarchy.parent), lp, lc)
+    skeleton = skeleton_of(calibrate(poses.R_w_s, poses.p_w_s, poses.names, valid=poses.valid))
     for label, kw in ORIENTATION_METHODS.items():
         run = estimate(rec, **kw, **({"skeleton": skeleton} if kw["method"] == "skeleton" else {}))
         scored = score_orientation(run.q_enu, rec.q_true, rec.names)
