@@ -13,6 +13,25 @@ Steps (O'Brien et al. 2000):
    wanted);
 5. limb lengths and sensor offsets follow from the joint locations.
 
+Two options leave the default path untouched (neither runs unless asked for):
+
+- ``robust="tukey"`` or ``"huber"``: the tree's joints are fitted by IRLS
+  (:func:`calibration.robust.robust_fit_joint`) so that slip blocks and field-distortion bursts
+  lose their pull, and an inferred hierarchy is the spanning tree of the robust pair misfits
+  (:func:`calibration.robust.robust_pair_misfits`: one IRLS fit per pair of sensors, about 0.1 s
+  each for 3000 frames). The residual matrix and loop candidates stay the least-squares ones.
+- ``intervals=True``: every joint gets its covariance and 95 % regions
+  (:func:`calibration.uncertainty.joint_covariance`, batch means) on the fit it used, and every
+  limb length between two such joints its 95 % interval
+  (:func:`calibration.uncertainty.segment_length_uncertainty`, the two fits' correlation
+  included). For a robust fit the covariance is computed over its inlier frames only and is
+  therefore *conditional on the inlier set*: it does not count the uncertainty of which frames
+  were rejected, and it is centred on the robust centre (whose scores over the inliers need not
+  sum to zero, which makes it slightly conservative).
+
+Both hold each joint's pair of sensors in memory (``frames x 24`` floats) and, for a robust
+inferred hierarchy, all the poses.
+
 Memory is bounded by the chunk size (plus ``frames x joints`` floats when per-frame residuals
 are kept), so the input may be an h5py dataset or a memory map larger than memory.
 """
@@ -49,6 +68,7 @@ from calibration.pairs import (
     solve_pairs,
 )
 from calibration.poses import CHUNK_FRAMES, check_poses
+from calibration.robust import LOSSES, RobustJointFit, robust_fit_joint, robust_pair_misfits
 from calibration.skeleton import (
     SegmentLength,
     SensorPlacement,
@@ -56,6 +76,12 @@ from calibration.skeleton import (
     joint_name,
     segment_lengths,
     sensor_placements,
+)
+from calibration.uncertainty import (
+    JointUncertainty,
+    LengthUncertainty,
+    joint_covariance,
+    segment_length_uncertainty,
 )
 
 
@@ -66,12 +92,22 @@ class Joint:
     Attributes:
         parent: inboard sensor name.
         child: outboard sensor name.
-        fit: the joint fit (locations in both sensor frames, residuals, diagnostics).
+        fit: the joint fit (locations in both sensor frames, residuals, diagnostics). For a
+            robust fit: its centre, rank and axis, the per-frame residual norms of every frame
+            and ``rms_residual`` over the inlier frames, with the least-squares fit's singular
+            values and frame counts.
+        uncertainty: the centre's covariance and 95 % regions
+            (:func:`calibration.uncertainty.joint_covariance`) when intervals were asked for, else
+            ``None``; for a robust fit, over its inlier frames (conditional on the inlier set).
+        robust_fit: the IRLS fit (weights, inliers, scale) when the joint was fitted robustly,
+            else ``None``.
     """
 
     parent: str
     child: str
     fit: JointFit
+    uncertainty: JointUncertainty | None = None
+    robust_fit: RobustJointFit | None = None
 
     @property
     def name(self) -> str:
@@ -100,6 +136,11 @@ class Calibration:
         seconds: wall time of each step.
         hierarchy_method: how the tree was inferred (:data:`calibration.hierarchy.HIERARCHY_METHODS`;
             unused when the hierarchy was given).
+        robust: the loss of the robust joint fits (``"tukey"``, ``"huber"``), or ``None`` for
+            least squares.
+        length_uncertainty: with intervals, one entry per ``lengths`` (same order): the length's
+            95 % interval, or ``None`` where a joint of the segment has no uncertainty (or the
+            centres coincide); empty without intervals.
     """
 
     names: tuple[str, ...]
@@ -115,6 +156,8 @@ class Calibration:
     missing: np.ndarray
     seconds: dict[str, float] = field(default_factory=dict)
     hierarchy_method: str = HIERARCHY_METHODS[0]
+    robust: str | None = None
+    length_uncertainty: tuple[LengthUncertainty | None, ...] = ()
 
     @property
     def root(self) -> str:
@@ -153,6 +196,8 @@ def calibrate(
     loop_factor: float = LOOP_FACTOR,
     chunk_frames: int = CHUNK_FRAMES,
     keep_frame_residuals: bool = True,
+    robust: str | None = None,
+    intervals: bool = False,
 ) -> Calibration:
     """Estimate joints, hierarchy, limb lengths and sensor placement from sensor poses.
 
@@ -177,6 +222,11 @@ def calibrate(
             over the data and keep it (``frames x joints`` floats). When False there is no
             second pass and the rms residual comes from the normal equations (within about
             1e-8 m of the exact value, see :mod:`calibration.pairs`).
+        robust: ``"tukey"`` or ``"huber"`` (:data:`calibration.robust.LOSSES`) to fit the joints by
+            IRLS and infer the hierarchy from robust pair misfits (module docstring); ``None``
+            (the default) for least squares.
+        intervals: give every joint a covariance with 95 % regions and every limb length a 95 %
+            interval (module docstring); for a robust fit they are conditional on its inliers.
 
     Raises:
         CalibrationInputError: malformed arrays or options.
@@ -191,12 +241,20 @@ def calibrate(
         raise CalibrationInputError(
             f"hierarchy_method must be one of {list(HIERARCHY_METHODS)}, got {hierarchy_method!r}"
         )
+    if robust is not None and robust not in LOSSES:
+        raise CalibrationInputError(f"robust must be None or one of {list(LOSSES)}, got {robust!r}")
     stats, missing = _pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
     t1 = time.perf_counter()
 
     residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio)
     if parent_of is not None:
         tree = hierarchy_from_parents(parent_of, names, root=root)
+    elif robust is not None:
+        misfits = robust_pair_misfits(
+            R_w_s, p_w_s, valid=valid, loss=robust, single_axis_ratio=single_axis_ratio
+        )
+        weights = misfits.weights(hierarchy_method)
+        tree = spanning_tree(weights, root=None if root is None else names.index(root), names=names)
     else:
         weights = residual
         if hierarchy_method == "misfit":
@@ -212,14 +270,40 @@ def calibrate(
 
     pairs = tree.joints
     joints = [_joint(names, sol, k, rms, per_frame, n_frames, single_axis_ratio) for k in range(len(pairs))]
+    refine_s = 0.0
+    if robust is not None or intervals:
+        t_refine = time.perf_counter()
+        joints = [
+            _refined_joint(
+                R_w_s,
+                p_w_s,
+                valid,
+                joint,
+                names,
+                robust=robust,
+                intervals=intervals,
+                keep_frame_residuals=keep_frame_residuals,
+                single_axis_ratio=single_axis_ratio,
+            )
+            for joint in joints
+        ]
+        refine_s = time.perf_counter() - t_refine
     loops = tuple(
         (names[a], names[b], r) for a, b, r in loop_candidates(residual, tree, loop_factor=loop_factor)
     )
     warnings = _warnings(joints, names, missing, loops, n_frames)
     warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames)
     lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
+    if robust is not None:
+        lp = np.array([j.fit.joint_in_parent for j in joints]).reshape(-1, 3)
+        lc = np.array([j.fit.joint_in_child for j in joints]).reshape(-1, 3)
+    lengths = tuple(segment_lengths(names, pairs, lp, lc))
+    length_unc = _length_uncertainties(lengths, joints) if intervals else ()
     t4 = time.perf_counter()
     seconds = {"pair_statistics": t1 - t0, "hierarchy": t2 - t1, "joints": t3 - t2, "skeleton": t4 - t3}
+    if robust is not None or intervals:  # the robust refits and intervals, out of the skeleton's time
+        seconds["skeleton"] -= refine_s
+        seconds["robust_and_intervals"] = refine_s
     seconds["total"] = t4 - t0
     return Calibration(
         names=names,
@@ -228,13 +312,15 @@ def calibrate(
         joints=tuple(joints),
         residual_matrix=residual,
         loop_candidates=loops,
-        lengths=tuple(segment_lengths(names, pairs, lp, lc)),
+        lengths=lengths,
         placements=tuple(sensor_placements(names, pairs, lp, lc)),
         warnings=tuple(warnings),
         n_frames=n_frames,
         missing=missing,
         seconds=seconds,
         hierarchy_method=hierarchy_method,
+        robust=robust,
+        length_uncertainty=length_unc,
     )
 
 
@@ -368,6 +454,108 @@ def _joint(
         weakest_t=float(sol.t_statistic[k, 5]),
     )
     return Joint(names[sol.parent[k]], names[sol.child[k]], fit)
+
+
+def _pair_arrays(
+    R_w_s: Any, p_w_s: Any, valid: Any, parent: int, child: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """``(R_w_p, p_w_p, R_w_c, p_w_c, valid)`` of one pair of sensors, read into memory."""
+    arrays = tuple(np.asarray(a[:, k], dtype=float) for k in (parent, child) for a in (R_w_s, p_w_s))
+    both = None if valid is None else np.asarray(valid[:, parent], bool) & np.asarray(valid[:, child], bool)
+    return (*arrays, both)
+
+
+def _refined_joint(
+    R_w_s: Any,
+    p_w_s: Any,
+    valid: Any,
+    joint: Joint,
+    names: tuple[str, ...],
+    *,
+    robust: str | None,
+    intervals: bool,
+    keep_frame_residuals: bool,
+    single_axis_ratio: float,
+) -> Joint:
+    """The joint refitted robustly (when ``robust``) and given its uncertainty (when ``intervals``)."""
+    R_w_p, p_w_p, R_w_c, p_w_c, both = _pair_arrays(
+        R_w_s, p_w_s, valid, names.index(joint.parent), names.index(joint.child)
+    )
+    fit, rob, unc = joint.fit, None, None
+    if robust is not None:
+        rob = robust_fit_joint(
+            R_w_p, p_w_p, R_w_c, p_w_c, valid=both, loss=robust, single_axis_ratio=single_axis_ratio
+        )
+        fit = _robust_joint_fit(rob, joint.fit, keep_frame_residuals)
+    if intervals:
+        if rob is None:
+            unc = joint_covariance(R_w_p, p_w_p, R_w_c, p_w_c, fit, valid=both)
+        else:  # over the inliers: conditional on the inlier set (module docstring)
+            unc = joint_covariance(
+                R_w_p, p_w_p, R_w_c, p_w_c, _inlier_fit(rob, R_w_p, R_w_c), valid=rob.inlier
+            )
+    return Joint(joint.parent, joint.child, fit, uncertainty=unc, robust_fit=rob)
+
+
+def _robust_joint_fit(rob: RobustJointFit, ls: JointFit, keep_frame_residuals: bool) -> JointFit:
+    """The robust fit as a :class:`JointFit`: its centre, rank, axis, residuals (rms over the
+    inliers), with the least-squares fit's spectrum and frame counts."""
+    return JointFit(
+        joint_in_parent=rob.joint_in_parent.copy(),
+        joint_in_child=rob.joint_in_child.copy(),
+        rms_residual=rob.rms_residual,
+        frame_residual=rob.frame_residual if keep_frame_residuals else None,
+        singular_values=ls.singular_values.copy(),
+        rank=rob.rank,
+        single_axis=rob.single_axis,
+        axis_in_parent=rob.axis_in_parent,
+        axis_in_child=rob.axis_in_child,
+        n_frames=ls.n_frames,
+        n_dropped=ls.n_dropped,
+        weakest_t=ls.weakest_t,
+    )
+
+
+def _inlier_fit(rob: RobustJointFit, R_w_p: np.ndarray, R_w_c: np.ndarray) -> JointFit:
+    """The robust centre as a fit of its inlier frames alone (their spectrum and counts), which
+    :func:`calibration.uncertainty.joint_covariance` takes with ``valid=rob.inlier``."""
+    inl = rob.inlier
+    A = np.concatenate([R_w_p[inl], -R_w_c[inl]], axis=2).reshape(-1, 6)  # O'Brien eq. 12
+    s = np.linalg.svd(np.linalg.qr(A, mode="r"), compute_uv=False)
+    n = int(np.count_nonzero(inl))
+    return JointFit(
+        joint_in_parent=rob.joint_in_parent,
+        joint_in_child=rob.joint_in_child,
+        rms_residual=rob.rms_residual,
+        frame_residual=None,
+        singular_values=s,
+        rank=rob.rank,
+        single_axis=rob.single_axis,
+        axis_in_parent=rob.axis_in_parent,
+        axis_in_child=rob.axis_in_child,
+        n_frames=n,
+        n_dropped=inl.shape[0] - n,
+    )
+
+
+def _length_uncertainties(
+    lengths: Sequence[SegmentLength], joints: Sequence[Joint]
+) -> tuple[LengthUncertainty | None, ...]:
+    """Each limb length's interval from its two joints' uncertainties (``None`` where one lacks it)."""
+    by_name = {j.name: j for j in joints}
+    out: list[LengthUncertainty | None] = []
+    for x in lengths:
+        a, b = by_name[x.joint_a], by_name[x.joint_b]
+        if a.uncertainty is None or b.uncertainty is None:
+            out.append(None)
+            continue
+        part_a = "child" if a.child == x.segment else "parent"
+        part_b = "child" if b.child == x.segment else "parent"
+        try:
+            out.append(segment_length_uncertainty(a.uncertainty, part_a, b.uncertainty, part_b))
+        except CalibrationInputError:  # the two centres coincide
+            out.append(None)
+    return tuple(out)
 
 
 def _warnings(

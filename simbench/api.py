@@ -94,6 +94,8 @@ def calibrate(
     root: str | None = None,
     hierarchy_method: str = HIERARCHY_METHODS[0],
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
+    robust: str | None = None,
+    intervals: bool = False,
 ) -> Calibration:
     """Joint centres, hierarchy, limb lengths and sensor placement from a recording's poses
     (O'Brien et al. 2000; :func:`calibration.calibrate` does the same on bare arrays).
@@ -105,6 +107,10 @@ def calibrate(
         hierarchy_method: how an inferred tree weighs the pairs: ``"misfit"`` (residual less its
             noise) or ``"mst"`` (O'Brien's residual); see :mod:`calibration.hierarchy`.
         single_axis_ratio: see :mod:`calibration.joint`.
+        robust: ``"tukey"`` or ``"huber"`` for robust (IRLS) joint fits and hierarchy, ``None`` for
+            least squares (:mod:`calibration.robust`).
+        intervals: give each joint a covariance with 95 % regions and each limb length a 95 %
+            interval (:mod:`calibration.uncertainty`; for robust fits, conditional on the inliers).
 
     Returns:
         The calibration, lengths in the recording's position units (the tracker's).
@@ -121,6 +127,8 @@ def calibrate(
         root=root,
         hierarchy_method=hierarchy_method,
         single_axis_ratio=single_axis_ratio,
+        robust=robust,
+        intervals=intervals,
     )
 
 

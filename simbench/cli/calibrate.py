@@ -14,6 +14,7 @@ from calibration import (
     SlipReport,
     detect_slip,
 )
+from calibration.robust import LOSSES
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
 from simbench.cli.table import format_table
@@ -48,6 +49,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "how an inferred tree weighs each pair: misfit = the joint-fit residual less its "
             "measurement noise, mst = the residual itself, O'Brien et al.'s minimum spanning tree "
             f"(default {HIERARCHY_METHODS[0]})"
+        ),
+    )
+    cal.add_argument(
+        "--robust",
+        choices=sorted(LOSSES),
+        default=None,
+        help=(
+            "fit joints (and an inferred hierarchy) by iteratively reweighted least squares with this "
+            "loss, so that slip and distortion bursts lose their pull (default: least squares)"
+        ),
+    )
+    cal.add_argument(
+        "--intervals",
+        action="store_true",
+        help=(
+            "95%% regions of every joint centre and 95%% intervals of limb lengths (batch means; with "
+            "--robust, conditional on the inlier frames), in the table and the JSON"
         ),
     )
     cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
@@ -155,6 +173,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             root=args.root,
             hierarchy_method=args.hierarchy_method,
             single_axis_ratio=args.single_axis_ratio,
+            robust=args.robust,
+            intervals=args.intervals,
         )
     except CalibrationError as exc:  # the data (or the hierarchy given) cannot be calibrated
         raise InputError(
@@ -183,6 +203,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "root": args.root,
                 "hierarchy_method": None if args.hierarchy else args.hierarchy_method,
                 "single_axis_ratio": args.single_axis_ratio,
+                "robust": args.robust,
+                "intervals": args.intervals,
                 "slip_window_s": None if args.no_slip else args.slip_window,
                 "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,
             },

@@ -11,7 +11,9 @@ from simbench.io.poses import PoseRecording, sample_rate
 
 
 def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str, SlipReport]]) -> str:
-    """A readable summary: joints (mm), limb lengths (cm), sensor offsets (cm), warnings.
+    """A readable summary: joints (mm), limb lengths (cm), sensor offsets (cm), warnings; with
+    intervals (``calibrate(intervals=True)``) each joint centre's 95 % region (cm) and each limb
+    length as ``L ± h`` (cm, the half-width of its 95 % interval).
 
     Args:
         rec: the recording that was calibrated (source, sensors, frames, rate, times in s, notes).
@@ -39,9 +41,15 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
             f"  {j.parent + ' -> ' + j.child:<34}{fit.rms_residual * 1e3:>9.3f}{mx * 1e3:>9.3f}"
             f"{cond:>8}  {axis:<12}{fit.n_frames:>8}"
         )
+    if any(j.uncertainty is not None for j in cal.joints):
+        lines += _interval_lines(cal)
     lines += ["", f"  {'limb lengths (cm)':<22}{'from joint':<30}{'to joint':<30}{'length':>8}"]
-    for x in cal.lengths:
-        lines.append(f"  {x.segment:<22}{x.joint_a:<30}{x.joint_b:<30}{x.length * 100:>8.2f}")
+    for k, x in enumerate(cal.lengths):
+        ci = ""
+        if cal.length_uncertainty:
+            unc = cal.length_uncertainty[k]
+            ci = f" ± {_cm(0.5 * (unc.interval_m[1] - unc.interval_m[0]))}" if unc is not None else " ± -"
+        lines.append(f"  {x.segment:<22}{x.joint_a:<30}{x.joint_b:<30}{x.length * 100:>8.2f}{ci}")
     lines += ["", f"  {'sensor offsets (cm)':<22}{'joint':<30}{'offset in sensor frame':<28}{'dist':>8}"]
     for pl in cal.placements:
         for name, off, d in zip(pl.joints, pl.offsets, pl.distances, strict=True):
@@ -62,3 +70,40 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
         lines += ["", "  warnings"]
         lines += [f"    - {w}" for w in notes]
     return "\n".join(lines)
+
+
+#: Half-widths beyond this many metres are shown as ">1 m" (the 95 % region is unbounded or
+#: meaningless: too few degrees of freedom, a direction the motion barely explored).
+WIDE_M = 1.0
+
+
+def _cm(half_width_m: float) -> str:
+    """A half-width in cm with 2 decimals, or ``">1 m"`` when not finite or beyond :data:`WIDE_M`."""
+    if not np.isfinite(half_width_m) or half_width_m > WIDE_M:
+        return ">1 m"
+    return f"{half_width_m * 100:.2f}"
+
+
+def _interval_lines(cal: Calibration) -> list[str]:
+    """Each joint centre's 95 % region in both sensor frames: the ellipsoid's largest semi-axis
+    and the per-axis (x, y, z) half-widths of the Student's t intervals, cm."""
+    head = (
+        f"  {'joint centre 95% (cm)':<34}{'frame':<8}{'± max':>8}   {'± x':>7}{'± y':>7}{'± z':>7}{'dof':>7}"
+    )
+    lines = ["", head]
+    for j in cal.joints:
+        unc = j.uncertainty
+        if unc is None:
+            continue
+        for k, part in enumerate(("parent", "child")):
+            region = unc.region(part)
+            half = 0.5 * (region.intervals_m[:, 1] - region.intervals_m[:, 0])
+            per_axis = "".join(f"{_cm(h):>7}" for h in half)
+            label = j.parent + " -> " + j.child if k == 0 else ""
+            lines.append(
+                f"  {label:<34}{part:<8}{_cm(float(region.semi_axes_m[0])):>8}   {per_axis}{region.dof:>7.1f}"
+            )
+    lines.append("    (± max: the 95% ellipsoid's largest semi-axis; ± x/y/z: 95% intervals per axis)")
+    if cal.robust is not None:
+        lines.append(f"    (robust {cal.robust} fits: regions conditional on each joint's inlier frames)")
+    return lines

@@ -6,6 +6,22 @@ The fields of DESIGN.md (``units``, ``root``, ``joints`` with ``parent``, ``chil
 ``units`` (always ``"m"`` here); a value JSON cannot hold (an infinite condition number) is
 written as ``null``.
 
+Optional fields, present only when the calibration computed them (the reader accepts and
+otherwise ignores them):
+
+- per joint ``"uncertainty"`` (``simbench calibrate --intervals``): the centre's covariance and
+  95 % intervals and ellipsoids in both sensor frames, metres
+  (:func:`calibration.uncertainty.to_json`: ``method``, ``level``, ``dof``, ``cov_in_parent_m2``,
+  ``ci95_in_parent_m``, ``ellipsoid95_in_parent``, ... ); for a robust fit it is computed over the
+  inlier frames and is conditional on them;
+- per joint ``"robust"`` (``--robust``): ``{"loss", "tuning", "scale_m", "n_inliers",
+  "inlier_fraction", "n_iter", "converged"}`` of the IRLS fit
+  (:class:`calibration.robust.RobustJointFit`); ``rms_residual`` is then over the inlier frames;
+- per limb length ``"ci95_m"``: ``[lo, hi]`` its 95 % interval, metres, and ``"uncertainty"``
+  (:func:`calibration.uncertainty.length_to_json`), or both ``null`` where a joint of the segment
+  has none;
+- top level ``"robust"``: the loss, or ``null`` for least squares (written only with ``--robust``).
+
 :func:`read_calibration_json` reads such a file back (checking the fields the readers need) and
 :func:`calibration_joints` turns its joints into arrays indexed by a recording's sensors.
 """
@@ -24,6 +40,7 @@ import numpy as np
 
 from calibration.pipeline import Calibration, Joint
 from calibration.slip import SlipReport
+from calibration.uncertainty import LengthUncertainty, length_to_json, to_json
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
 from simbench.versions import software_versions
@@ -67,7 +84,45 @@ def _joint_dict(joint: Joint) -> dict[str, Any]:
         "condition": _num(fit.condition),
         "n_frames": fit.n_frames,
         "n_dropped": fit.n_dropped,
+        **_optional_joint_fields(joint),
     }
+
+
+def _optional_joint_fields(joint: Joint) -> dict[str, Any]:
+    """``"uncertainty"`` and ``"robust"`` when the joint has them (module docstring)."""
+    out: dict[str, Any] = {}
+    if joint.uncertainty is not None:
+        out["uncertainty"] = to_json(joint.uncertainty)
+    rob = joint.robust_fit
+    if rob is not None:
+        out["robust"] = {
+            "loss": rob.loss,
+            "tuning": float(rob.tuning),
+            "scale_m": _num(rob.scale_m),
+            "n_inliers": rob.n_inliers,
+            "inlier_fraction": _num(rob.inlier_fraction),
+            "n_iter": int(rob.n_iter),
+            "converged": bool(rob.converged),
+        }
+    return out
+
+
+def _limb_lengths(cal: Calibration) -> list[dict[str, Any]]:
+    """The limb lengths, each with its interval when the calibration has intervals."""
+    out = []
+    for k, x in enumerate(cal.lengths):
+        entry: dict[str, Any] = {
+            "segment": x.segment,
+            "joint_a": x.joint_a,
+            "joint_b": x.joint_b,
+            "length": x.length,
+        }
+        if cal.length_uncertainty:
+            unc: LengthUncertainty | None = cal.length_uncertainty[k]
+            entry["ci95_m"] = None if unc is None else [_num(v) for v in unc.interval_m]
+            entry["uncertainty"] = None if unc is None else length_to_json(unc)
+        out.append(entry)
+    return out
 
 
 def _slip_dict(name: str, rep: SlipReport, time_s: np.ndarray | None) -> dict[str, Any]:
@@ -122,17 +177,14 @@ def calibration_to_dict(
         notes: what the reader repaired or noticed.
         options: the options the calibration ran with.
     """
-    return {
+    doc = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "units": "m",
         "root": cal.root,
         "hierarchy": "given" if cal.hierarchy_given else "inferred",
         "joints": [_joint_dict(j) for j in cal.joints],
-        "limb_lengths": [
-            {"segment": x.segment, "joint_a": x.joint_a, "joint_b": x.joint_b, "length": x.length}
-            for x in cal.lengths
-        ],
+        "limb_lengths": _limb_lengths(cal),
         "sensor_offsets": [
             {
                 "sensor": pl.sensor,
@@ -151,6 +203,9 @@ def calibration_to_dict(
         "timing_s": dict(cal.seconds),
         "software": software_versions(),
     }
+    if cal.robust is not None:
+        doc["robust"] = cal.robust
+    return doc
 
 
 def write_calibration_json(path: str | os.PathLike[str], doc: dict[str, Any]) -> None:
@@ -181,6 +236,9 @@ def _check_joint(path: Path, k: int, joint: Any) -> None:
             )
     if not isinstance(joint.get("single_axis", False), bool | None):
         raise InputError(f"{where}: expected 'single_axis' to be true or false, got {joint['single_axis']!r}")
+    for key in ("uncertainty", "robust"):  # optional: accepted, not used by the readers
+        if not isinstance(joint.get(key), dict | None):
+            raise InputError(f"{where}: expected {key!r} to be an object or null, got {joint[key]!r}")
 
 
 def read_calibration_json(path: str | os.PathLike[str]) -> dict[str, Any]:
