@@ -180,6 +180,32 @@ def set_tracking_gains(spec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
         act.set_to_position(kp=float(kp[a]), dampratio=DAMPRATIO)
 
 
+def tracking_response(model: mujoco.MjModel, f_hz: float) -> np.ndarray:
+    """Each actuator's joint response to a sine set-point at ``f_hz``: ``(nu,)`` complex, the
+    amplitude ratio and phase lag of the joint's angle to its set-point.
+
+    Each degree of freedom is taken alone, a second-order system: its actuator's ``kp`` and
+    ``kv``, the joint's damping and armature, and its diagonal of the joint-space inertia at the
+    reference pose (as :func:`set_tracking_gains` sizes the gains). The humanoid's gait, its
+    set-points divided by this, moves its knees, hips and elbows within 4 % of the gait's first
+    harmonic and the knees within 8 % of the second (``tests/test_gait.py``).
+    """
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    w = 2 * np.pi * f_hz
+    out = np.zeros(model.nu, dtype=complex)
+    for a in range(model.nu):
+        j = int(model.actuator_trnid[a, 0])
+        ball = model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL
+        dof = int(model.jnt_dofadr[j]) + (int(np.argmax(model.actuator_gear[a, :3])) if ball else 0)
+        kp = float(model.actuator_gainprm[a, 0])
+        kv = -float(model.actuator_biasprm[a, 2]) + float(model.dof_damping[dof])
+        out[a] = kp / complex(kp - M[dof, dof] * w * w, w * kv)
+    return out
+
+
 def reading_addresses(model: mujoco.MjModel, bodies: Sequence[str]) -> dict[str, np.ndarray]:
     """``{kind: (N,) sensordata address}`` of each of the :data:`READINGS` of each sensor body."""
 

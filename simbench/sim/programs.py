@@ -13,13 +13,19 @@ Built-in programs (seeded: the phases of the sines come from the ``numpy.random.
   by hand) or sways (a standing person).
 - ``walk``: O'Brien's "chicken walk": every joint at once while the root walks an ellipse through
   the capture volume (1.6 m x 1.0 m, 0.5 m/s: a magnetic tracker's working volume).
+- ``gait``: a person walking at 1 m/s on a 1.2 m circle (humanoid models only): the joint angles
+  of normal gait as the first two harmonics of the stride (hip flexion -0.15..0.45 rad, knee
+  0.05..1.05 rad with its loading bump, ankle +-0.2 rad, arms swinging +-0.25 rad against the
+  legs, trunk counter-rotating) and the pelvis's step-synchronous bob (+-2 cm at twice the stride
+  rate), sway, rotation and obliquity. Unlike ``walk`` it moves as a person does: limb and head
+  accelerations are those of human gait (see :func:`gait_program`).
 - ``single-axis``: each joint in turn about one axis only (the degenerate case of section 3.2).
 - ``static``: the neutral pose, root still.
 
 User programs are TOML files (``--motion FILE.toml``)::
 
     name = "arm waves"
-    root = "sway"                 # still | sway | carry | walk
+    root = "sway"                 # still | sway | carry | walk | gait
     [[phase]]
     start_s = 0.0
     end_s = 10.0
@@ -39,10 +45,11 @@ import numpy as np
 
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from simbench.errors import InputError, load_toml
+from simbench.sim.instrument import tracking_response
 from simbench.sim.models import CaptureModel
 
-BUILTIN_PROGRAMS = ("exercise", "walk", "single-axis", "static")
-ROOT_STYLES = ("still", "sway", "carry", "walk")
+BUILTIN_PROGRAMS = ("exercise", "walk", "gait", "single-axis", "static")
+ROOT_STYLES = ("still", "sway", "carry", "walk", "gait")
 
 # Anatomical motion of the built-in humanoid, per ball joint: amplitude about the joint's
 # (x forward, y left, z up) axes and a neutral offset, rad. Sources: typical active ranges of
@@ -66,6 +73,73 @@ HUMANOID_MOTION: dict[str, tuple[tuple[float, float, float], tuple[float, float,
     "ankle_l": ((0.25, 0.40, 0.20), (0.0, 0.0, 0.0), 1),
     "ankle_r": ((0.25, 0.40, 0.20), (0.0, 0.0, 0.0), 1),
 }
+
+
+#: Normal gait of the humanoid (x forward, y left, z up), per ball joint and degree of freedom:
+#: ``(mean, (amplitude, phase) of the stride's 1st harmonic, (amplitude, phase) of its 2nd)``,
+#: rad, as ``mean + a1 cos(s - p1) + a2 cos(2 s - p2)`` with ``s`` the left leg's stride phase
+#: (0 at its heel strike). Sagittal angles: two-harmonic fits (within 0.06 rad) to Winter's
+#: normative gait data (The Biomechanics and Motor Control of Human Gait, 1991): hip flexion
+#: 0.5 rad before heel strike to 0.16 rad of extension near toe-off, knee 0.1 rad at heel strike,
+#: a 0.35 rad loading bump, 1.08 rad in swing; ankle 0.17 rad of dorsiflexion to 0.3 rad of
+#: plantar flexion; arms swinging +-0.25 rad against the legs, elbows at 0.35 +- 0.15 rad;
+#: the thorax counter-rotating against the pelvis, the head held steady. Hip and arm flexion are
+#: rotations about -y, knee flexion about +y, elbow flexion about -y (the model's joint frames).
+_LEFT_GAIT: dict[str, tuple[tuple[float, tuple[float, float], tuple[float, float]], ...]] = {
+    "hip": (
+        (0.0, (0.05, 1.6), (0.0, 0.0)),
+        (-0.17, (-0.33, 5.78), (0.0, 0.0)),
+        (0.0, (0.06, 0.0), (0.0, 0.0)),
+    ),
+    "knee": (
+        (0.0, (0.0, 0.0), (0.0, 0.0)),
+        (0.42, (0.355, -1.72), (0.285, 2.53)),
+        (0.0, (0.04, 0.0), (0.0, 0.0)),
+    ),
+    "ankle": (
+        (0.0, (0.04, 0.0), (0.0, 0.0)),
+        (0.0, (-0.135, 1.65), (-0.129, -1.43)),
+        (0.0, (0.03, 0.0), (0.0, 0.0)),
+    ),
+    "shoulder": (
+        (0.12, (0.03, 0.0), (0.0, 0.0)),
+        (0.0, (0.25, 5.78), (0.0, 0.0)),
+        (0.0, (0.05, np.pi), (0.0, 0.0)),
+    ),
+    "elbow": (
+        (0.0, (0.0, 0.0), (0.0, 0.0)),
+        (-0.35, (0.15, 5.78), (0.0, 0.0)),
+        (0.0, (0.03, 0.0), (0.0, 0.0)),
+    ),
+    "wrist": ((0.0, (0.03, 0.0), (0.0, 0.0)), (0.0, (0.06, 0.5), (0.0, 0.0)), (0.0, (0.02, 0.0), (0.0, 0.0))),
+}
+#: Trunk and head, (mean, 1st, 2nd) per degree of freedom as above: the lumbar and thoracic
+#: joints turn the thorax against the pelvis's rotation; the neck keeps the head steady.
+_TRUNK_GAIT: dict[str, tuple[tuple[float, tuple[float, float], tuple[float, float]], ...]] = {
+    "lumbar": (
+        (0.0, (0.03, -1.57), (0.0, 0.0)),
+        (0.0, (0.0, 0.0), (0.02, np.pi)),
+        (0.0, (0.06, 0.0), (0.0, 0.0)),
+    ),
+    "thoracic": (
+        (0.0, (0.02, -1.57), (0.0, 0.0)),
+        (0.0, (0.0, 0.0), (0.01, np.pi)),
+        (0.0, (0.05, 0.0), (0.0, 0.0)),
+    ),
+    "neck": (
+        (0.0, (0.01, 0.0), (0.0, 0.0)),
+        (0.0, (0.0, 0.0), (0.005, 0.0)),
+        (0.0, (0.04, np.pi), (0.0, 0.0)),
+    ),
+}
+#: The gait's stride rate (Hz, a stride is two steps) and stride length (m): 1.15 m strides at 0.87
+#: strides/s (1.0 m/s, about 104 steps a minute), a normal walking pace; sessions draw the rate
+#: from 0.82-0.92 Hz.
+GAIT_STRIDE_HZ = 0.87
+GAIT_STRIDE_M = 1.15
+#: Radius of the circle walked, m: around a 5 m room, turning at 0.4 rad/s (the stance foot hardly
+#: skates: the pelvis is carried, not pushed off the ground).
+GAIT_RADIUS_M = 2.5
 
 
 @dataclass(frozen=True)
@@ -94,14 +168,18 @@ class Program:
     Attributes:
         name: its name.
         phases: the phases.
-        root: root motion style (``still``, ``sway``, ``carry``, ``walk``).
+        root: root motion style (``still``, ``sway``, ``carry``, ``walk``, ``gait``).
         neutral: ``{joint: (dof,) offset}`` held throughout (the resting pose), rad.
+        stride_hz: the stride rate of the ``gait`` root style, Hz (a stride is two steps).
+        stride_phase: the stride's phase at ``t = 0``, rad (0: left heel strike).
     """
 
     name: str
     phases: tuple[Phase, ...]
     root: str
     neutral: dict[str, np.ndarray]
+    stride_hz: float = GAIT_STRIDE_HZ
+    stride_phase: float = 0.0
 
 
 def _dof_count(cm: CaptureModel) -> dict[str, int]:
@@ -147,6 +225,8 @@ def builtin_program(name: str, cm: CaptureModel, duration_s: float, rng: np.rand
     carry = "carry" if cm.source == "linkage" else "sway"
     if name == "static":
         return Program(name, (), "still", neutral)
+    if name == "gait":
+        return gait_program(cm, duration_s, rng)
     if name == "walk":
         joints = {}
         for _, joint, amp, _ in motions:
@@ -182,6 +262,59 @@ def builtin_program(name: str, cm: CaptureModel, duration_s: float, rng: np.rand
             )
         phases.append(Phase(i * slot, (i + 1) * slot, joints))
     return Program(name, tuple(phases), carry, neutral)
+
+
+def gait_program(cm: CaptureModel, duration_s: float, rng: np.random.Generator) -> Program:
+    """Normal gait (module docstring) for a model with the humanoid's joints.
+
+    The stride rate is drawn from 0.82-0.92 Hz and the stride's phase at ``t = 0`` uniformly;
+    the joint angles are :data:`_LEFT_GAIT` (the right side half a stride later, its abduction
+    and rotation mirrored) and :data:`_TRUNK_GAIT`, the pelvis follows the ``gait`` root style.
+
+    Raises:
+        InputError: when the model lacks a joint the gait moves (the linkage, a non-human MJCF).
+    """
+    dofs = _dof_count(cm)
+    needed = [*_TRUNK_GAIT, *(f"{j}_{side}" for j in _LEFT_GAIT for side in "lr")]
+    missing = [j for j in needed if dofs.get(j) != 3]
+    if missing:
+        raise InputError(
+            f"motion 'gait' needs the humanoid's ball joints; the model {cm.source} lacks "
+            f"{', '.join(missing)}: use exercise, walk, single-axis or a program .toml"
+        )
+    f = float(rng.uniform(0.82, 0.92))
+    s0 = float(rng.uniform(0, 2 * np.pi))
+    harmonics: list[dict[str, JointMotion]] = [{}, {}]
+    # the set-points that the actuators' lag turns into the gait's angles
+    response = [tracking_response(cm.model, k * f) for k in (1, 2)]
+    actuators = {
+        joint: list(art.actuators[3 * i : 3 * i + 3])
+        for art in cm.articulations
+        for i, joint in enumerate(art.joints)
+        if art.kinds == ("ball",) * len(art.joints)
+    }
+    table = {**_TRUNK_GAIT, **{f"{j}_l": v for j, v in _LEFT_GAIT.items()}}
+    table |= {f"{j}_r": v for j, v in _LEFT_GAIT.items()}
+    for joint, spec in table.items():
+        right = joint.endswith("_r")
+        shift = np.pi if right else 0.0  # the right leg half a stride later
+        mirror = np.array([-1.0, 1.0, -1.0]) if right else np.ones(3)  # abduction and rotation
+        mean = np.array([d[0] for d in spec]) * mirror
+        for k in (1, 2):
+            gain = response[k - 1][actuators[joint]]
+            amp = np.array([d[k][0] for d in spec]) * mirror / abs(gain)
+            lag = np.array([d[k][1] for d in spec]) + np.angle(gain)
+            # a cos(k s - p) with s = 2 pi f t + s0 (+ pi on the right) is a sine of phase
+            # k (s0 + shift) - p + pi / 2
+            harmonics[k - 1][joint] = JointMotion(
+                amplitude=amp,
+                frequency=np.full(3, k * f),
+                phase=k * (s0 + shift) - lag + np.pi / 2,
+                offset=mean if k == 1 else np.zeros(3),
+            )
+    phases = tuple(Phase(0.0, duration_s, h) for h in harmonics)
+    neutral = {j: np.zeros(n) for j, n in dofs.items()}
+    return Program("gait", phases, "gait", neutral, stride_hz=f, stride_phase=s0)
 
 
 def _floats(doc: dict, key: str, where: str, n: int, default: float | None = None) -> np.ndarray:
@@ -341,6 +474,8 @@ def root_pose(
         rotvec = rot * np.sin(2 * np.pi * (f * 1.3) * t[:, None] + ph[3:6]) * fade
         R = rotvec_to_matrix(rotvec) @ R0
         return p0 + shift, matrix_to_quat(R)
+    if program.root == "gait":
+        return _gait_root(program, p0, R0, t, fade[:, 0])
     # walk: an ellipse through the volume at 0.5 m/s, heading along the path, a little bob
     a, b, speed = 0.8, 0.5, 0.5
     s = speed * t * fade[:, 0]
@@ -352,3 +487,33 @@ def root_pose(
     sway = 0.08 * np.sin(2 * np.pi * np.array([0.9, 0.45, 0.3]) * t[:, None] + ph[7:10]) * fade
     R = rotvec_to_matrix(yaw) @ rotvec_to_matrix(sway) @ R0
     return pos, matrix_to_quat(R)
+
+
+def _gait_root(
+    program: Program, p0: np.ndarray, R0: np.ndarray, t: np.ndarray, fade: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pelvis in gait: a circle of :data:`GAIT_RADIUS_M` walked at the stride's speed, heading
+    along it, with the step-synchronous bob (lowest in double support, +-2 cm), sway towards the
+    stance leg (+-2 cm), rotation with the swinging leg (+-0.07 rad), obliquity (+-0.05 rad, the
+    swing side dropping) and tilt (+-0.03 rad); all faded in over the first second."""
+    f = program.stride_hz
+    s = 2 * np.pi * f * t + program.stride_phase  # the left leg's stride phase
+    dist = GAIT_STRIDE_M * f * _faded_time(t)
+    theta = dist / GAIT_RADIUS_M
+    left = np.stack([-np.sin(theta), np.cos(theta), np.zeros_like(theta)], axis=1)
+    circle = np.stack([np.sin(theta), 1 - np.cos(theta), np.zeros_like(t)], axis=1) * GAIT_RADIUS_M
+    bob = np.zeros((t.size, 3))
+    bob[:, 2] = -0.02 * np.cos(2 * s)
+    pos = p0 + circle + fade[:, None] * (0.02 * np.sin(s)[:, None] * left + bob)
+    yaw = np.zeros((t.size, 3))
+    yaw[:, 2] = theta
+    pelvis = fade[:, None] * np.stack([0.05 * np.sin(s), 0.03 * np.cos(2 * s), -0.07 * np.cos(s)], axis=1)
+    R = rotvec_to_matrix(yaw) @ rotvec_to_matrix(pelvis) @ R0
+    return pos, matrix_to_quat(R)
+
+
+def _faded_time(t: np.ndarray) -> np.ndarray:
+    """The integral of the first second's raised-cosine fade: the distance a path walked at unit
+    speed has covered at ``t`` when the speed fades in from rest (no jump in velocity)."""
+    ramp = np.clip(t, 0.0, 1.0)
+    return np.where(t < 1.0, 0.5 * (ramp - np.sin(np.pi * ramp) / np.pi), t - 0.5)
