@@ -1,0 +1,71 @@
+"""studies/methods.py: the joint-centre methods side by side, on one tiny ideal session."""
+
+from __future__ import annotations
+
+import json
+import runpy
+from pathlib import Path
+
+import pytest
+
+from calibration.methods import JOINT_METHODS
+
+SCRIPT = Path(__file__).resolve().parents[1] / "studies" / "methods.py"
+CONDITION = "humanoid / ideal"
+
+#: Exact poses (the ideal preset) satisfy the joint constraint to rounding, so every pose-based
+#: method recovers the truth to about 1e-12 m (a few 1e-9 m on the worst-conditioned joint): 1e-6 m
+#: leaves three orders of magnitude for conditioning and still fails any real error (0.1 mm and up).
+EXACT_MM = 1e-3
+
+
+@pytest.fixture(scope="module")
+def study():
+    return runpy.run_path(str(SCRIPT), run_name="study_script")
+
+
+@pytest.fixture(scope="module")
+def doc(study):
+    return study["run_study"]([1], 4.0, conditions=[CONDITION])
+
+
+def test_pose_methods_recover_the_truth_on_ideal_data(doc):
+    (trial,) = doc["trials"][CONDITION]
+    assert len(trial["joints"]) == 15  # the humanoid's 16 sensors
+    for method in JOINT_METHODS:
+        row = trial["methods"][method]
+        assert row["failures"] == {}, method
+        if method == "sara":
+            # on a ball joint SARA's "axis" is the weakest direction and its point the minimum-norm
+            # one: the truth lies on that axis, not at that point
+            errors = row["axis_distance_parent_mm"] + row["axis_distance_child_mm"]
+        else:
+            errors = row["error_parent_mm"] + row["error_child_mm"] + row["length_error_mm"]
+        assert len(errors) >= 2 * 15
+        assert max(errors) < EXACT_MM, (method, max(errors))  # NaN would fail too
+    for method, row in trial["methods"].items():
+        assert len(row["time_ms"]) == 15 and min(row["time_ms"]) > 0, method
+        assert len(row["length_error_mm"]) == len(trial["length_pairs"])
+    coverage = trial["methods"]["obrien"]["coverage"]
+    assert set(coverage) == {"batch-means", "iid"}
+    assert all(len(c[part]) == 15 for c in coverage.values() for part in ("parent", "child"))
+
+
+def test_json_and_table_are_complete(study, doc):
+    assert {"study", "versions", "config", "summary", "trials"} <= set(doc)
+    assert doc["config"]["seeds"] == [1] and doc["config"]["duration_s"] == 4.0
+    assert [c["name"] for c in doc["config"]["conditions"]] == [CONDITION]
+    assert {"numpy", "mujoco", "simbench"} <= set(doc["versions"])
+    summary = doc["summary"][CONDITION]
+    assert list(summary) == [*JOINT_METHODS, "inertial"]
+    for method, s in summary.items():
+        assert {"joint_error_mm", "axis_distance_mm", "length_error_mm", "time_ms", "coverage95"} <= set(s)
+        assert s["n_fits"] == 15 and s["failures"] == 0
+        assert (s["coverage95"] is not None) == (method == "obrien")
+    back = json.loads(study["json_text"](doc))  # strict JSON (NaN written as null), rounded
+    assert back["summary"][CONDITION]["obrien"]["n_fits"] == 15
+    assert back["trials"][CONDITION][0]["joints"] == doc["trials"][CONDITION][0]["joints"]
+    lines = study["table"](doc).splitlines()
+    assert lines[0].startswith("| condition | method |")
+    assert len(lines) == 2 + len(summary)
+    assert all(line.count("|") == lines[0].count("|") for line in lines)
