@@ -12,6 +12,7 @@ import pytest
 
 import simbench as sb
 from calibration.errors import CalibrationInputError
+from calibration.hierarchy import hierarchy_from_parents
 from calibration.orientation import (
     Skeleton,
     disturbed_spans,
@@ -20,6 +21,7 @@ from calibration.orientation import (
     skeleton_orientation,
     triad,
 )
+from calibration.orientation.skeleton import STARTS
 from calibration.orientation.world import quat_where
 from calibration.rotations import quat_to_matrix, rotvec_to_matrix
 from simbench.cli import main
@@ -359,3 +361,21 @@ def test_orient_on_a_simulated_session_with_its_calibrated_skeleton(tmp_path, ca
     assert estimate(rec, "skeleton").q_enu.shape == (*rec.acc.shape[:2], 4)
     assert main(["orient", str(data), "--method", "triad", "--skeleton", str(cal)]) == 2
     assert "--skeleton is for --method skeleton" in capsys.readouterr().err
+
+
+def test_gait_is_found_by_mixing_the_starts():
+    """A person walking (the ``gait`` program): from the per-sample start the legs settle tens of
+    degrees off; the coarse starts find them, and the mix of all starts window by window, by the
+    cost they share, is better than the one start (module docstring, several starts)."""
+    ds = sb.simulate(model="humanoid", motion="gait", sensors="mems-industrial", duration_s=20, seed=3)
+    rec = ds.imu()
+    tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
+    skeleton = Skeleton(np.asarray(tree.parent), *ds.truth_joint_arrays())
+    errors = {}
+    for name, starts in (("one", ((),)), ("mixed", STARTS)):
+        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, valid=rec.valid, starts=starts)
+        e = orientation_errors(est.q_w_s, rec.q_true)[..., 0]
+        errors[name] = float(np.rad2deg(np.sqrt(np.nanmean(e**2))))
+    # measured (seed 3, 20 s): one start 15.3 degrees, mixed 4.2; the issue's target is 8
+    assert errors["mixed"] <= 8.0, errors
+    assert errors["mixed"] < 0.6 * errors["one"], errors
