@@ -58,7 +58,8 @@ def simulate(
 
     Args:
         model: ``linkage``, ``humanoid``, ``dm_control:NAME`` or an MJCF file path.
-        motion: ``exercise``, ``walk``, ``single-axis``, ``static`` or a program TOML path.
+        motion: ``exercise``, ``walk``, ``gait`` (humanoids), ``single-axis``, ``static`` or a program
+            TOML path.
         sensors: a preset name (``ideal``, ``ascension-flock``, ``polhemus-liberty``,
             ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``), a configuration TOML
             path or a :class:`~simbench.sim.sensor_config.SensorConfig`.

@@ -30,7 +30,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     sim.add_argument(
         "--motion",
         default="exercise",
-        help="exercise, walk, single-axis, static, or a program .toml (default exercise)",
+        help="exercise, walk, gait (humanoids), single-axis, static, or a program .toml (default exercise)",
     )
     sim.add_argument(
         "--duration", type=positive_float, default=20.0, metavar="SECONDS", help="session length (default 20)"
