@@ -35,6 +35,7 @@ from calibration.orientation import (
     Weighting,
     change_frame,
     disturbed_spans,
+    fit_circle_hard_iron,
     fit_disturbed_spans,
     fit_magnetometer,
     fontaine,
@@ -279,6 +280,7 @@ def calibrate_magnetometers(
         fits[name] = fit
         if applies(fit):
             mag[:, k] = fit.apply(rec.mag[:, k])
+    _circles(rec, mag, fits)
     applied = [n for n, f in fits.items() if not isinstance(f, str) and applies(f)]
     notes = [
         f"magnetometers calibrated from the recording: {len(applied)} of {len(fits)} "
@@ -292,6 +294,28 @@ def calibrate_magnetometers(
         if spans:
             notes.append(describe_spans(name, spans, rec.time_s))
     return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, *notes)), fits
+
+
+def _circles(rec: ImuRecording, mag: np.ndarray, fits: dict[str, MagnetometerCalibration | str]) -> None:
+    """The sensors whose sphere the samples do not determine (turns about one axis), calibrated
+    by the circle and the dip (:func:`calibration.orientation.fit_circle_hard_iron`), the field's
+    strength and dip from the sensors calibrated already; ``mag`` and ``fits`` updated in place."""
+    done = [k for k, n in enumerate(rec.names) if not isinstance(fits[n], str) and applies(fits[n])]
+    if not done:
+        return
+    ref = reference_from_data(rec.acc[:, done], mag[:, done], "enu", valid=rec.valid[:, done])
+    for k, name in enumerate(rec.names):
+        fit = fits[name]
+        if k in done or (not isinstance(fit, str) and fit.determined):
+            continue
+        up = np.nanmean(np.where(rec.valid[:, k, None], rec.acc[:, k], np.nan), axis=0)
+        try:
+            circle = fit_circle_hard_iron(rec.mag[:, k], up, ref.inclination, rec.valid[:, k])
+        except CalibrationError:
+            continue
+        if applies(circle):
+            fits[name] = circle
+            mag[:, k] = circle.apply(rec.mag[:, k])
 
 
 def disturbed_fraction(rec: ImuRecording) -> dict[str, float]:
@@ -333,11 +357,10 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
     if isinstance(fit, str):
         return f"not calibrated: {fit}"
     if applies(fit):
-        verdict = (
-            "applied"
-            if fit.model == "ellipsoid"
-            else "applied (hard iron only: too few directions for the soft iron)"
-        )
+        verdict = {
+            "ellipsoid": "applied",
+            "hard iron": "applied (hard iron only: too few directions for the soft iron)",
+        }.get(fit.model, "applied (hard iron only, turns about one axis: the circle and the field's dip)")
     elif not fit.determined:
         verdict = f"not applied: the semi-axes are known to {100 * fit.axis_error.max():.2g} % only"
     else:

@@ -28,7 +28,7 @@ def capture_models():
 @pytest.mark.parametrize("motion", BUILTIN_PROGRAMS)
 def test_every_model_runs_every_program_without_warning(capture_models, model, motion):
     if motion == "gait" and model != "humanoid":
-        with pytest.raises(InputError, match="gait needs the humanoid's ball joints"):
+        with pytest.raises(InputError, match="motion 'gait' needs the humanoid's ball joints"):
             run_session(SessionConfig(model=model, motion=motion, duration_s=2.0), capture_models[model])
         return
     ds = run_session(SessionConfig(model=model, motion=motion, duration_s=2.0, seed=3), capture_models[model])

@@ -46,6 +46,7 @@ from calibration.orientation.magnetometer import (
     MagnetometerCalibration,
     SpanCalibration,
     disturbed_spans,
+    fit_circle_hard_iron,
     fit_disturbed_spans,
     fit_magnetometer,
 )
@@ -79,6 +80,7 @@ __all__ = [
     "Weighting",
     "change_frame",
     "disturbed_spans",
+    "fit_circle_hard_iron",
     "fit_disturbed_spans",
     "fit_magnetometer",
     "fontaine",

@@ -26,6 +26,16 @@ its magnetometer too few directions for nine coefficients. The hard iron alone, 
 ellipsoid is not determined, the sphere is fitted, and used when its centre is known to
 :data:`AXIS_TOLERANCE` of ``B`` (soft iron then taken as the identity; ``model`` says which).
 
+**Turns about one axis: the circle and the dip.** A segment that only turns about the vertical
+(the trunk in gait) traces a circle: the sphere's centre is then unknown along the axis. The
+circle still gives the hard iron across the axis (three coefficients, linear, in the plane
+perpendicular to the samples' axis of least spread) and its radius, the horizontal field ``r``;
+along the axis the accelerometer and the field's dip give it: with ``u`` the sensor's mean up
+direction (its specific force's mean, in its frame) and the axis near ``u``, the calibrated
+field's mean component along ``u`` must be the Earth field's, ``-r tan(dip)``
+(:func:`fit_circle_hard_iron`, the dip from the recording's other, calibrated sensors; only the
+dip, a ratio, since each magnetometer has its own gain).
+
 **Is it good?** The relative spread of ``|b|`` after calibration (robust: 1.4826 MAD over the
 median) against the spread of ``|m|`` before: a calibration that does not make the strength
 steadier than it was, or leaves it spread by more than the fit's own residual suggests, is
@@ -63,7 +73,8 @@ class MagnetometerCalibration:
             directions all over the sphere, one of them near 0 for turns about one axis).
         spread_before, spread_after: robust relative spread of ``|m|`` and of ``|b|``.
         n_samples: samples used.
-        model: ``"ellipsoid"`` (hard and soft iron) or ``"hard iron"`` (the sphere).
+        model: ``"ellipsoid"`` (hard and soft iron), ``"hard iron"`` (the sphere) or
+            ``"hard iron, circle"`` (turns about one axis: :func:`fit_circle_hard_iron`).
     """
 
     hard_iron: np.ndarray
@@ -175,6 +186,83 @@ def _fit_sphere(m: np.ndarray) -> MagnetometerCalibration:
         spread_after=_spread(np.linalg.norm(b, axis=1)),
         n_samples=int(m.shape[0]),
         model="hard iron",
+    )
+
+
+def fit_circle_hard_iron(
+    mag: np.ndarray,
+    up: np.ndarray,
+    dip_rad: float,
+    valid: np.ndarray | None = None,
+) -> MagnetometerCalibration:
+    """The hard iron of a magnetometer that turns about one axis only (module docstring).
+
+    Args:
+        mag: ``(F, 3)`` raw samples in the sensor frame, any unit.
+        up: ``(3,)`` the sensor's mean up direction in its own frame (e.g. the mean of its
+            accelerometer's specific force), any length.
+        dip_rad: the Earth field's dip below the horizontal, rad (positive in the northern
+            hemisphere), within 80 degrees of the horizontal.
+        valid: optional ``(F,)`` mask.
+
+    Returns:
+        The hard iron (soft iron the identity), ``model="hard iron, circle"``; ``determined``
+        when the circle's centre is known to :data:`AXIS_TOLERANCE` of its radius and the axis
+        is within 30 degrees of ``up``.
+
+    Raises:
+        CalibrationInputError: shapes, a zero ``up``, or a dip beyond 80 degrees.
+        CalibrationError: fewer than :data:`MIN_SAMPLES` samples, or samples on no circle.
+    """
+    m = np.asarray(mag, dtype=float)
+    u = np.asarray(up, dtype=float)
+    if m.ndim != 2 or m.shape[1] != 3 or u.shape != (3,):
+        raise CalibrationInputError(f"Expected mag (frames, 3) and up (3,), got {m.shape} and {u.shape}")
+    if not (np.isfinite(dip_rad) and abs(dip_rad) <= np.deg2rad(80) and np.isfinite(u).all() and u @ u > 0):
+        raise CalibrationInputError(
+            f"Expected a dip within 80 degrees and a nonzero up, got {dip_rad} and {u}"
+        )
+    use = np.isfinite(m).all(axis=1)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    m = m[use]
+    if m.shape[0] < MIN_SAMPLES:
+        raise CalibrationError(f"a magnetometer fit needs at least {MIN_SAMPLES} samples, got {m.shape[0]}")
+    u = u / np.linalg.norm(u)
+    _, vecs = np.linalg.eigh(np.cov(m.T))
+    axis = vecs[:, 0] * np.sign(vecs[:, 0] @ u or 1.0)  # least spread: the turns' axis
+    e1, e2 = vecs[:, 2], vecs[:, 1]
+    scale = float(np.median(np.linalg.norm(m, axis=1)))
+    x = np.column_stack([m @ e1, m @ e2]) / scale
+    D = np.column_stack([2 * x, np.ones(len(x))])
+    y = np.sum(x * x, axis=1)
+    v, *_ = np.linalg.lstsq(D, y, rcond=None)
+    r2 = float(v[2] + v[:2] @ v[:2])
+    if not r2 > 0:
+        raise CalibrationError("the magnetometer samples lie on no circle: a field that changes")
+    r = np.sqrt(r2) * scale
+    gram = D.T @ D
+    sigma2 = float(np.sum((D @ v - y) ** 2) / max(len(x) - 3, 1))
+    error = np.sqrt(np.diag(sigma2 * np.linalg.pinv(gram))[:2]) * scale / r
+    in_plane = scale * (v[0] * e1 + v[1] * e2)
+    # along the axis: the calibrated field's mean component along up is the Earth field's
+    along_u = float(np.mean(m @ u)) - in_plane @ u + r * np.tan(dip_rad)
+    hard = in_plane + axis * along_u / (axis @ u)
+    b = m - hard
+    determined = bool(np.all(error <= AXIS_TOLERANCE) and axis @ u >= np.cos(np.pi / 6))
+    un = b / np.linalg.norm(b, axis=1, keepdims=True)
+    return MagnetometerCalibration(
+        hard_iron=hard,
+        soft_iron=np.eye(3),
+        field_strength=float(r / np.cos(dip_rad)),
+        axes=np.array([r, r, r * np.tan(dip_rad)]),
+        axis_error=np.append(np.sort(error)[::-1], 0.0),
+        determined=determined,
+        coverage=np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(un.T)))[::-1].clip(min=0.0)),
+        spread_before=_spread(np.linalg.norm(m, axis=1)),
+        spread_after=_spread(np.linalg.norm(b, axis=1)),
+        n_samples=int(m.shape[0]),
+        model="hard iron, circle",
     )
 
 
