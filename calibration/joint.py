@@ -223,6 +223,17 @@ def joint_residual_vectors(
     return at_parent - at_child
 
 
+def finite_frames(R_w_p: np.ndarray, p_w_p: np.ndarray, R_w_c: np.ndarray, p_w_c: np.ndarray) -> np.ndarray:
+    """``(frames,)`` bool: the frames where both poses (``(frames, 3, 3)`` rotations and
+    ``(frames, 3)`` positions) are finite, the frames a joint fit can use."""
+    return (
+        np.isfinite(R_w_p).all(axis=(1, 2))
+        & np.isfinite(R_w_c).all(axis=(1, 2))
+        & np.isfinite(p_w_p).all(axis=1)
+        & np.isfinite(p_w_c).all(axis=1)
+    )
+
+
 def fit_joint(
     R_w_p: np.ndarray,
     p_w_p: np.ndarray,
@@ -255,12 +266,7 @@ def fit_joint(
     """
     R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
     n_total = R_w_p.shape[0]
-    ok = (
-        np.isfinite(R_w_p).all(axis=(1, 2))
-        & np.isfinite(R_w_c).all(axis=(1, 2))
-        & np.isfinite(p_w_p).all(axis=1)
-        & np.isfinite(p_w_c).all(axis=1)
-    )
+    ok = finite_frames(R_w_p, p_w_p, R_w_c, p_w_c)
     if valid is not None:
         valid = np.asarray(valid, dtype=bool)
         if valid.shape != (n_total,):

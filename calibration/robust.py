@@ -76,7 +76,15 @@ from scipy import integrate, stats
 
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import HIERARCHY_METHODS, misfit_weights
-from calibration.joint import SINGLE_AXIS_RATIO, JointFit, Spectrum, check_pair, fit_joint, read_spectrum
+from calibration.joint import (
+    SINGLE_AXIS_RATIO,
+    JointFit,
+    Spectrum,
+    check_pair,
+    finite_frames,
+    fit_joint,
+    read_spectrum,
+)
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.poses import check_poses
 
@@ -268,12 +276,7 @@ def robust_fit_joint(
     if not isinstance(tol, float | int | np.floating | np.integer) or not np.isfinite(tol) or tol <= 0:
         raise CalibrationInputError(f"tol must be a positive number, got {tol!r}")
     n_total = R_w_p.shape[0]
-    ok = (
-        np.isfinite(R_w_p).all(axis=(1, 2))
-        & np.isfinite(R_w_c).all(axis=(1, 2))
-        & np.isfinite(p_w_p).all(axis=1)
-        & np.isfinite(p_w_c).all(axis=1)
-    )
+    ok = finite_frames(R_w_p, p_w_p, R_w_c, p_w_c)
     if valid is not None:
         valid = np.asarray(valid)
         if valid.shape != (n_total,) or valid.dtype != bool:

@@ -115,7 +115,7 @@ from scipy import fft as _fft
 from scipy import stats as _stats
 
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.joint import JointFit, check_pair
+from calibration.joint import JointFit, check_pair, finite_frames
 
 #: The estimators of :func:`joint_covariance`; the first is the default.
 METHODS = ("batch-means", "iid", "block-bootstrap")
@@ -769,12 +769,7 @@ def _used_frames(
 ) -> np.ndarray:
     """``(frames,)`` bool, the frames :func:`calibration.joint.fit_joint` uses."""
     n_total = R_w_p.shape[0]
-    ok = (
-        np.isfinite(R_w_p).all(axis=(1, 2))
-        & np.isfinite(R_w_c).all(axis=(1, 2))
-        & np.isfinite(p_w_p).all(axis=1)
-        & np.isfinite(p_w_c).all(axis=1)
-    )
+    ok = finite_frames(R_w_p, p_w_p, R_w_c, p_w_c)
     if valid is not None:
         valid = np.asarray(valid)
         if valid.shape != (n_total,):
