@@ -9,6 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from calibration import calibrate
+from calibration.errors import CalibrationError
+from calibration.methods import JOINT_METHODS
+from calibration.skeleton import segment_lengths
 from simbench.io.dataset import Dataset
 from simbench.orient import estimate
 from simbench.score import compare_trees, score, score_orientation
@@ -57,4 +60,63 @@ def orientation_metrics(ds: Dataset, method: str) -> dict[str, float]:
         "total_rmse_deg": scored.total_rmse_deg,
         "heading_rmse_deg": scored.heading_rmse_deg,
         "inclination_rmse_deg": scored.inclination_rmse_deg,
+    }
+
+
+#: What :func:`joint_method_metrics` returns.
+JOINT_METHOD_METRICS = {
+    "joint_centre_error_m": "mean distance of estimated from true joint centres (parent frame), m",
+    "limb_length_error_m": "mean absolute limb-length error, m",
+    "failed_joints": "joints the method could not fit (left out of the means)",
+}
+
+
+def joint_method_metrics(ds: Dataset, method: str) -> dict[str, float]:
+    """One joint-centre method of :data:`calibration.methods.JOINT_METHODS` on every joint of the
+    true hierarchy of a simulated session, scored as :func:`calibration_metrics` scores O'Brien's
+    (centres in the parent's frame, limb lengths between a segment's joints; metres through the
+    dataset's unit scale). A joint the method cannot fit (e.g. a sphere fit of a hinge) is
+    counted in ``failed_joints`` and left out of the means (NaN when all fail)."""
+    if ds.truth is None:
+        raise ValueError("joint_method_metrics needs a dataset with truth (a simulated session)")
+    fit = JOINT_METHODS[method]
+    rec = ds.poses()
+    scale = ds.position_unit_scale
+    true_p, true_c = ds.truth_joint_arrays()
+    pairs, est_p, est_c, keep = [], [], [], []
+    failed = 0
+    for child, name in enumerate(rec.names):
+        parent_name = ds.truth.parent_of.get(name)
+        if parent_name is None:
+            continue
+        parent = rec.names.index(parent_name)
+        pairs.append((parent, child))
+        try:
+            got = fit(
+                rec.R_w_s[:, parent],
+                rec.p_w_s[:, parent],
+                rec.R_w_s[:, child],
+                rec.p_w_s[:, child],
+                valid=rec.valid[:, parent] & rec.valid[:, child],
+            )
+        except CalibrationError:
+            failed += 1
+            est_p.append(np.full(3, np.nan))
+            est_c.append(np.full(3, np.nan))
+            keep.append(False)
+            continue
+        est_p.append(got.joint_in_parent * scale)
+        est_c.append(got.joint_in_child * scale)
+        keep.append(True)
+    children = [c for _, c in pairs]
+    est_p, est_c, keep = np.array(est_p), np.array(est_c), np.array(keep)
+    centre = np.linalg.norm(est_p - true_p[children], axis=1)[keep]
+    truth = segment_lengths(rec.names, pairs, true_p[children], true_c[children])
+    got = segment_lengths(rec.names, pairs, est_p, est_c)
+    length = np.array([abs(g.length - t.length) for g, t in zip(got, truth, strict=True)])
+    length = length[np.isfinite(length)]
+    return {
+        "joint_centre_error_m": float(np.mean(centre)) if centre.size else float("nan"),
+        "limb_length_error_m": float(np.mean(length)) if length.size else float("nan"),
+        "failed_joints": float(failed),
     }

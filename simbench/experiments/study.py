@@ -6,7 +6,7 @@ metrics::
     name = "noise"
     seed = 1
     seeds_per_cell = 3
-    estimators = ["calibration"]                  # and/or "orientation:fontaine", ...
+    estimators = ["calibration"]                  # and/or "orientation:fontaine", "joint:score", ...
     metrics = ["joint_centre_error_m", "limb_length_error_m", "hierarchy_correct"]
     [base]                                        # a missing key takes SessionConfig's default
     model = "linkage"
@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.methods import JOINT_METHODS
 from simbench.errors import InputError, load_toml
 from simbench.experiments.metrics import CALIBRATION_METRICS
 from simbench.orient import METHODS
@@ -59,6 +60,10 @@ METRICS = {
 BASE_KEYS = {"model", "motion", "sensors", "duration_s", "rate_hz"}
 #: Orientation methods a study may score (``orientation:<method>``).
 ORIENTATION_METHODS = METHODS
+#: Joint-centre methods a study may score (``joint:<method>``) on the true hierarchy: the
+#: columns ``joint_centre_error_m:<method>``, ``limb_length_error_m:<method>`` and
+#: ``failed_joints:<method>`` (:func:`simbench.experiments.metrics.joint_method_metrics`).
+JOINT_ESTIMATORS = tuple(JOINT_METHODS)
 DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
 STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
 PARAMETER_KEYS = {"name", "unit", "values", "low", "high", "log"}
@@ -236,9 +241,14 @@ def _strings(doc: dict[str, Any], path: Path, key: str, default: tuple[str, ...]
 def _parse_estimators(doc: dict[str, Any], path: Path) -> tuple[str, ...]:
     estimators = _strings(doc, path, "estimators", ("calibration",))
     for e in estimators:
+        if e.startswith("joint:") and e.split(":", 1)[1] in JOINT_ESTIMATORS:
+            continue
         method = e.split(":", 1)[1] if e.startswith("orientation:") else None
         if e != "calibration" and method not in ORIENTATION_METHODS:
-            expected = f"calibration or orientation:<{'|'.join(ORIENTATION_METHODS)}>"
+            expected = (
+                f"calibration, orientation:<{'|'.join(ORIENTATION_METHODS)}> or "
+                f"joint:<{'|'.join(JOINT_ESTIMATORS)}>"
+            )
             raise InputError(f"{path}, key estimators: unknown {e!r}; expected {expected}")
     return estimators
 

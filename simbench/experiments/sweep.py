@@ -25,7 +25,7 @@ from types import ModuleType
 from typing import Any
 
 from simbench.errors import InputError, optional_module
-from simbench.experiments.metrics import calibration_metrics, orientation_metrics
+from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
 from simbench.experiments.pool import worker_pool
 from simbench.experiments.study import Study, Trial, check_study, study_fingerprint, trial_config, trials
 from simbench.io.atomic import atomic_path, atomic_write_text
@@ -69,6 +69,9 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
     for est in study.estimators:
         if est == "calibration":
             row.update(calibration_metrics(ds))
+        elif est.startswith("joint:"):
+            method = est.split(":", 1)[1]
+            row.update({f"{k}:{method}": v for k, v in joint_method_metrics(ds, method).items()})
         else:
             method = est.split(":", 1)[1]
             key = f"orientation_rmse_deg:{method}" if several else "orientation_rmse_deg"
