@@ -16,7 +16,9 @@ report module turns it into tables, plots and pictures):
   above (none has a slip), detection of 1-3 cm slips, hinge verdicts, cluster grouping, each
   against its target;
 - **realism** (:mod:`simbench.experiments.realism`): the statistics an estimator sees on each
-  real recording in ``../shared/data`` beside a simulated counterpart's.
+  real recording in ``../shared/data`` beside a simulated counterpart's;
+- **joint-centre methods**: every method of :mod:`calibration.methods` on the same seeded
+  sessions, and the coverage of O'Brien's 95 % regions (batch means against i.i.d.).
 
 ``quick=True`` shortens everything (CI); the full run takes a few minutes on 2 cores (the human
 trials run on a process pool). Seeds are fixed: the same version gives the same figures.
@@ -32,8 +34,11 @@ from typing import Any
 
 import numpy as np
 
-from calibration import calibrate, detect_slip
+from calibration import calibrate, detect_slip, fit_joint
+from calibration.methods import JOINT_METHODS
+from calibration.uncertainty import covers, joint_covariance
 from simbench.experiments.decisions import run_decisions
+from simbench.experiments.metrics import joint_method_metrics
 from simbench.experiments.obrien import (
     HUMAN_PRESET,
     PAIR_S,
@@ -68,6 +73,7 @@ STEPS = (
     "paper tables: each effect switched off in turn",
     "walk hierarchies: the paper's failure (transmitter on the stand) and both methods",
     "realism: real recordings beside simulated ones",
+    "joint-centre methods side by side, and O'Brien's 95 % regions",
 )
 
 
@@ -84,6 +90,8 @@ class Plan:
     orientation_s: float
     cause_tables: tuple[str, ...]
     failure_walks: int
+    methods_seeds: int
+    methods_s: float
 
     @classmethod
     def of(cls, quick: bool) -> Plan:
@@ -98,6 +106,8 @@ class Plan:
                 orientation_s=8.0,
                 cause_tables=("table_1", "table_2"),
                 failure_walks=1,
+                methods_seeds=1,
+                methods_s=8.0,
             )
         return cls(
             linkage_sets=6,
@@ -109,6 +119,8 @@ class Plan:
             orientation_s=30.0,
             cause_tables=("table_1", "table_2", "table_3", "table_4"),
             failure_walks=5,
+            methods_seeds=4,
+            methods_s=20.0,
         )
 
 
@@ -306,6 +318,8 @@ def run_validation(
         orientation_run = pool.submit(_orientation, plan)
         say(STEPS[8])
         realism_run = pool.submit(run_realism, quick=quick)
+        say(STEPS[9])
+        methods_run = pool.submit(_joint_methods, plan)
         say(STEPS[0])
         pair_s = 20.0 if quick else PAIR_S
         scale = rigid_pair_scale(duration_s=pair_s)
@@ -336,6 +350,7 @@ def run_validation(
         walks = _walk_failures(plan, pool.map)
         slip, orientation = slip_run.result(), orientation_run.result()
         decisions, realism = decisions_run.result(), realism_run.result()
+        methods = methods_run.result()
     results = {
         "quick": quick,
         "plan": plan.__dict__,
@@ -349,10 +364,75 @@ def run_validation(
         "orientation": orientation,
         "decisions": decisions,
         "realism": realism,
+        "joint_methods": methods,
         "summary": _summary(linkage, humanoid, slip, orientation),
         "run_time_s": time.perf_counter() - t0,
     }
     return results, keep
+
+
+#: The sessions of the methods comparison: (label, model, preset); seeds 41..
+METHODS_CONDITIONS = (
+    ("linkage, Polhemus Liberty", "linkage", "polhemus-liberty"),
+    ("humanoid, Polhemus Liberty", "humanoid", "polhemus-liberty"),
+    ("humanoid, skin (paper-like)", "humanoid", "skin-paper-human"),
+)
+
+
+def _joint_methods(plan: Plan) -> dict[str, Any]:
+    """Every joint-centre method of :mod:`calibration.methods` on the same seeded sessions (the
+    true hierarchy), and how often O'Brien's 95 % regions hold the true centre: batch means
+    (:mod:`calibration.uncertainty`, the default) against i.i.d. (``studies/methods.py`` runs
+    more seeds and conditions)."""
+    out: dict[str, Any] = {"seeds": plan.methods_seeds, "duration_s": plan.methods_s, "conditions": {}}
+    for label, model, preset in METHODS_CONDITIONS:
+        rows: dict[str, list[dict[str, float]]] = {m: [] for m in JOINT_METHODS}
+        hits = {"batch-means": [0, 0], "iid": [0, 0]}
+        for seed in range(41, 41 + plan.methods_seeds):
+            config = SessionConfig(
+                model=model, motion="exercise", duration_s=plan.methods_s, seed=seed, sensors=preset
+            )
+            ds = run_session(config, load_session_model(config))
+            for m in JOINT_METHODS:
+                rows[m].append(joint_method_metrics(ds, m))
+            _coverage(ds, hits)
+        out["conditions"][label] = {
+            "preset": preset,
+            "methods": {
+                m: {
+                    "centre_error_mm": 1000 * float(np.nanmean([r["joint_centre_error_m"] for r in v])),
+                    "length_error_mm": 1000 * float(np.nanmean([r["limb_length_error_m"] for r in v])),
+                    "failed_joints": int(sum(r["failed_joints"] for r in v)),
+                }
+                for m, v in rows.items()
+            },
+            "coverage": {k: {"covered": h[0], "regions": h[1]} for k, h in hits.items()},
+        }
+    return out
+
+
+def _coverage(ds: Any, hits: dict[str, list[int]]) -> None:
+    """Add the session's O'Brien regions (both frames of every joint of the true hierarchy) that
+    hold the true centre, by each covariance method, to ``hits`` (``[covered, regions]``)."""
+    rec = ds.poses()
+    scale = ds.position_unit_scale
+    true_p, true_c = ds.truth_joint_arrays()
+    for child, name in enumerate(rec.names):
+        parent_name = ds.truth.parent_of.get(name)
+        if parent_name is None:
+            continue
+        k = rec.names.index(parent_name)
+        args = (rec.R_w_s[:, k], rec.p_w_s[:, k], rec.R_w_s[:, child], rec.p_w_s[:, child])
+        valid = rec.valid[:, k] & rec.valid[:, child]
+        fit = fit_joint(*args, valid=valid)
+        for method in hits:
+            unc = joint_covariance(*args, fit, valid=valid, method=method)
+            for est, truth, cov, dof in (
+                (fit.joint_in_parent, true_p[child], unc.cov_in_parent, unc.dof_in_parent),
+                (fit.joint_in_child, true_c[child], unc.cov_in_child, unc.dof_in_child),
+            ):
+                hits[method][0] += int(covers(est * scale, truth, cov * scale**2, dof=dof))
+                hits[method][1] += 1
 
 
 class _Here:
