@@ -71,6 +71,13 @@ JOINT_METHOD_METRICS = {
 }
 
 
+def true_joints(ds: Dataset) -> list[tuple[int, int]]:
+    """``(parent, child)`` sensor indices of every joint of a simulated session's true hierarchy,
+    children in sensor order."""
+    names = list(ds.sensors)
+    return [(names.index(p), c) for c, n in enumerate(names) if (p := ds.truth.parent_of.get(n)) is not None]
+
+
 def joint_method_metrics(ds: Dataset, method: str) -> dict[str, float]:
     """One joint-centre method of :data:`calibration.methods.JOINT_METHODS` on every joint of the
     true hierarchy of a simulated session, scored as :func:`calibration_metrics` scores O'Brien's
@@ -83,14 +90,10 @@ def joint_method_metrics(ds: Dataset, method: str) -> dict[str, float]:
     rec = ds.poses()
     scale = ds.position_unit_scale
     true_p, true_c = ds.truth_joint_arrays()
-    pairs, est_p, est_c, keep = [], [], [], []
+    pairs = true_joints(ds)
+    est_p, est_c, keep = [], [], []
     failed = 0
-    for child, name in enumerate(rec.names):
-        parent_name = ds.truth.parent_of.get(name)
-        if parent_name is None:
-            continue
-        parent = rec.names.index(parent_name)
-        pairs.append((parent, child))
+    for parent, child in pairs:
         try:
             got = fit(
                 rec.R_w_s[:, parent],

@@ -38,7 +38,7 @@ from calibration import calibrate, detect_slip, fit_joint
 from calibration.methods import JOINT_METHODS
 from calibration.uncertainty import covers, joint_covariance
 from simbench.experiments.decisions import run_decisions
-from simbench.experiments.metrics import joint_method_metrics
+from simbench.experiments.metrics import joint_method_metrics, true_joints
 from simbench.experiments.obrien import (
     HUMAN_PRESET,
     PAIR_S,
@@ -417,11 +417,7 @@ def _coverage(ds: Any, hits: dict[str, list[int]]) -> None:
     rec = ds.poses()
     scale = ds.position_unit_scale
     true_p, true_c = ds.truth_joint_arrays()
-    for child, name in enumerate(rec.names):
-        parent_name = ds.truth.parent_of.get(name)
-        if parent_name is None:
-            continue
-        k = rec.names.index(parent_name)
+    for k, child in true_joints(ds):
         args = (rec.R_w_s[:, k], rec.p_w_s[:, k], rec.R_w_s[:, child], rec.p_w_s[:, child])
         valid = rec.valid[:, k] & rec.valid[:, child]
         fit = fit_joint(*args, valid=valid)
