@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from calibration.rotations import matrix_to_quat, matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
+from calibration.rotations import (
+    axis_angle_to_matrix,
+    matrix_to_quat,
+    matrix_to_rotvec,
+    quat_to_matrix,
+    rotvec_to_matrix,
+)
 from simbench.errors import InputError
 from simbench.sim.sensor_models import ImuConfig, TrackerConfig, apply_imu, apply_tracker
 
@@ -131,6 +137,17 @@ def test_scale_resolution_dropout_latency(poses):
     p5, _, valid = apply_tracker(t, moving, q, TrackerConfig(latency_s=0.05), np.random.default_rng(8))
     assert not valid[:5].any() and valid[5:].all()
     assert_allclose(p5[5:, :, 1], moving[:-5, :, 1], atol=1e-12)
+    # the orientation is reported from the same instant as the position: a sensor turning at
+    # 2 rad/s about z shows the turn of 0.05 s earlier (and between frames, the interpolated one)
+    z, base = np.array([0.0, 0.0, 1.0]), quat_to_matrix(q[0])  # (N, 3, 3) each sensor's mounting
+    turning = matrix_to_quat(axis_angle_to_matrix(z, 2.0 * t)[:, None] @ base)
+    for latency in (0.05, 0.0035):
+        cfg = TrackerConfig(latency_s=latency)
+        p6, q6, valid = apply_tracker(t, moving, turning, cfg, np.random.default_rng(8))
+        want = axis_angle_to_matrix(z, 2.0 * (t - latency))[:, None] @ base
+        err = matrix_to_rotvec(quat_to_matrix(q6[valid[:, 0]]) @ np.swapaxes(want[valid[:, 0]], -1, -2))
+        assert np.abs(err).max() < 1e-9, latency
+        assert_allclose(p6[valid[:, 0], :, 1], moving[valid[:, 0], :, 1] - 0.5 * latency, atol=1e-12)
 
 
 def test_field_models():

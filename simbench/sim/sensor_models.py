@@ -32,7 +32,8 @@ of Birds or a Polhemus Liberty/Fastrak reports poses:
 - resolution: positions quantised to ``resolution_m``, orientations' rotation vectors to
   ``resolution_rad``;
 - latency: each report shows the pose ``latency_s`` earlier (linear interpolation of positions,
-  nearest sample of orientations); the first ``latency_s`` are dropped (marked missing);
+  spherical linear interpolation of orientations, so that a report is one pose of one instant);
+  the first ``latency_s`` are dropped (marked missing);
 - dropouts: each sample is lost with probability ``dropout_rate`` (marked missing, never zero).
 
 **Inertial/magnetic unit** (:class:`ImuConfig`, :func:`apply_imu`), as the MEMS trackers of
@@ -194,6 +195,20 @@ def dipole_anisotropy(cos_theta: np.ndarray, exponent: float) -> np.ndarray:
     return (1 + 3 * np.asarray(cos_theta) ** 2) ** (-exponent / 6) / mean
 
 
+def _slerp_at(time_s: np.ndarray, q_wxyz: np.ndarray, at_s: np.ndarray) -> np.ndarray:
+    """``(F, N, 4)`` the orientations ``(F, N, 4)`` sampled at ``time_s`` interpolated to the times
+    ``at_s`` (spherical linear interpolation, clamped at the ends): the same instants as the
+    positions' linear interpolation, so that a delayed report is one consistent pose."""
+    t = np.clip(at_s, time_s[0], time_s[-1])
+    i = np.clip(np.searchsorted(time_s, t, side="right") - 1, 0, max(time_s.size - 2, 0))
+    if time_s.size < 2:
+        return q_wxyz[np.zeros(t.size, dtype=np.int64)]
+    frac = ((t - time_s[i]) / (time_s[i + 1] - time_s[i]))[:, None, None]
+    R0, R1 = quat_to_matrix(q_wxyz[i]), quat_to_matrix(q_wxyz[i + 1])
+    step = matrix_to_rotvec(np.swapaxes(R0, -1, -2) @ R1)  # (F, N, 3) body-frame increment
+    return matrix_to_quat(R0 @ rotvec_to_matrix(frac * step))
+
+
 def _quantise(x: np.ndarray, step: float) -> np.ndarray:
     return x if step == 0 else np.round(x / step) * step
 
@@ -231,8 +246,7 @@ def apply_tracker(
         for k in range(n):
             for a in range(3):
                 p[:, k, a] = np.interp(measured_at, time_s, p_w_s[:, k, a])
-        nearest = np.clip(np.searchsorted(time_s, measured_at - 1e-9), 0, f - 1)
-        q = q[nearest]
+        q = _slerp_at(time_s, q, measured_at)
         valid &= (measured_at >= time_s[0] - 1e-9)[:, None]
     R = None
     for dist in config.distortion:
