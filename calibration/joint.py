@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.eiv import check_noise, corrected_solution
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hinge import (
     block_of_frame,
@@ -80,6 +81,9 @@ class JointFit:
             invalid.
         weakest_t: ``|t|`` of the single-axis test of the weakest direction
             (:mod:`calibration.hinge`, dimensionless); NaN when it was not tested.
+        orientation_noise_rad2: ``(sigma_p^2, sigma_c^2)`` the rotation-noise variances the
+            centre was corrected for (:mod:`calibration.eiv`), rad^2; ``(0, 0)``: O'Brien's plain
+            least squares.
     """
 
     joint_in_parent: np.ndarray
@@ -94,6 +98,7 @@ class JointFit:
     n_frames: int
     n_dropped: int
     weakest_t: float = float("nan")
+    orientation_noise_rad2: tuple[float, float] = (0.0, 0.0)
 
     @property
     def condition(self) -> float:
@@ -242,6 +247,7 @@ def fit_joint(
     *,
     valid: np.ndarray | None = None,
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
+    orientation_noise_rad2: tuple[float, float] | None = None,
 ) -> JointFit:
     """Fit the rotary joint between two sensors by SVD of O'Brien eq. 13.
 
@@ -256,14 +262,21 @@ def fit_joint(
         valid: optional ``(frames,)`` bool; frames marked False are dropped. Frames with any
             non-finite value in either pose are always dropped.
         single_axis_ratio: see the module docstring.
+        orientation_noise_rad2: optional ``(sigma_p^2, sigma_c^2)``, each sensor's rotation noise
+            per rotation-vector component, rad^2 (e.g. from
+            :func:`calibration.eiv.orientation_noise_variance`): the centre is then corrected for
+            the bias that noise on the rotations puts into least squares (:mod:`calibration.eiv`).
+            The determined directions (the single-axis verdict) are those of the plain fit.
 
     Returns:
         The fitted joint, residuals and diagnostics.
 
     Raises:
         CalibrationInputError: on malformed arrays.
-        CalibrationError: when fewer than :data:`MIN_FRAMES` usable frames remain.
+        CalibrationError: when fewer than :data:`MIN_FRAMES` usable frames remain, or the rotation
+            noise swamps the motion along a determined direction.
     """
+    noise = (0.0, 0.0) if orientation_noise_rad2 is None else check_noise(orientation_noise_rad2)
     R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
     n_total = R_w_p.shape[0]
     ok = finite_frames(R_w_p, p_w_p, R_w_c, p_w_c)
@@ -285,6 +298,8 @@ def fit_joint(
     keep, t = _tested_directions(A, b, U, s, Vt, floor_keep, block_of_frame(n_total)[ok])
     spectrum = read_spectrum(s, Vt.T, single_axis_ratio, keep)
     x = _min_norm(U, s, Vt, b, keep)
+    if max(noise) > 0.0:
+        x = corrected_solution(A.T @ A, A.T @ b, Vt[keep].T, n_used, noise)
     residual = np.full(n_total, np.nan)
     residual[ok] = np.linalg.norm((A @ x - b).reshape(n_used, 3), axis=1)
     return JointFit(
@@ -300,6 +315,7 @@ def fit_joint(
         n_frames=n_used,
         n_dropped=n_total - n_used,
         weakest_t=float(t[5]),
+        orientation_noise_rad2=noise,
     )
 
 

@@ -114,6 +114,7 @@ import numpy as np
 from scipy import fft as _fft
 from scipy import stats as _stats
 
+from calibration.eiv import corrected_normal_matrix, noise_diagonal
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.joint import JointFit, check_pair, finite_frames
 
@@ -216,6 +217,9 @@ class JointUncertainty:
             frame for ``"iid"``; for ``"block-bootstrap"`` the non-overlapping blocks of the same
             count): the blocks :func:`cross_covariance` uses.
         warnings: plain-language notes on what the intervals may get wrong.
+        orientation_noise_rad2: the rotation-noise variances the fit was corrected for
+            (:mod:`calibration.eiv`), rad^2; then ``gram_root`` whitens the corrected normal
+            matrix and every frame's score carries the correction's ``2 D x``.
     """
 
     joint_in_parent: np.ndarray
@@ -236,6 +240,7 @@ class JointUncertainty:
     used: np.ndarray
     block_edges: np.ndarray
     warnings: tuple[str, ...] = ()
+    orientation_noise_rad2: tuple[float, float] = (0.0, 0.0)
 
     @property
     def rank(self) -> int:
@@ -351,6 +356,40 @@ def confidence_region(centre: np.ndarray, cov3: np.ndarray, *, dof: float, level
         semi_axes_m=np.sqrt(threshold * w) if rank else np.zeros(3),
         axes=U.T.copy(),
         intervals_m=np.stack([centre - half, centre + half], axis=1),
+    )
+
+
+def holds_truth(
+    unc: JointUncertainty, truth_in_parent: np.ndarray, truth_in_child: np.ndarray
+) -> tuple[bool, bool]:
+    """Whether the 95 % regions of ``unc`` (in the parent and in the child frame) hold a true centre.
+
+    Only the directions the fit determined are compared (module docstring): for a single-axis
+    fit the truth and the estimate are both projected onto ``unc.basis``, so that a true centre
+    anywhere on the hinge's axis counts by its determined part.
+
+    Args:
+        unc: the fit's uncertainty (:func:`joint_covariance`).
+        truth_in_parent: ``(3,)`` the true centre in the parent sensor frame, metres.
+        truth_in_child: ``(3,)`` in the child sensor frame, metres.
+
+    Returns:
+        ``(parent, child)``: whether each region holds the truth.
+    """
+    V = unc.basis
+    x_hat = np.concatenate([unc.joint_in_parent, unc.joint_in_child])
+    x_true = np.concatenate(
+        [np.asarray(truth_in_parent, dtype=float), np.asarray(truth_in_child, dtype=float)]
+    )
+    if x_true.shape != (6,):
+        raise CalibrationInputError(
+            f"Expected truth_in_parent and truth_in_child of shape (3,), got {np.shape(truth_in_parent)} "
+            f"and {np.shape(truth_in_child)}"
+        )
+    e, t = V @ (V.T @ x_hat), V @ (V.T @ x_true)
+    return (
+        bool(covers(e[:3], t[:3], unc.cov_in_parent, LEVEL, dof=unc.dof_in_parent)),
+        bool(covers(e[3:], t[3:], unc.cov_in_child, LEVEL, dof=unc.dof_in_child)),
     )
 
 
@@ -472,10 +511,16 @@ def joint_covariance(
     _check_fit_matches(fit, s, r, ok)
     k = fit.rank  # directions are dropped from the weakest up (calibration.hinge)
     basis = Vt[:k].T.copy()
-    root = basis / s[:k]  # (6, k): G = root root^T
+    noise = tuple(float(v) for v in fit.orientation_noise_rad2)
     scores = np.concatenate(
         [np.einsum("fji,fj->fi", Rp, r), -np.einsum("fji,fj->fi", Rc, r)], axis=1
     )  # (n, 6) A[f]^T r[f]
+    if max(noise) > 0.0:  # corrected least squares (calibration.eiv): its normal matrix and scores
+        w_n, U_n = np.linalg.eigh(basis.T @ corrected_normal_matrix(A.T @ A, n, noise) @ basis)
+        root = basis @ (U_n / np.sqrt(np.clip(w_n, 1e-300, None)))  # (6, k): root root^T = V N_k^-1 V^T
+        scores = scores + 2.0 * (noise_diagonal(noise) @ x)
+    else:
+        root = basis / s[:k]  # (6, k): G = root root^T
     frame_scores = np.zeros((n_total, 6))
     frame_scores[ok] = scores
     relative = np.zeros((n_total, 3, 3))
@@ -512,14 +557,14 @@ def joint_covariance(
                 "narrow (record longer)"
             )
         edges = block_edges(n_total, n_want)
-        z, M, leverage = _adjusted_block_scores(frame_scores, relative, ok, root, edges)
+        z, M, leverage = _adjusted_block_scores(frame_scores, relative, ok, root, edges, noise=noise)
         n_used_blocks, dof = z.shape[0], effective_dof(M)
         dof_parts = tuple(effective_dof(M, root[_part_slice(part)]) for part in PARTS)
         if method == "batch-means":
             meat_w = z.T @ z
             length = int(np.max(np.diff(edges)))
         else:
-            meat_w, leverage = _moving_block_bootstrap(scores, relative[ok], root, length, rng, n_boot)
+            meat_w, leverage = _moving_block_bootstrap(scores, relative[ok], root, length, rng, n_boot, noise)
             dof, dof_parts = OBM_DOF_FACTOR * dof, tuple(OBM_DOF_FACTOR * d for d in dof_parts)
         cov = root @ meat_w @ root.T
     if leverage > LEVERAGE_WARNING:
@@ -546,6 +591,7 @@ def joint_covariance(
         used=ok,
         block_edges=edges,
         warnings=tuple(warnings),
+        orientation_noise_rad2=noise,
     )
 
 
@@ -828,11 +874,15 @@ def _block_sums(values: np.ndarray, used: np.ndarray, edges: np.ndarray) -> np.n
     return np.add.reduceat(values, edges[:-1], axis=0)[keep]
 
 
-def _gram(counts: np.ndarray, relative_sums: np.ndarray) -> np.ndarray:
+def _gram(
+    counts: np.ndarray, relative_sums: np.ndarray, noise: tuple[float, float] = (0.0, 0.0)
+) -> np.ndarray:
     """``(B, 6, 6)`` ``sum_{f in b} A[f]^T A[f]`` from the used frames per block ``(B,)`` and their
-    summed relative rotations ``(B, 3, 3)``."""
+    summed relative rotations ``(B, 3, 3)``; less ``2 F_b D`` for a fit corrected for rotation noise
+    ``noise`` (:mod:`calibration.eiv`)."""
     W = np.zeros((counts.shape[0], 6, 6))
-    W[:, :3, :3] = W[:, 3:, 3:] = counts[:, None, None] * np.eye(3)
+    W[:, :3, :3] = counts[:, None, None] * (1.0 - 2.0 * noise[0]) * np.eye(3)
+    W[:, 3:, 3:] = counts[:, None, None] * (1.0 - 2.0 * noise[1]) * np.eye(3)
     W[:, :3, 3:] = -relative_sums
     W[:, 3:, :3] = -np.swapaxes(relative_sums, 1, 2)
     return W
@@ -888,6 +938,8 @@ def _adjusted_block_scores(
     root: np.ndarray,
     edges: np.ndarray,
     present: np.ndarray | None = None,
+    *,
+    noise: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """``(B, k)`` leverage-adjusted whitened block scores, ``(B, k, k)`` the blocks' shares of the
     information ``M_b`` and the largest leverage (see :func:`_leverage_adjusted`), over the blocks
@@ -896,7 +948,7 @@ def _adjusted_block_scores(
     values = np.concatenate([frame_scores, relative.reshape(-1, 9), used[:, None].astype(float)], axis=1)
     sums = _block_sums(values, present, edges)
     counts = sums[:, 15]
-    M = root.T @ _gram(counts, sums[:, 6:15].reshape(-1, 3, 3)) @ root  # (B, k, k)
+    M = root.T @ _gram(counts, sums[:, 6:15].reshape(-1, 3, 3), noise) @ root  # (B, k, k)
     z, leverage = _leverage_adjusted(sums[:, :6] @ root, M)
     return z, M, leverage
 
@@ -908,6 +960,7 @@ def _moving_block_bootstrap(
     length: int,
     rng: np.random.Generator,
     n_boot: int,
+    noise: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[np.ndarray, float]:
     """``(k, k)`` moving-block bootstrap covariance of the whitened score sum ``T^T sum_f s_f`` and
     the largest leverage.
@@ -924,7 +977,7 @@ def _moving_block_bootstrap(
         csum = np.concatenate([np.zeros((1, *values.shape[1:])), np.cumsum(values, axis=0)])
         return csum[starts + length] - csum[starts]
 
-    M = root.T @ _gram(np.full(starts.shape[0], float(length)), moving(relative)) @ root
+    M = root.T @ _gram(np.full(starts.shape[0], float(length)), moving(relative), noise) @ root
     z, leverage = _leverage_adjusted(moving(scores) @ root, M)  # (starts, k)
     centre = k * z.mean(axis=0)
     meat = np.zeros((z.shape[1], z.shape[1]))
@@ -955,10 +1008,22 @@ def _common_block_scores(
     edges = a.block_edges if a.block_frames >= b.block_frames else b.block_edges
     present = a.used | b.used
     za, Ma, _ = _adjusted_block_scores(
-        a.frame_scores, a.relative_rotation, a.used, a.gram_root, edges, present
+        a.frame_scores,
+        a.relative_rotation,
+        a.used,
+        a.gram_root,
+        edges,
+        present,
+        noise=a.orientation_noise_rad2,
     )
     zb, Mb, _ = _adjusted_block_scores(
-        b.frame_scores, b.relative_rotation, b.used, b.gram_root, edges, present
+        b.frame_scores,
+        b.relative_rotation,
+        b.used,
+        b.gram_root,
+        edges,
+        present,
+        noise=b.orientation_noise_rad2,
     )
     return za, zb, Ma, Mb
 

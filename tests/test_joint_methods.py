@@ -225,6 +225,9 @@ def centre_error(estimate: JointEstimate, lp: np.ndarray, lc: np.ndarray) -> flo
 
 BALL_METHODS = ["obrien", "score", "sphere-gamage-lasenby", "sphere-geometric"]
 
+#: The methods that take poses in any order; ``obrien-eiv`` needs a time series (tests/test_eiv.py).
+ANY_ORDER_METHODS = sorted(set(JOINT_METHODS) - {"obrien-eiv"})
+
 
 # --------------------------------------------------------------------------------------------
 # Noise-free data: every method recovers the truth
@@ -440,15 +443,28 @@ def test_inertial_error_with_sensor_noise(kind):
 
 
 def test_registry_shares_one_signature(ball):
-    assert set(JOINT_METHODS) == {"obrien", "score", "sara", "sphere-gamage-lasenby", "sphere-geometric"}
+    assert set(JOINT_METHODS) == {
+        "obrien",
+        "obrien-eiv",
+        "score",
+        "sara",
+        "sphere-gamage-lasenby",
+        "sphere-geometric",
+    }
     valid = np.ones(600, dtype=bool)
     valid[::3] = False
-    for name, method in JOINT_METHODS.items():
-        estimate = method(*ball["poses"], valid=valid)
+    for name in ANY_ORDER_METHODS:
+        estimate = JOINT_METHODS[name](*ball["poses"], valid=valid)
         assert estimate.method == name and estimate.n_frames == 400
+    # the corrected fit reads the rotations' noise from their time series: poses in random order
+    # are not one, and it says so (tests/test_eiv.py checks it on time series)
+    with pytest.raises(CalibrationError, match="must be a time series that samples the motion smoothly"):
+        JOINT_METHODS["obrien-eiv"](*ball["poses"])
+    with pytest.raises(CalibrationError, match="needs at least 20 runs of 5 consecutive valid frames, got 0"):
+        JOINT_METHODS["obrien-eiv"](*ball["poses"], valid=valid)  # every third frame left out
 
 
-@pytest.mark.parametrize("name", sorted(JOINT_METHODS))
+@pytest.mark.parametrize("name", ANY_ORDER_METHODS)
 def test_frames_marked_invalid_may_hold_nan(ball, name):
     poses = [a.copy() for a in ball["poses"]]
     poses[0][5] = np.nan

@@ -98,7 +98,10 @@ def test_error_grows_with_noise(tmp_path):
         (("seeds_per_cell = 2", "seeds_per_cell = 0"), "seeds_per_cell must be an integer >= 1"),
         (("[sampling]", "colour = 1\n[sampling]"), r"unknown keys \['colour'\]"),
         (('estimators = ["calibration"]', 'estimators = ["magic"]'), "unknown 'magic'"),
-        (('estimators = ["calibration"]', 'estimators = ["joint:magic"]'), r"joint:<obrien\|score"),
+        (
+            ('estimators = ["calibration"]', 'estimators = ["joint:magic"]'),
+            r"joint:<obrien\|obrien-eiv\|score",
+        ),
         (('kind = "grid"', 'kind = "random"\nsamples = 4'), "random sampling needs low < high"),
     ],
 )

@@ -9,7 +9,8 @@ diagnostics, is in :attr:`JointEstimate.fit`.
 **Modules**, one method each (pure numpy/scipy, like the rest of :mod:`calibration`):
 
 - O'Brien et al. (2000), the least-squares joint fit with the single-axis test:
-  :func:`calibration.joint.fit_joint`, wrapped by :func:`estimate_obrien`.
+  :func:`calibration.joint.fit_joint`, wrapped by :func:`estimate_obrien`; and the same fit
+  corrected for the rotations' noise (:mod:`calibration.eiv`), :func:`estimate_obrien_eiv`.
 - :mod:`.score`: SCoRE (Ehrig et al. 2006), the same linear system with a hard rank floor only.
 - :mod:`.sara`: SARA (Ehrig et al. 2007), a hinge's axis from the system's null space.
 - :mod:`.sphere`: sphere fits of child points in the parent frame, Gamage and Lasenby's (2002)
@@ -40,6 +41,7 @@ from typing import Protocol
 
 import numpy as np
 
+from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.joint import JointFit, fit_joint
 from calibration.methods.inertial import (
@@ -144,13 +146,73 @@ def estimate_obrien(
     """
     pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
     fit = fit_joint(pair.R_w_p, pair.p_w_p, pair.R_w_c, pair.p_w_c, valid=pair.used)
+    _check_rank(fit)
+    return _obrien_estimate("obrien", fit)
+
+
+def estimate_obrien_eiv(
+    R_w_p: np.ndarray,
+    p_w_p: np.ndarray,
+    R_w_c: np.ndarray,
+    p_w_c: np.ndarray,
+    *,
+    valid: np.ndarray | None = None,
+    orientation_noise_rad2: tuple[float, float] | None = None,
+) -> JointEstimate:
+    """O'Brien's fit corrected for the noise on the rotations (:mod:`calibration.eiv`).
+
+    The same determined directions and single-axis verdict as :func:`estimate_obrien`; the centre
+    solves ``(A^T A - 2 F D) x = A^T b`` (corrected least squares, Fuller 1987), which removes the
+    errors-in-variables bias that rotation noise puts into the plain fit.
+
+    Args:
+        R_w_p: ``(frames, 3, 3)`` parent sensor rotations, sensor to world.
+        p_w_p: ``(frames, 3)`` parent sensor positions in world, metres.
+        R_w_c: ``(frames, 3, 3)`` child sensor rotations, sensor to world.
+        p_w_c: ``(frames, 3)`` child sensor positions in world, metres.
+        valid: optional ``(frames,)`` bool; frames marked False are not used (and may hold NaN).
+        orientation_noise_rad2: ``(sigma_p^2, sigma_c^2)`` per rotation-vector component, rad^2;
+            ``None`` reads each from its sensor's own rotations
+            (:func:`calibration.eiv.orientation_noise_variance`).
+
+    Returns:
+        As :func:`estimate_obrien`, method ``"obrien-eiv"``; ``fit.orientation_noise_rad2`` holds
+        the variances used.
+
+    Raises:
+        CalibrationInputError: malformed arrays or variances, NaN in a used frame, too few frames.
+        CalibrationError: as :func:`estimate_obrien`, or the noise swamps the motion along a
+            determined direction, or too few consecutive frames to read the noise from.
+    """
+    pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
+    _check_rank(fit_joint(pair.R_w_p, pair.p_w_p, pair.R_w_c, pair.p_w_c, valid=pair.used))
+    if orientation_noise_rad2 is None:
+        orientation_noise_rad2 = (
+            orientation_noise_variance(pair.R_w_p, pair.used),
+            orientation_noise_variance(pair.R_w_c, pair.used),
+        )
+    fit = fit_joint(
+        pair.R_w_p,
+        pair.p_w_p,
+        pair.R_w_c,
+        pair.p_w_c,
+        valid=pair.used,
+        orientation_noise_rad2=orientation_noise_rad2,
+    )
+    return _obrien_estimate("obrien-eiv", fit)
+
+
+def _check_rank(fit: JointFit) -> None:
     if fit.rank < 5:
         raise CalibrationError(
             f"O'Brien's fit needs the child to rotate relative to the parent: the motion determines "
             f"{fit.rank} of the 6 coordinates of the joint (needs 5)"
         )
+
+
+def _obrien_estimate(method: str, fit: JointFit) -> JointEstimate:
     return JointEstimate(
-        method="obrien",
+        method=method,
         joint_in_parent=fit.joint_in_parent,
         joint_in_child=fit.joint_in_child,
         axis_in_parent=fit.axis_in_parent,
@@ -350,6 +412,7 @@ def estimate_inertial(
 #: The pose-based estimators by name, all with the common signature (module docstring).
 JOINT_METHODS: dict[str, PoseMethod] = {
     "obrien": estimate_obrien,
+    "obrien-eiv": estimate_obrien_eiv,
     "score": estimate_score,
     "sara": estimate_sara,
     "sphere-gamage-lasenby": partial(estimate_sphere, variant="gamage-lasenby"),
@@ -370,6 +433,7 @@ __all__ = [
     "angular_acceleration",
     "estimate_inertial",
     "estimate_obrien",
+    "estimate_obrien_eiv",
     "estimate_sara",
     "estimate_score",
     "estimate_sphere",
