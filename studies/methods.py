@@ -15,7 +15,8 @@ the measured gyroscopes and accelerometers of the same two sensors. Measured per
 - limb-length error: every distance between two joint centres of one segment in its sensor frame
   (:func:`calibration.skeleton.segment_lengths`) against the true one, mm;
 - run time of the fit, ms (BLAS on one thread);
-- for O'Brien: whether the 95 % region of :func:`calibration.uncertainty.joint_covariance`
+- for O'Brien (plain, and corrected for the rotations' noise: ``obrien-eiv``): whether the 95 %
+  region of :func:`calibration.uncertainty.joint_covariance`
   (batch means and iid) holds the truth (its determined part, for a fit that found a hinge), in
   each frame; the coverage is the share of regions that do.
 
@@ -30,6 +31,7 @@ import argparse
 import json
 import math
 import re
+import sys
 import tempfile
 import time
 import warnings
@@ -43,8 +45,10 @@ from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import hierarchy_from_parents
 from calibration.methods import JOINT_METHODS, JointEstimate, estimate_inertial
 from calibration.skeleton import joint_name, segment_lengths
-from calibration.uncertainty import covers, joint_covariance
+from calibration.uncertainty import holds_truth, joint_covariance
 from simbench.errors import load_toml
+from simbench.experiments.pool import worker_pool
+from simbench.io.atomic import atomic_write_text
 from simbench.io.dataset import Dataset
 from simbench.sim.programs import HUMANOID_MOTION
 from simbench.sim.sensor_config import PRESETS_DIR, parse_sensor_config
@@ -59,6 +63,11 @@ METHODS = (*JOINT_METHODS, "inertial")
 
 #: The O'Brien fit's covariance estimators whose 95 % regions are checked.
 COVERAGE_METHODS = ("batch-means", "iid")
+
+#: The methods whose fit is a :class:`calibration.joint.JointFit`, so that
+#: :func:`calibration.uncertainty.joint_covariance` gives their regions: O'Brien's plain least
+#: squares and the same corrected for the rotations' noise.
+COVERED = ("obrien", "obrien-eiv")
 
 
 def load_config(path: Path = CONFIG) -> dict:
@@ -130,18 +139,12 @@ def _timed(fn, *args, **kwargs) -> tuple[JointEstimate | None, float, str | None
 def _coverage(Rp, pp, Rc, pc, valid, est: JointEstimate, tp: np.ndarray, tc: np.ndarray) -> dict:
     """Whether each covariance estimator's 95 % region holds the truth, per frame."""
     out = {}
-    x_hat = np.concatenate([est.joint_in_parent, est.joint_in_child])
-    x_true = np.concatenate([tp, tc])
     for method in COVERAGE_METHODS:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             unc = joint_covariance(Rp, pp, Rc, pc, est.fit, valid=valid, method=method)
-        V = unc.basis  # a hinge's centre is measured only along the determined directions
-        e, t = V @ (V.T @ x_hat), V @ (V.T @ x_true)
-        out[method] = {
-            "parent": bool(covers(e[:3], t[:3], unc.cov_in_parent, dof=unc.dof_in_parent)),
-            "child": bool(covers(e[3:], t[3:], unc.cov_in_child, dof=unc.dof_in_child)),
-        }
+        parent, child = holds_truth(unc, tp, tc)
+        out[method] = {"parent": parent, "child": child}
     return out
 
 
@@ -161,8 +164,8 @@ def evaluate_session(ds: Dataset) -> dict:
         ``"axis_distance_parent_mm"``, ``"axis_distance_child_mm"`` (the truth's distance from the
         fitted axis; NaN for a fit without one), ``"time_ms"``, an ``(L,)`` list
         ``"length_error_mm"`` (NaN where a joint failed), ``"failures"`` ``{joint: message}``
-        (errors NaN there) and, for O'Brien, ``"coverage"`` ``{estimator: {"parent": (J,) bool,
-        "child": (J,) bool}}`` (``None`` where the fit failed).
+        (errors NaN there) and, for the methods of :data:`COVERED`, ``"coverage"``
+        ``{estimator: {"parent": (J,) bool, "child": (J,) bool}}`` (``None`` where the fit failed).
     """
     names = ds.sensors
     joints = hierarchy_from_parents(ds.truth.parent_of, names).joints
@@ -183,7 +186,9 @@ def evaluate_session(ds: Dataset) -> dict:
     est_p = {m: np.full((n, 3), np.nan) for m in METHODS}
     est_c = {m: np.full((n, 3), np.nan) for m in METHODS}
     failures: dict[str, dict[str, str]] = {m: {} for m in METHODS}
-    coverage: dict[str, dict[str, list]] = {c: {"parent": [], "child": []} for c in COVERAGE_METHODS}
+    coverage: dict[str, dict[str, dict[str, list]]] = {
+        m: {c: {"parent": [], "child": []} for c in COVERAGE_METHODS} for m in COVERED
+    }
     joint_names = [joint_name(names[a], names[b]) for a, b in joints]
     for k, (a, b) in enumerate(joints):
         valid = poses.valid[:, a] & poses.valid[:, b]
@@ -200,10 +205,10 @@ def evaluate_session(ds: Dataset) -> dict:
             col["time_ms"][k] = ms
             if est is None:
                 failures[method][joint_names[k]] = str(failure)
-                if method == "obrien":
+                if method in COVERED:
                     for c in COVERAGE_METHODS:
-                        coverage[c]["parent"].append(None)
-                        coverage[c]["child"].append(None)
+                        coverage[method][c]["parent"].append(None)
+                        coverage[method][c]["child"].append(None)
                 continue
             est_p[method][k], est_c[method][k] = est.joint_in_parent, est.joint_in_child
             col["error_parent_mm"][k] = 1e3 * np.linalg.norm(est.joint_in_parent - tp)
@@ -215,10 +220,10 @@ def evaluate_session(ds: Dataset) -> dict:
                 col["axis_distance_child_mm"][k] = 1e3 * _line_distance(
                     tc, est.joint_in_child, est.axis_in_child
                 )
-            if method == "obrien":
+            if method in COVERED:
                 for c, by_frame in _coverage(*args, valid, est, tp, tc).items():
-                    coverage[c]["parent"].append(by_frame["parent"])
-                    coverage[c]["child"].append(by_frame["child"])
+                    coverage[method][c]["parent"].append(by_frame["parent"])
+                    coverage[method][c]["child"].append(by_frame["child"])
     children = [b for _, b in joints]
     truth_lengths = segment_lengths(names, joints, true_p[children], true_c[children])
     out: dict = {
@@ -233,8 +238,8 @@ def evaluate_session(ds: Dataset) -> dict:
             1e3 * abs(s.length - t.length) for s, t in zip(lengths, truth_lengths, strict=True)
         ]
         row["failures"] = failures[method]
-        if method == "obrien":
-            row["coverage"] = coverage
+        if method in COVERED:
+            row["coverage"] = coverage[method]
         out["methods"][method] = row
     return out
 
@@ -261,11 +266,13 @@ def summarise(trials: Sequence[dict]) -> dict:
             "n_fits": int(times.size),
             "failures": sum(len(r["failures"]) for r in rows),
         }
-        if method == "obrien":
-            summary["coverage95"] = {
-                c: _share([h for r in rows for part in ("parent", "child") for h in r["coverage"][c][part]])
+        if method in COVERED:
+            hits = {
+                c: [h for r in rows for part in ("parent", "child") for h in r["coverage"][c][part]]
                 for c in COVERAGE_METHODS
             }
+            summary["coverage95"] = {c: _share(h) for c, h in hits.items()}
+            summary["coverage95"]["regions"] = sum(h is not None for h in hits[COVERAGE_METHODS[0]])
         out[method] = summary
     return out
 
@@ -288,6 +295,8 @@ def run_study(
     *,
     conditions: Sequence[str] | None = None,
     config: dict | None = None,
+    workers: int = 1,
+    keep_trials: bool = True,
 ) -> dict:
     """Every condition (all, or those named) for every seed: the JSON document of the study.
 
@@ -295,10 +304,10 @@ def run_study(
         ``{"study", "versions", "config": {"seeds", "duration_s", "rate_hz", "methods",
         "conditions", "slip", "small_range"}, "summary": {condition: {method: ...}},
         "trials": {condition: [{"seed", "frames", "joints", "length_pairs", "methods"}]}}``
-        (a trial as :func:`evaluate_session` gives it).
+        (a trial as :func:`evaluate_session` gives it; ``{}`` without ``keep_trials``). The
+        sessions are independent: ``workers > 1`` runs them on a process pool, with the same
+        output.
     """
-    from threadpoolctl import threadpool_limits  # optional (simbench[studies])
-
     cfg = load_config() if config is None else config
     chosen = [c for c in cfg["condition"] if conditions is None or c["name"] in conditions]
     if conditions is not None and len(chosen) != len(conditions):
@@ -320,16 +329,28 @@ def run_study(
         "summary": {},
         "trials": {},
     }
-    with tempfile.TemporaryDirectory() as tmp, threadpool_limits(limits=1):
-        for condition in chosen:
-            trials = []
-            for seed in seeds:
-                ds = simulate(condition, cfg, duration_s, int(seed), Path(tmp))
-                trial = {"seed": int(seed), "frames": int(ds.time_s.size), **evaluate_session(ds)}
-                trials.append(trial)
+    jobs = [(condition, cfg, float(duration_s), int(seed)) for condition in chosen for seed in seeds]
+    if workers > 1:
+        with worker_pool(workers) as pool:
+            done = list(pool.map(_trial, jobs, chunksize=4))
+    else:
+        done = list(map(_trial, jobs))
+    for i, condition in enumerate(chosen):
+        trials = done[i * len(seeds) : (i + 1) * len(seeds)]
+        if keep_trials:
             doc["trials"][condition["name"]] = trials
-            doc["summary"][condition["name"]] = summarise(trials)
+        doc["summary"][condition["name"]] = summarise(trials)
     return doc
+
+
+def _trial(job: tuple[dict, dict, float, int]) -> dict:
+    """One condition's session for one seed, every method on it (BLAS on one thread)."""
+    from threadpoolctl import threadpool_limits  # optional (simbench[studies])
+
+    condition, cfg, duration_s, seed = job
+    with tempfile.TemporaryDirectory() as tmp, threadpool_limits(limits=1):
+        ds = simulate(condition, cfg, duration_s, seed, Path(tmp))
+        return {"seed": seed, "frames": int(ds.time_s.size), **evaluate_session(ds)}
 
 
 def table(doc: dict) -> str:
@@ -394,14 +415,25 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=20.0, help="session length, s")
     parser.add_argument("--condition", action="append", help="run only this condition (repeatable)")
     parser.add_argument("--json", metavar="OUT")
+    parser.add_argument("--workers", type=int, default=1, help="processes (the sessions are independent)")
+    parser.add_argument(
+        "--summary-only", action="store_true", help="leave the per-trial detail out of the JSON"
+    )
     args = parser.parse_args()
     t0 = time.perf_counter()
-    doc = run_study(range(1, args.seeds + 1), args.duration, conditions=args.condition)
+    doc = run_study(
+        range(1, args.seeds + 1),
+        args.duration,
+        conditions=args.condition,
+        workers=args.workers,
+        keep_trials=not args.summary_only,
+    )
     doc["seconds"] = time.perf_counter() - t0
+    doc["command"] = " ".join(["studies/methods.py", *sys.argv[1:]])
     print(table(doc))
     print(f"\n{args.seeds} seeds x {args.duration:g} s per condition; {doc['seconds']:.0f} s in all")
     if args.json:
-        Path(args.json).write_text(json_text(doc))
+        atomic_write_text(args.json, json_text(doc))
 
 
 if __name__ == "__main__":

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
-import runpy
+import sys
 from pathlib import Path
 
 import pytest
@@ -21,7 +22,14 @@ EXACT_MM = 1e-3
 
 @pytest.fixture(scope="module")
 def study():
-    return runpy.run_path(str(SCRIPT), run_name="study_script")
+    # imported as a module (not run from its path) so that a process pool's workers find its
+    # functions by name
+    spec = importlib.util.spec_from_file_location("methods_study", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["methods_study"] = module
+    spec.loader.exec_module(module)
+    yield vars(module)
+    sys.modules.pop("methods_study", None)
 
 
 @pytest.fixture(scope="module")
@@ -46,9 +54,21 @@ def test_pose_methods_recover_the_truth_on_ideal_data(doc):
     for method, row in trial["methods"].items():
         assert len(row["time_ms"]) == 15 and min(row["time_ms"]) > 0, method
         assert len(row["length_error_mm"]) == len(trial["length_pairs"])
-    coverage = trial["methods"]["obrien"]["coverage"]
-    assert set(coverage) == {"batch-means", "iid"}
-    assert all(len(c[part]) == 15 for c in coverage.values() for part in ("parent", "child"))
+    for method in ("obrien", "obrien-eiv"):
+        coverage = trial["methods"][method]["coverage"]
+        assert set(coverage) == {"batch-means", "iid"}
+        assert all(len(c[part]) == 15 for c in coverage.values() for part in ("parent", "child"))
+
+
+def test_a_process_pool_gives_the_same_study(study):
+    one = study["run_study"]([1, 2], 1.5, conditions=[CONDITION])
+    pooled = study["run_study"]([1, 2], 1.5, conditions=[CONDITION], workers=2, keep_trials=False)
+    assert pooled["trials"] == {}
+    for method, a in one["summary"][CONDITION].items():
+        b = pooled["summary"][CONDITION][method]
+        assert {k: v for k, v in a.items() if k != "time_ms"} == {
+            k: v for k, v in b.items() if k != "time_ms"
+        }
 
 
 def test_json_and_table_are_complete(study, doc):
@@ -61,7 +81,7 @@ def test_json_and_table_are_complete(study, doc):
     for method, s in summary.items():
         assert {"joint_error_mm", "axis_distance_mm", "length_error_mm", "time_ms", "coverage95"} <= set(s)
         assert s["n_fits"] == 15 and s["failures"] == 0
-        assert (s["coverage95"] is not None) == (method == "obrien")
+        assert (s["coverage95"] is not None) == (method in ("obrien", "obrien-eiv"))
     back = json.loads(study["json_text"](doc))  # strict JSON (NaN written as null), rounded
     assert back["summary"][CONDITION]["obrien"]["n_fits"] == 15
     assert back["trials"][CONDITION][0]["joints"] == doc["trials"][CONDITION][0]["joints"]

@@ -26,17 +26,20 @@ trials run on a process pool). Seeds are fixed: the same version gives the same 
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from calibration import calibrate, detect_slip, fit_joint
-from calibration.methods import JOINT_METHODS
-from calibration.uncertainty import covers, joint_covariance
+from calibration.errors import CalibrationError
+from calibration.methods import JOINT_METHODS, estimate_obrien_eiv
+from calibration.uncertainty import holds_truth, joint_covariance
 from simbench.experiments.decisions import run_decisions
 from simbench.experiments.metrics import joint_method_metrics, true_joints
 from simbench.experiments.obrien import (
@@ -379,6 +382,39 @@ METHODS_CONDITIONS = (
 )
 
 
+#: The joint-centre methods study at 200 seeds per condition (``studies/methods.py``), as a
+#: checkout ships it; the report quotes its coverage when the file is there.
+COVERAGE_STUDY = Path(__file__).resolve().parents[2] / "studies" / "results" / "methods_coverage_200.json"
+
+
+def coverage_study(path: Path = COVERAGE_STUDY) -> dict[str, Any] | None:
+    """The coverage of the study's 95 % regions per noisy condition, or ``None`` without the file.
+
+    Returns:
+        ``{"seeds", "duration_s", "command", "file", "conditions": {name: {"shares": [O'Brien
+        batch means, O'Brien iid, corrected batch means, corrected iid], "regions"}}}``.
+    """
+    if not path.is_file():
+        return None
+    doc = json.loads(path.read_text())
+    conditions = {}
+    for name, by_method in doc["summary"].items():
+        if name.endswith("/ ideal"):  # exact data: every region is a point that holds the truth
+            continue
+        cover = [by_method[m]["coverage95"] for m in ("obrien", "obrien-eiv")]
+        conditions[name] = {
+            "shares": [c[k] for c in cover for k in ("batch-means", "iid")],
+            "regions": int(cover[0]["regions"]),
+        }
+    return {
+        "seeds": len(doc["config"]["seeds"]),
+        "duration_s": doc["config"]["duration_s"],
+        "command": doc.get("command", "studies/methods.py"),
+        "file": f"studies/results/{path.name}",
+        "conditions": conditions,
+    }
+
+
 def _joint_methods(plan: Plan) -> dict[str, Any]:
     """Every joint-centre method of :mod:`calibration.methods` on the same seeded sessions (the
     true hierarchy), and how often O'Brien's 95 % regions hold the true centre: batch means
@@ -387,7 +423,7 @@ def _joint_methods(plan: Plan) -> dict[str, Any]:
     out: dict[str, Any] = {"seeds": plan.methods_seeds, "duration_s": plan.methods_s, "conditions": {}}
     for label, model, preset in METHODS_CONDITIONS:
         rows: dict[str, list[dict[str, float]]] = {m: [] for m in JOINT_METHODS}
-        hits = {"batch-means": [0, 0], "iid": [0, 0]}
+        hits = {"batch-means": [0, 0], "iid": [0, 0], "eiv": [0, 0]}
         for seed in range(41, 41 + plan.methods_seeds):
             config = SessionConfig(
                 model=model, motion="exercise", duration_s=plan.methods_s, seed=seed, sensors=preset
@@ -408,27 +444,36 @@ def _joint_methods(plan: Plan) -> dict[str, Any]:
             },
             "coverage": {k: {"covered": h[0], "regions": h[1]} for k, h in hits.items()},
         }
+    out["study"] = coverage_study()
     return out
 
 
 def _coverage(ds: Any, hits: dict[str, list[int]]) -> None:
     """Add the session's O'Brien regions (both frames of every joint of the true hierarchy) that
-    hold the true centre, by each covariance method, to ``hits`` (``[covered, regions]``)."""
+    hold the true centre to ``hits`` (``[covered, regions]``): for the plain fit by each
+    covariance method (``"batch-means"``, ``"iid"``), and for the fit corrected for the rotations'
+    noise (:mod:`calibration.eiv`) by batch means (``"eiv"``)."""
     rec = ds.poses()
-    scale = ds.position_unit_scale
+    p = rec.p_w_s * ds.position_unit_scale  # metres
     true_p, true_c = ds.truth_joint_arrays()
     for k, child in true_joints(ds):
-        args = (rec.R_w_s[:, k], rec.p_w_s[:, k], rec.R_w_s[:, child], rec.p_w_s[:, child])
+        args = (rec.R_w_s[:, k], p[:, k], rec.R_w_s[:, child], p[:, child])
         valid = rec.valid[:, k] & rec.valid[:, child]
-        fit = fit_joint(*args, valid=valid)
-        for method in hits:
+        fits = {"batch-means": fit_joint(*args, valid=valid)}
+        fits["iid"] = fits["batch-means"]
+        try:
+            fits["eiv"] = estimate_obrien_eiv(*args, valid=valid).fit
+        except CalibrationError:
+            fits["eiv"] = None
+        for key in hits:
+            fit = fits[key]
+            if fit is None:
+                continue
+            method = "iid" if key == "iid" else "batch-means"
             unc = joint_covariance(*args, fit, valid=valid, method=method)
-            for est, truth, cov, dof in (
-                (fit.joint_in_parent, true_p[child], unc.cov_in_parent, unc.dof_in_parent),
-                (fit.joint_in_child, true_c[child], unc.cov_in_child, unc.dof_in_child),
-            ):
-                hits[method][0] += int(covers(est * scale, truth, cov * scale**2, dof=dof))
-                hits[method][1] += 1
+            for held in holds_truth(unc, true_p[child], true_c[child]):
+                hits[key][0] += int(held)
+                hits[key][1] += 1
 
 
 class _Here:

@@ -268,24 +268,48 @@ def _joint_methods(methods: dict[str, Any] | None) -> list[str]:
     rows = []
     for label, c in conditions.items():
         cov = c["coverage"]
-        rows.append(
-            [
-                label,
-                *[
-                    f"{100 * cov[k]['covered'] / max(cov[k]['regions'], 1):.0f} % of {cov[k]['regions']}"
-                    for k in ("batch-means", "iid")
-                ],
-            ]
-        )
+        rows.append([label, *[_share(cov[k]) for k in ("batch-means", "iid", "eiv") if k in cov]])
     out += [
         "O'Brien's 95 % regions (both sensor frames of every joint) that hold the true centre: "
         "batch means over blocks long against the residual's correlation (`calibration.uncertainty`, "
-        "the default of `simbench calibrate --intervals`) against i.i.d. residuals. Target 93-97 %.",
+        "the default of `simbench calibrate --intervals`) against i.i.d. residuals; and the fit "
+        "corrected for the rotations' noise (`obrien-eiv`, `calibration.eiv`), batch means. "
+        "Target 93-97 %.",
         "",
-        markdown_table(["session", "batch means", "i.i.d."], rows),
+        markdown_table(
+            ["session", "O'Brien, batch means", "O'Brien, i.i.d.", "corrected, batch means"], rows
+        ),
         "",
     ]
+    study = methods.get("study")
+    if study:
+        out += [
+            f"Over {study['seeds']} seeds per condition ({study['duration_s']:g} s sessions; "
+            f"`{study['command']}`, `{study['file']}`), the share of 95 % regions that hold the "
+            "true centre:",
+            "",
+            markdown_table(
+                [
+                    "condition",
+                    "O'Brien, batch means",
+                    "O'Brien, i.i.d.",
+                    "corrected, batch means",
+                    "corrected, i.i.d.",
+                    "regions",
+                ],
+                [
+                    [name, *[f"{100 * v:.1f} %" for v in row["shares"]], str(row["regions"])]
+                    for name, row in study["conditions"].items()
+                ],
+            ),
+            "",
+        ]
     return out
+
+
+def _share(hits: dict[str, int]) -> str:
+    """``covered / regions`` as a percentage with the count."""
+    return f"{100 * hits['covered'] / max(hits['regions'], 1):.0f} % of {hits['regions']}"
 
 
 def _figures_and_provenance(results: dict[str, Any], images: dict[str, str]) -> list[str]:
