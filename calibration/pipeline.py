@@ -29,7 +29,13 @@ Two options leave the default path untouched (neither runs unless asked for):
   were rejected, and it is centred on the robust centre (whose scores over the inliers need not
   sum to zero, which makes it slightly conservative).
 
-Both hold each joint's pair of sensors in memory (``frames x 24`` floats) and, for a robust
+- ``correct_rotation_noise=True``: the tree's joints are refitted by O'Brien's least squares
+  corrected for the noise on the rotations (:mod:`calibration.eiv`: the errors-in-variables bias
+  that pulls a centre toward the sensors along weakly exercised directions), each sensor's noise
+  read off its own rotations (:func:`calibration.eiv.orientation_noise_variance`), with the same
+  single-axis verdicts; the intervals are then the corrected fit's. Not with ``robust``.
+
+All three hold each joint's pair of sensors in memory (``frames x 24`` floats) and, for a robust
 inferred hierarchy, all the poses.
 
 Memory is bounded by the chunk size (plus ``frames x joints`` floats when per-frame residuals
@@ -38,6 +44,7 @@ are kept), so the input may be an h5py dataset or a memory map larger than memor
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -46,6 +53,7 @@ from typing import Any
 import numpy as np
 
 from calibration.diagnostics import motion_warnings, outlier_warnings
+from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import (
     HIERARCHY_METHODS,
@@ -56,7 +64,7 @@ from calibration.hierarchy import (
     misfit_weights,
     spanning_tree,
 )
-from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit
+from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit, fit_joint
 from calibration.pair_noise import pair_noise_variance
 from calibration.pairs import (
     PairSolutions,
@@ -141,6 +149,8 @@ class Calibration:
         length_uncertainty: with intervals, one entry per ``lengths`` (same order): the length's
             95 % interval, or ``None`` where a joint of the segment has no uncertainty (or the
             centres coincide); empty without intervals.
+        rotation_noise_rad2: ``{sensor: sigma^2}`` the rotation noise (rad^2, per component) the
+            joints were corrected for (``correct_rotation_noise``), or ``None``.
     """
 
     names: tuple[str, ...]
@@ -158,6 +168,7 @@ class Calibration:
     hierarchy_method: str = HIERARCHY_METHODS[0]
     robust: str | None = None
     length_uncertainty: tuple[LengthUncertainty | None, ...] = ()
+    rotation_noise_rad2: dict[str, float] | None = None
 
     @property
     def root(self) -> str:
@@ -198,6 +209,7 @@ def calibrate(
     keep_frame_residuals: bool = True,
     robust: str | None = None,
     intervals: bool = False,
+    correct_rotation_noise: bool = False,
 ) -> Calibration:
     """Estimate joints, hierarchy, limb lengths and sensor placement from sensor poses.
 
@@ -227,11 +239,15 @@ def calibrate(
             (the default) for least squares.
         intervals: give every joint a covariance with 95 % regions and every limb length a 95 %
             interval (module docstring); for a robust fit they are conditional on its inliers.
+        correct_rotation_noise: refit the tree's joints corrected for the rotations' noise
+            (module docstring); a joint whose motion is too small for its noise keeps the plain
+            fit, with a warning.
 
     Raises:
         CalibrationInputError: malformed arrays or options.
         CalibrationError: the data cannot be calibrated (fewer than 3 frames, one sensor,
-            sensors that share no usable frames).
+            sensors that share no usable frames); with ``correct_rotation_noise``, a sensor whose
+            rotations give no noise level (too few consecutive frames, or not a time series).
     """
     t0 = time.perf_counter()
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
@@ -243,6 +259,10 @@ def calibrate(
         )
     if robust is not None and robust not in LOSSES:
         raise CalibrationInputError(f"robust must be None or one of {list(LOSSES)}, got {robust!r}")
+    if robust is not None and correct_rotation_noise:
+        raise CalibrationInputError(
+            "robust and correct_rotation_noise cannot be combined: the correction is for least squares"
+        )
     stats, missing = _pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
     t1 = time.perf_counter()
 
@@ -271,8 +291,13 @@ def calibrate(
     pairs = tree.joints
     joints = [_joint(names, sol, k, rms, per_frame, n_frames, single_axis_ratio) for k in range(len(pairs))]
     refine_s = 0.0
-    if robust is not None or intervals:
+    refit = robust is not None or correct_rotation_noise
+    noise: dict[str, float] = {}
+    refit_warnings: list[str] = []
+    if refit or intervals:
         t_refine = time.perf_counter()
+        if correct_rotation_noise:
+            noise = _rotation_noise(R_w_s, valid, names, {s for pair in pairs for s in pair})
         joints = [
             _refined_joint(
                 R_w_s,
@@ -284,6 +309,8 @@ def calibrate(
                 intervals=intervals,
                 keep_frame_residuals=keep_frame_residuals,
                 single_axis_ratio=single_axis_ratio,
+                noise=(noise[joint.parent], noise[joint.child]) if noise else None,
+                warnings=refit_warnings,
             )
             for joint in joints
         ]
@@ -291,19 +318,19 @@ def calibrate(
     loops = tuple(
         (names[a], names[b], r) for a, b, r in loop_candidates(residual, tree, loop_factor=loop_factor)
     )
-    warnings = _warnings(joints, names, missing, loops, n_frames)
+    warnings = _warnings(joints, names, missing, loops, n_frames) + refit_warnings
     warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames)
     lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
-    if robust is not None:
+    if refit:
         lp = np.array([j.fit.joint_in_parent for j in joints]).reshape(-1, 3)
         lc = np.array([j.fit.joint_in_child for j in joints]).reshape(-1, 3)
     lengths = tuple(segment_lengths(names, pairs, lp, lc))
     length_unc = _length_uncertainties(lengths, joints) if intervals else ()
     t4 = time.perf_counter()
     seconds = {"pair_statistics": t1 - t0, "hierarchy": t2 - t1, "joints": t3 - t2, "skeleton": t4 - t3}
-    if robust is not None or intervals:  # the robust refits and intervals, out of the skeleton's time
+    if refit or intervals:  # the refits and intervals, out of the skeleton's time
         seconds["skeleton"] -= refine_s
-        seconds["robust_and_intervals"] = refine_s
+        seconds["refits_and_intervals"] = refine_s
     seconds["total"] = t4 - t0
     return Calibration(
         names=names,
@@ -321,6 +348,7 @@ def calibrate(
         hierarchy_method=hierarchy_method,
         robust=robust,
         length_uncertainty=length_unc,
+        rotation_noise_rad2=noise or None,
     )
 
 
@@ -476,8 +504,12 @@ def _refined_joint(
     intervals: bool,
     keep_frame_residuals: bool,
     single_axis_ratio: float,
+    noise: tuple[float, float] | None,
+    warnings: list[str],
 ) -> Joint:
-    """The joint refitted robustly (when ``robust``) and given its uncertainty (when ``intervals``)."""
+    """The joint refitted robustly (when ``robust``) or corrected for the rotation noise ``noise``
+    (``(parent, child)`` variances, rad^2), and given its uncertainty (when ``intervals``); a
+    correction that cannot be made leaves the plain fit and adds to ``warnings``."""
     R_w_p, p_w_p, R_w_c, p_w_c, both = _pair_arrays(
         R_w_s, p_w_s, valid, names.index(joint.parent), names.index(joint.child)
     )
@@ -487,6 +519,22 @@ def _refined_joint(
             R_w_p, p_w_p, R_w_c, p_w_c, valid=both, loss=robust, single_axis_ratio=single_axis_ratio
         )
         fit = _robust_joint_fit(rob, joint.fit, keep_frame_residuals)
+    elif noise is not None:
+        try:
+            fit = fit_joint(
+                R_w_p,
+                p_w_p,
+                R_w_c,
+                p_w_c,
+                valid=both,
+                single_axis_ratio=single_axis_ratio,
+                orientation_noise_rad2=noise,
+            )
+        except CalibrationError as err:
+            warnings.append(f"{joint.name}: not corrected for rotation noise ({err})")
+        else:
+            if not keep_frame_residuals:
+                fit = dataclasses.replace(fit, frame_residual=None)
     if intervals:
         if rob is None:
             unc = joint_covariance(R_w_p, p_w_p, R_w_c, p_w_c, fit, valid=both)
@@ -495,6 +543,22 @@ def _refined_joint(
                 R_w_p, p_w_p, R_w_c, p_w_c, _inlier_fit(rob, R_w_p, R_w_c), valid=rob.inlier
             )
     return Joint(joint.parent, joint.child, fit, uncertainty=unc, robust_fit=rob)
+
+
+def _rotation_noise(R_w_s: Any, valid: Any, names: tuple[str, ...], used: set[int]) -> dict[str, float]:
+    """``{name: sigma^2}`` each used sensor's rotation noise, rad^2, read off its own rotations.
+
+    Raises:
+        CalibrationError: a sensor's rotations give no noise level (the sensor is named).
+    """
+    out = {}
+    for k in sorted(used):
+        mask = None if valid is None else np.asarray(valid[:, k], dtype=bool)
+        try:
+            out[names[k]] = orientation_noise_variance(np.asarray(R_w_s[:, k], dtype=float), mask)
+        except CalibrationError as err:
+            raise CalibrationError(f"sensor {names[k]!r}: {err}") from None
+    return out
 
 
 def _robust_joint_fit(rob: RobustJointFit, ls: JointFit, keep_frame_residuals: bool) -> JointFit:

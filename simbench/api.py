@@ -97,6 +97,7 @@ def calibrate(
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
     robust: str | None = None,
     intervals: bool = False,
+    correct_rotation_noise: bool = False,
 ) -> Calibration:
     """Joint centres, hierarchy, limb lengths and sensor placement from a recording's poses
     (O'Brien et al. 2000; :func:`calibration.calibrate` does the same on bare arrays).
@@ -112,6 +113,8 @@ def calibrate(
             least squares (:mod:`calibration.robust`).
         intervals: give each joint a covariance with 95 % regions and each limb length a 95 %
             interval (:mod:`calibration.uncertainty`; for robust fits, conditional on the inliers).
+        correct_rotation_noise: correct the joints for the noise on the rotations
+            (:mod:`calibration.eiv`; not with ``robust``).
 
     Returns:
         The calibration, lengths in the recording's position units (the tracker's).
@@ -130,6 +133,7 @@ def calibrate(
         single_axis_ratio=single_axis_ratio,
         robust=robust,
         intervals=intervals,
+        correct_rotation_noise=correct_rotation_noise,
     )
 
 

@@ -68,6 +68,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "--robust, conditional on the inlier frames), in the table and the JSON"
         ),
     )
+    cal.add_argument(
+        "--correct-rotation-noise",
+        action="store_true",
+        help=(
+            "correct the joints for the noise on the measured rotations, read off each sensor's own "
+            "rotations (it biases least squares where a joint moved little); not with --robust"
+        ),
+    )
     cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
     cal.add_argument(
         "--clusters",
@@ -175,6 +183,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             single_axis_ratio=args.single_axis_ratio,
             robust=args.robust,
             intervals=args.intervals,
+            correct_rotation_noise=args.correct_rotation_noise,
         )
     except CalibrationError as exc:  # the data (or the hierarchy given) cannot be calibrated
         raise InputError(
@@ -205,6 +214,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "single_axis_ratio": args.single_axis_ratio,
                 "robust": args.robust,
                 "intervals": args.intervals,
+                "correct_rotation_noise": args.correct_rotation_noise,
                 "slip_window_s": None if args.no_slip else args.slip_window,
                 "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,
             },

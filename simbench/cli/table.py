@@ -41,6 +41,9 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
             f"  {j.parent + ' -> ' + j.child:<34}{fit.rms_residual * 1e3:>9.3f}{mx * 1e3:>9.3f}"
             f"{cond:>8}  {axis:<12}{fit.n_frames:>8}"
         )
+    if cal.rotation_noise_rad2:
+        noise = ", ".join(f"{s} {np.degrees(np.sqrt(v)):.3f}" for s, v in cal.rotation_noise_rad2.items())
+        lines += ["", f"  corrected for rotation noise (deg rms per axis, read off each sensor): {noise}"]
     if any(j.uncertainty is not None for j in cal.joints):
         lines += _interval_lines(cal)
     lines += ["", f"  {'limb lengths (cm)':<22}{'from joint':<30}{'to joint':<30}{'length':>8}"]

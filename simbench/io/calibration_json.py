@@ -20,7 +20,11 @@ otherwise ignores them):
 - per limb length ``"ci95_m"``: ``[lo, hi]`` its 95 % interval, metres, and ``"uncertainty"``
   (:func:`calibration.uncertainty.length_to_json`), or both ``null`` where a joint of the segment
   has none;
-- top level ``"robust"``: the loss, or ``null`` for least squares (written only with ``--robust``).
+- top level ``"robust"``: the loss, or ``null`` for least squares (written only with ``--robust``);
+- per joint ``"orientation_noise_rad2"`` and top level ``"rotation_noise_rad2"``
+  (``--correct-rotation-noise``): the rotation-noise variances (rad^2 per rotation-vector
+  component) the joint was corrected for, ``[parent, child]``, and every sensor's
+  ``{name: variance}`` (:mod:`calibration.eiv`).
 
 :func:`read_calibration_json` reads such a file back (checking the fields the readers need) and
 :func:`calibration_joints` turns its joints into arrays indexed by a recording's sensors.
@@ -93,6 +97,8 @@ def _optional_joint_fields(joint: Joint) -> dict[str, Any]:
     out: dict[str, Any] = {}
     if joint.uncertainty is not None:
         out["uncertainty"] = to_json(joint.uncertainty)
+    if max(joint.fit.orientation_noise_rad2) > 0.0:
+        out["orientation_noise_rad2"] = [float(v) for v in joint.fit.orientation_noise_rad2]
     rob = joint.robust_fit
     if rob is not None:
         out["robust"] = {
@@ -205,6 +211,8 @@ def calibration_to_dict(
     }
     if cal.robust is not None:
         doc["robust"] = cal.robust
+    if cal.rotation_noise_rad2:
+        doc["rotation_noise_rad2"] = {k: float(v) for k, v in cal.rotation_noise_rad2.items()}
     return doc
 
 
@@ -239,6 +247,16 @@ def _check_joint(path: Path, k: int, joint: Any) -> None:
     for key in ("uncertainty", "robust"):  # optional: accepted, not used by the readers
         if not isinstance(joint.get(key), dict | None):
             raise InputError(f"{where}: expected {key!r} to be an object or null, got {joint[key]!r}")
+    noise = joint.get("orientation_noise_rad2")
+    if noise is not None and not (
+        isinstance(noise, list)
+        and len(noise) == 2
+        and all(isinstance(x, int | float) and not isinstance(x, bool) and 0 <= x < math.inf for x in noise)
+    ):
+        raise InputError(
+            f"{where}: expected 'orientation_noise_rad2' to be two variances >= 0 (rad^2) or null, "
+            f"got {noise!r}"
+        )
 
 
 def read_calibration_json(path: str | os.PathLike[str]) -> dict[str, Any]:
