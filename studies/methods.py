@@ -31,6 +31,7 @@ import argparse
 import json
 import math
 import re
+import shlex
 import sys
 import tempfile
 import time
@@ -63,6 +64,11 @@ METHODS = (*JOINT_METHODS, "inertial")
 
 #: The O'Brien fit's covariance estimators whose 95 % regions are checked.
 COVERAGE_METHODS = ("batch-means", "iid")
+
+#: What is recorded of each region: whether each estimator's holds the truth, and whether the
+#: batch-means region is bounded at all (its degrees of freedom at least the dimension; with
+#: fewer blocks than that the region is all of space and holds the truth trivially).
+REGION_KEYS = (*COVERAGE_METHODS, "bounded")
 
 #: The methods whose fit is a :class:`calibration.joint.JointFit`, so that
 #: :func:`calibration.uncertainty.joint_covariance` gives their regions: O'Brien's plain least
@@ -137,7 +143,8 @@ def _timed(fn, *args, **kwargs) -> tuple[JointEstimate | None, float, str | None
 
 
 def _coverage(Rp, pp, Rc, pc, valid, est: JointEstimate, tp: np.ndarray, tc: np.ndarray) -> dict:
-    """Whether each covariance estimator's 95 % region holds the truth, per frame."""
+    """Whether each covariance estimator's 95 % region holds the truth, per frame, and whether the
+    batch-means region is bounded (``"bounded"``)."""
     out = {}
     for method in COVERAGE_METHODS:
         with warnings.catch_warnings():
@@ -145,6 +152,10 @@ def _coverage(Rp, pp, Rc, pc, valid, est: JointEstimate, tp: np.ndarray, tc: np.
             unc = joint_covariance(Rp, pp, Rc, pc, est.fit, valid=valid, method=method)
         parent, child = holds_truth(unc, tp, tc)
         out[method] = {"parent": parent, "child": child}
+        if method == "batch-means":
+            out["bounded"] = {
+                part: bool(np.isfinite(unc.region(part).threshold)) for part in ("parent", "child")
+            }
     return out
 
 
@@ -187,7 +198,7 @@ def evaluate_session(ds: Dataset) -> dict:
     est_c = {m: np.full((n, 3), np.nan) for m in METHODS}
     failures: dict[str, dict[str, str]] = {m: {} for m in METHODS}
     coverage: dict[str, dict[str, dict[str, list]]] = {
-        m: {c: {"parent": [], "child": []} for c in COVERAGE_METHODS} for m in COVERED
+        m: {c: {"parent": [], "child": []} for c in REGION_KEYS} for m in COVERED
     }
     joint_names = [joint_name(names[a], names[b]) for a, b in joints]
     for k, (a, b) in enumerate(joints):
@@ -206,7 +217,7 @@ def evaluate_session(ds: Dataset) -> dict:
             if est is None:
                 failures[method][joint_names[k]] = str(failure)
                 if method in COVERED:
-                    for c in COVERAGE_METHODS:
+                    for c in REGION_KEYS:
                         coverage[method][c]["parent"].append(None)
                         coverage[method][c]["child"].append(None)
                 continue
@@ -269,7 +280,7 @@ def summarise(trials: Sequence[dict]) -> dict:
         if method in COVERED:
             hits = {
                 c: [h for r in rows for part in ("parent", "child") for h in r["coverage"][c][part]]
-                for c in COVERAGE_METHODS
+                for c in REGION_KEYS
             }
             summary["coverage95"] = {c: _share(h) for c, h in hits.items()}
             summary["coverage95"]["regions"] = sum(h is not None for h in hits[COVERAGE_METHODS[0]])
@@ -357,13 +368,17 @@ def table(doc: dict) -> str:
     """The summary as a Markdown table (condition x method)."""
     head = (
         "| condition | method | centre median mm | centre p90 mm | off-axis median mm | length median mm "
-        "| length p90 mm | time ms | coverage 95 % (batch means / iid) | failures |"
+        "| length p90 mm | time ms | coverage 95 % (batch means / iid; bounded) | failures |"
     )
     rows = [head, "|" + "---|" * 10]
     for cond, by_method in doc["summary"].items():
         for method, s in by_method.items():
             cov = s["coverage95"]
-            cov_text = "" if cov is None else f"{_pct(cov['batch-means'])} / {_pct(cov['iid'])}"
+            cov_text = (
+                ""
+                if cov is None
+                else f"{_pct(cov['batch-means'])} / {_pct(cov['iid'])}; {_pct(cov.get('bounded', math.nan))}"
+            )
             rows.append(
                 f"| {cond} | {method} "
                 f"| {_num(s['joint_error_mm']['median'])} | {_num(s['joint_error_mm']['p90'])} "
@@ -429,7 +444,7 @@ def main() -> None:
         keep_trials=not args.summary_only,
     )
     doc["seconds"] = time.perf_counter() - t0
-    doc["command"] = " ".join(["studies/methods.py", *sys.argv[1:]])
+    doc["command"] = shlex.join(["studies/methods.py", *sys.argv[1:]])
     print(table(doc))
     print(f"\n{args.seeds} seeds x {args.duration:g} s per condition; {doc['seconds']:.0f} s in all")
     if args.json:

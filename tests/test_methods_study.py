@@ -56,7 +56,7 @@ def test_pose_methods_recover_the_truth_on_ideal_data(doc):
         assert len(row["length_error_mm"]) == len(trial["length_pairs"])
     for method in ("obrien", "obrien-eiv"):
         coverage = trial["methods"][method]["coverage"]
-        assert set(coverage) == {"batch-means", "iid"}
+        assert set(coverage) == {"batch-means", "iid", "bounded"}
         assert all(len(c[part]) == 15 for c in coverage.values() for part in ("parent", "child"))
 
 
@@ -89,3 +89,45 @@ def test_json_and_table_are_complete(study, doc):
     assert lines[0].startswith("| condition | method |")
     assert len(lines) == 2 + len(summary)
     assert all(line.count("|") == lines[0].count("|") for line in lines)
+
+
+def test_the_report_quotes_the_coverage_study(doc, study, tmp_path):
+    from simbench.experiments.validate import COVERAGE_STUDY, coverage_study
+    from simbench.report.validation import _joint_methods
+
+    assert coverage_study(tmp_path / "absent.json") is None
+    noisy = json.loads(study["json_text"](doc))
+    noisy["summary"] = {"humanoid / polhemus-liberty": noisy["summary"][CONDITION], CONDITION: {}}
+    noisy["command"] = "studies/methods.py --seeds 1"
+    path = tmp_path / "methods_coverage_200.json"
+    path.write_text(json.dumps(noisy))
+    quoted = coverage_study(path)
+    assert quoted["seeds"] == 1 and quoted["command"] == "studies/methods.py --seeds 1"
+    assert list(quoted["conditions"]) == ["humanoid / polhemus-liberty"]  # exact data left out
+    row = quoted["conditions"]["humanoid / polhemus-liberty"]
+    assert row["regions"] == 30 and len(row["shares"]) == 4
+    assert row["shares"][0] == doc["summary"][CONDITION]["obrien"]["coverage95"]["batch-means"]
+    cover = {"covered": 9, "regions": 10}
+    section = "\n".join(
+        _joint_methods(
+            {
+                "seeds": 1,
+                "duration_s": 4.0,
+                "conditions": {
+                    "linkage": {
+                        "methods": {"obrien": {"centre_error_mm": 1.0, "length_error_mm": 2.0}},
+                        "coverage": {"batch-means": cover, "iid": cover, "eiv": cover},
+                    }
+                },
+                "study": quoted,
+            }
+        )
+    )
+    assert "Over 1 seeds per condition" in section and "| humanoid / polhemus-liberty |" in section
+    assert "| linkage | 90 % of 10 | 90 % of 10 | 90 % of 10 |" in section
+    # the checkout ships the study's results, with the corrected fit's coverage of every noisy condition
+    shipped = coverage_study(COVERAGE_STUDY)
+    assert shipped is not None and shipped["seeds"] == 200
+    assert len(shipped["conditions"]) == 5 and all(
+        r["regions"] >= 900 for r in shipped["conditions"].values()
+    )

@@ -60,7 +60,7 @@ def _orientation_metrics(method: str) -> Callable[[Dataset], dict[str, float]]:
 #: The joint-centre methods the baseline holds to their figures: every pose-based method of
 #: :mod:`calibration.methods` but SARA, whose centre on a ball joint is an arbitrary point of an
 #: arbitrary axis (its figure would be no accuracy).
-BASELINE_JOINT_METHODS = ("obrien", "score", "sphere-gamage-lasenby", "sphere-geometric")
+BASELINE_JOINT_METHODS = ("obrien", "obrien-eiv", "score", "sphere-gamage-lasenby", "sphere-geometric")
 
 
 def _joint_methods_metrics(ds: Dataset) -> dict[str, float]:

@@ -392,7 +392,9 @@ def coverage_study(path: Path = COVERAGE_STUDY) -> dict[str, Any] | None:
 
     Returns:
         ``{"seeds", "duration_s", "command", "file", "conditions": {name: {"shares": [O'Brien
-        batch means, O'Brien iid, corrected batch means, corrected iid], "regions"}}}``.
+        batch means, O'Brien iid, corrected batch means, corrected iid], "bounded": the share of
+        the corrected fit's batch-means regions that are bounded (``None`` if not recorded),
+        "regions"}}}``.
     """
     if not path.is_file():
         return None
@@ -404,6 +406,7 @@ def coverage_study(path: Path = COVERAGE_STUDY) -> dict[str, Any] | None:
         cover = [by_method[m]["coverage95"] for m in ("obrien", "obrien-eiv")]
         conditions[name] = {
             "shares": [c[k] for c in cover for k in ("batch-means", "iid")],
+            "bounded": cover[1].get("bounded"),
             "regions": int(cover[0]["regions"]),
         }
     return {
