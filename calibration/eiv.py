@@ -190,12 +190,18 @@ def corrected_solution(
 
 
 def _blockwise_variance(d: np.ndarray, good: np.ndarray) -> float:
-    """Mean over blocks of the per-axis robust variance (MAD squared) of the good rows of ``d``."""
+    """Mean over blocks of the per-axis robust variance (MAD squared) of the good rows of ``d``
+    (blocks with every row good at once; the others one by one)."""
     out = []
-    for start in range(0, d.shape[0], BLOCK_FRAMES):
-        x = d[start : start + BLOCK_FRAMES][good[start : start + BLOCK_FRAMES]]
-        if x.shape[0] < MIN_BLOCK_SAMPLES:
-            continue
-        mad = np.median(np.abs(x - np.median(x, axis=0)), axis=0) * MAD_TO_STD
-        out.append(float(np.mean(mad**2)))
+    n_full = d.shape[0] // BLOCK_FRAMES
+    whole = good[: n_full * BLOCK_FRAMES].reshape(n_full, BLOCK_FRAMES).all(axis=1)
+    x = d[: n_full * BLOCK_FRAMES].reshape(n_full, BLOCK_FRAMES, d.shape[1])[whole]
+    if x.shape[0]:
+        mad = np.median(np.abs(x - np.median(x, axis=1, keepdims=True)), axis=1) * MAD_TO_STD
+        out += list(np.mean(mad**2, axis=1))
+    for start in [BLOCK_FRAMES * k for k in np.flatnonzero(~whole)] + [n_full * BLOCK_FRAMES]:
+        y = d[start : start + BLOCK_FRAMES][good[start : start + BLOCK_FRAMES]]
+        if y.shape[0] >= MIN_BLOCK_SAMPLES:
+            mad = np.median(np.abs(y - np.median(y, axis=0)), axis=0) * MAD_TO_STD
+            out.append(float(np.mean(mad**2)))
     return float(np.mean(out)) if out else float("nan")

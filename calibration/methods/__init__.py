@@ -185,12 +185,15 @@ def estimate_obrien_eiv(
             determined direction, or too few consecutive frames to read the noise from.
     """
     pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
-    _check_rank(fit_joint(pair.R_w_p, pair.p_w_p, pair.R_w_c, pair.p_w_c, valid=pair.used))
     if orientation_noise_rad2 is None:
-        orientation_noise_rad2 = (
-            orientation_noise_variance(pair.R_w_p, pair.used),
-            orientation_noise_variance(pair.R_w_c, pair.used),
-        )
+        try:
+            orientation_noise_rad2 = (
+                orientation_noise_variance(pair.R_w_p, pair.used),
+                orientation_noise_variance(pair.R_w_c, pair.used),
+            )
+        except CalibrationError:  # motion that cannot locate the joint is the first thing to say
+            _check_rank(fit_joint(pair.R_w_p, pair.p_w_p, pair.R_w_c, pair.p_w_c, valid=pair.used))
+            raise
     fit = fit_joint(
         pair.R_w_p,
         pair.p_w_p,
@@ -199,6 +202,7 @@ def estimate_obrien_eiv(
         valid=pair.used,
         orientation_noise_rad2=orientation_noise_rad2,
     )
+    _check_rank(fit)  # the determined directions are the plain fit's
     return _obrien_estimate("obrien-eiv", fit)
 
 
