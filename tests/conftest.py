@@ -25,3 +25,16 @@ def linkage_noisy() -> SyntheticCapture:
         position_noise_m=0.003,
         rotation_noise_rad=np.deg2rad(0.5),
     )
+
+
+@pytest.fixture
+def one_blas_thread():
+    """BLAS on one thread: small matrices' threads only contend with each other (and with other
+    test processes). Modules of many small fits use it for every test (``pytestmark``)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - optional
+        yield
+        return
+    with threadpool_limits(limits=1):
+        yield

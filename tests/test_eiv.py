@@ -19,22 +19,12 @@ from calibration.methods import estimate_obrien, estimate_obrien_eiv
 from calibration.rotations import rotvec_to_matrix
 from calibration.uncertainty import holds_truth, joint_covariance
 
+pytestmark = pytest.mark.usefixtures("one_blas_thread")
+
 RATE_HZ = 120.0
 FRAMES = 2400
 IN_PARENT = np.array([0.09, -0.08, -0.06])
 IN_CHILD = np.array([0.02, 0.04, 0.21])
-
-
-@pytest.fixture(autouse=True)
-def one_blas_thread():
-    """Small matrices: BLAS threads only contend with each other (and with other test processes)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        yield
-        return
-    with threadpool_limits(limits=1):
-        yield
 
 
 def smooth(rng: np.random.Generator, n: int, amplitude: float) -> np.ndarray:

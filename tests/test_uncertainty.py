@@ -47,6 +47,8 @@ from calibration.uncertainty import (
     to_json,
 )
 
+pytestmark = pytest.mark.usefixtures("one_blas_thread")
+
 RATE_HZ = 120.0
 RUNS = 300
 BAND = (0.91, 0.98)  # see the module docstring
@@ -60,18 +62,6 @@ KNEE_IN_SHANK = np.array([0.02, 0.05, 0.19])
 PAIR = ((HIP_IN_PELVIS, HIP_IN_THIGH),)
 CHAIN = ((HIP_IN_PELVIS, HIP_IN_THIGH), (KNEE_IN_THIGH, KNEE_IN_SHANK))
 HINGE_AXIS = np.array([0.3, -0.2, 0.93]) / np.linalg.norm([0.3, -0.2, 0.93])  # in the parent frame
-
-
-@pytest.fixture(autouse=True)
-def one_blas_thread():
-    """Small matrices: BLAS threads only contend with each other (and with other test processes)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        yield
-        return
-    with threadpool_limits(limits=1):
-        yield
 
 
 # --------------------------------------------------------------------------------------------
