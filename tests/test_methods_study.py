@@ -93,7 +93,7 @@ def test_json_and_table_are_complete(study, doc):
 
 def test_the_report_quotes_the_coverage_study(doc, study, tmp_path):
     from simbench.experiments.validate import COVERAGE_STUDY, coverage_study
-    from simbench.report.validation import _joint_methods
+    from simbench.report.validation import _bounded_share, _joint_methods
 
     assert coverage_study(tmp_path / "absent.json") is None
     noisy = json.loads(study["json_text"](doc))
@@ -125,6 +125,9 @@ def test_the_report_quotes_the_coverage_study(doc, study, tmp_path):
     )
     assert "Over 1 seeds per condition" in section and "| humanoid / polhemus-liberty |" in section
     assert "| linkage | 90 % of 10 | 90 % of 10 | 90 % of 10 |" in section
+    # an unbounded region always holds the truth: the coverage among the bounded ones
+    assert _bounded_share({"shares": [0.0, 0.0, 0.9821, 0.0], "bounded": 0.4442}) == "96.0 %"
+    assert _bounded_share({"shares": [0.0, 0.0, 0.95, 0.0], "bounded": None}) == "-"
     # the checkout ships the study's results, with the corrected fit's coverage of every noisy condition
     shipped = coverage_study(COVERAGE_STUDY)
     assert shipped is not None and shipped["seeds"] == 200

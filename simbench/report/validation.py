@@ -299,6 +299,7 @@ def _joint_methods(methods: dict[str, Any] | None) -> list[str]:
                     "corrected, batch means",
                     "corrected, i.i.d.",
                     "bounded",
+                    "corrected, batch means, of the bounded",
                     "regions",
                 ],
                 [
@@ -306,6 +307,7 @@ def _joint_methods(methods: dict[str, Any] | None) -> list[str]:
                         name,
                         *[f"{100 * v:.1f} %" for v in row["shares"]],
                         "-" if row.get("bounded") is None else f"{100 * row['bounded']:.1f} %",
+                        _bounded_share(row),
                         str(row["regions"]),
                     ]
                     for name, row in study["conditions"].items()
@@ -314,6 +316,15 @@ def _joint_methods(methods: dict[str, Any] | None) -> list[str]:
             "",
         ]
     return out
+
+
+def _bounded_share(row: dict[str, Any]) -> str:
+    """The corrected fit's batch-means coverage among its bounded regions: an unbounded region
+    always holds the truth, so ``(share - (1 - bounded)) / bounded``."""
+    bounded = row.get("bounded")
+    if not bounded:
+        return "-"
+    return f"{100 * (row['shares'][2] - (1.0 - bounded)) / bounded:.1f} %"
 
 
 def _share(hits: dict[str, int]) -> str:
