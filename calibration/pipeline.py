@@ -557,7 +557,10 @@ def _rotation_noise(R_w_s: Any, valid: Any, names: tuple[str, ...], used: set[in
         try:
             out[names[k]] = orientation_noise_variance(np.asarray(R_w_s[:, k], dtype=float), mask)
         except CalibrationError as err:
-            raise CalibrationError(f"sensor {names[k]!r}: {err}") from None
+            raise CalibrationError(
+                f"correcting for rotation noise: sensor {names[k]!r}: {err} "
+                "(calibrate without the correction)"
+            ) from None
     return out
 
 

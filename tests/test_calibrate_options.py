@@ -295,7 +295,10 @@ def test_rotation_noise_correction_refuses_what_it_cannot_do():
         calibrate(R, p, names, robust="tukey", correct_rotation_noise=True)
     valid = np.ones((600, 3), dtype=bool)
     valid[::2, 1] = False  # every other frame of the thigh: no runs of consecutive frames
-    with pytest.raises(CalibrationError, match="sensor 'thigh': The rotation noise needs at least 20 runs"):
+    with pytest.raises(
+        CalibrationError,
+        match="correcting for rotation noise: sensor 'thigh': The rotation noise needs at least 20 runs",
+    ):
         calibrate(R, p, names, valid=valid, correct_rotation_noise=True)
 
 
