@@ -30,34 +30,48 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
         f"rate: {rate_hz:.4g} Hz{how}   calibrated in {cal.seconds.get('total', float('nan')):.3f} s",
         f"  hierarchy: {'given' if cal.hierarchy_given else 'inferred'}, root {cal.root}",
         "",
-        f"  {'joint (parent -> child)':<34}{'rms mm':>9}{'max mm':>9}{'cond':>8}  {'axis':<12}{'frames':>8}",
     ]
+    rows = []
     for j in cal.joints:
         fit = j.fit
         mx = np.nanmax(fit.frame_residual) if fit.frame_residual is not None else float("nan")
         cond = f"{fit.condition:.3g}" if np.isfinite(fit.condition) else "inf"
         axis = "single" if fit.single_axis else ("none" if fit.rank < 5 else "-")
-        lines.append(
-            f"  {j.parent + ' -> ' + j.child:<34}{fit.rms_residual * 1e3:>9.3f}{mx * 1e3:>9.3f}"
-            f"{cond:>8}  {axis:<12}{fit.n_frames:>8}"
+        rows.append(
+            [
+                j.parent + " -> " + j.child,
+                f"{fit.rms_residual * 1e3:.3f}",
+                f"{mx * 1e3:.3f}",
+                cond,
+                axis,
+                str(fit.n_frames),
+            ]
         )
+    lines += text_table(
+        ["joint (parent -> child)", "rms mm", "max mm", "cond", "axis", "frames"], rows, "lrrrlr"
+    )
     if cal.rotation_noise_rad2:
         noise = ", ".join(f"{s} {np.degrees(np.sqrt(v)):.3f}" for s, v in cal.rotation_noise_rad2.items())
         lines += ["", f"  corrected for rotation noise (deg rms per axis, read off each sensor): {noise}"]
     if any(j.uncertainty is not None for j in cal.joints):
         lines += _interval_lines(cal)
-    lines += ["", f"  {'limb lengths (cm)':<22}{'from joint':<30}{'to joint':<30}{'length':>8}"]
+    rows = []
     for k, x in enumerate(cal.lengths):
         ci = ""
         if cal.length_uncertainty:
             unc = cal.length_uncertainty[k]
             ci = f" ± {_cm(0.5 * (unc.interval_m[1] - unc.interval_m[0]))}" if unc is not None else " ± -"
-        lines.append(f"  {x.segment:<22}{x.joint_a:<30}{x.joint_b:<30}{x.length * 100:>8.2f}{ci}")
-    lines += ["", f"  {'sensor offsets (cm)':<22}{'joint':<30}{'offset in sensor frame':<28}{'dist':>8}"]
-    for pl in cal.placements:
-        for name, off, d in zip(pl.joints, pl.offsets, pl.distances, strict=True):
-            vec = " ".join(f"{v * 100:7.2f}" for v in off)
-            lines.append(f"  {pl.sensor:<22}{name:<30}{vec:<28}{d * 100:>8.2f}")
+        rows.append([x.segment, x.joint_a, x.joint_b, f"{x.length * 100:.2f}{ci}"])
+    lines += ["", *text_table(["limb lengths (cm)", "from joint", "to joint", "length"], rows, "lllr")]
+    rows = [
+        [pl.sensor, name, " ".join(f"{v * 100:7.2f}" for v in off), f"{d * 100:.2f}"]
+        for pl in cal.placements
+        for name, off, d in zip(pl.joints, pl.offsets, pl.distances, strict=True)
+    ]
+    lines += [
+        "",
+        *text_table(["sensor offsets (cm)", "joint", "offset in sensor frame", "dist"], rows, "llrr"),
+    ]
     events = [(name, ev) for name, rep in slips for ev in rep.events]
     if slips:
         lines += ["", "  slip events (residual offset jumps)"]
@@ -75,6 +89,34 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
     return "\n".join(lines)
 
 
+def text_table(
+    headers: Sequence[str], rows: Sequence[Sequence[str]], align: str, indent: int = 2
+) -> list[str]:
+    """Lines of a plain-text table whose columns are as wide as their widest value (or header),
+    two spaces apart, so that no value ever runs into the next column.
+
+    Args:
+        headers: one per column.
+        rows: the cells, already formatted as text, one list per row.
+        align: one letter per column, ``"l"`` (left) or ``"r"`` (right).
+        indent: spaces before every line.
+    """
+    if len(align) != len(headers) or any(len(row) != len(headers) for row in rows):
+        raise ValueError(
+            f"text_table: {len(headers)} headers, align {align!r}, rows of {[len(r) for r in rows]}"
+        )
+    widths = [max([len(h), *(len(row[c]) for row in rows)]) for c, h in enumerate(headers)]
+
+    def line(cells: Sequence[str]) -> str:
+        out = [
+            cell.ljust(w) if a == "l" else cell.rjust(w)
+            for cell, w, a in zip(cells, widths, align, strict=True)
+        ]
+        return (" " * indent + "  ".join(out)).rstrip()
+
+    return [line(headers), *(line(row) for row in rows)]
+
+
 #: Half-widths beyond this many metres are shown as ">1 m" (the 95 % region is unbounded or
 #: meaningless: too few degrees of freedom, a direction the motion barely explored).
 WIDE_M = 1.0
@@ -90,10 +132,7 @@ def _cm(half_width_m: float) -> str:
 def _interval_lines(cal: Calibration) -> list[str]:
     """Each joint centre's 95 % region in both sensor frames: the ellipsoid's largest semi-axis
     and the per-axis (x, y, z) half-widths of the Student's t intervals, cm."""
-    head = (
-        f"  {'joint centre 95% (cm)':<34}{'frame':<8}{'± max':>8}   {'± x':>7}{'± y':>7}{'± z':>7}{'dof':>7}"
-    )
-    lines = ["", head]
+    rows = []
     for j in cal.joints:
         unc = j.uncertainty
         if unc is None:
@@ -101,11 +140,12 @@ def _interval_lines(cal: Calibration) -> list[str]:
         for k, part in enumerate(("parent", "child")):
             region = unc.region(part)
             half = 0.5 * (region.intervals_m[:, 1] - region.intervals_m[:, 0])
-            per_axis = "".join(f"{_cm(h):>7}" for h in half)
             label = j.parent + " -> " + j.child if k == 0 else ""
-            lines.append(
-                f"  {label:<34}{part:<8}{_cm(float(region.semi_axes_m[0])):>8}   {per_axis}{region.dof:>7.1f}"
+            rows.append(
+                [label, part, _cm(float(region.semi_axes_m[0])), *[_cm(h) for h in half], f"{region.dof:.1f}"]
             )
+    head = ["joint centre 95% (cm)", "frame", "± max", "± x", "± y", "± z", "dof"]
+    lines = ["", *text_table(head, rows, "llrrrrr")]
     lines.append("    (± max: the 95% ellipsoid's largest semi-axis; ± x/y/z: 95% intervals per axis)")
     if cal.robust is not None:
         lines.append(f"    (robust {cal.robust} fits: regions conditional on each joint's inlier frames)")
