@@ -4,6 +4,7 @@ the base session's defaults, the error when the optional packages are missing, t
 from __future__ import annotations
 
 import contextlib
+import json
 import subprocess
 import sys
 import time
@@ -225,11 +226,8 @@ def test_report_plots_and_summary_of_a_two_parameter_grid(tmp_path):
             for t, e in zip(every, err, strict=True)
         ]
     )
-    assert study_report.metric_columns(study, table.to_pydict()) == [
-        "joint_centre_error_m",
-        "condition",
-        "run_time_s",
-    ]
+    # only the metrics the study asks for (condition and run time are in the table, not asked for)
+    assert study_report.metric_columns(study, table.to_pydict()) == ["joint_centre_error_m"]
     plots = study_report.plot_study(study, table, tmp_path)
     assert [p.name for p in plots] == [
         "vs_sensors_tracker_position_noise_m.png",
@@ -238,9 +236,13 @@ def test_report_plots_and_summary_of_a_two_parameter_grid(tmp_path):
     ]
     assert all(p.read_bytes()[:4] == b"\x89PNG" for p in plots)
     text = study_report.summary_markdown(study, table, plots)
-    assert "| 0.008 | 120 | 0.04 | 10.04 | 1 |" in text  # cell 3's parameters and means
+    # parameters in the study's units (the noise in mm as the file gave it), lengths in mm
+    assert "| sensors.tracker.position_noise_m (mm) | rate_hz (hz) | mean joint_centre_error_m (mm) |" in text
+    assert "| 8 | 120 | 40 |" in text  # cell 3's parameters and mean
     assert "condition number with the joint-centre error: 1.00." in text
-    assert "Smallest mean joint-centre error: sensors.tracker.position_noise_m = 0, rate_hz = 60." in text
+    assert (
+        "Smallest mean joint-centre error: sensors.tracker.position_noise_m = 0 mm, rate_hz = 60 hz." in text
+    )
     assert "![heatmap](heatmap.png)" in text
 
 
@@ -335,3 +337,52 @@ def test_any_joint_centre_method_is_an_estimator(tmp_path):
         assert row["limb_length_error_m:obrien"] == pytest.approx(row["limb_length_error_m"], rel=1e-6)
         if dict(trial.params)[noise] > 0:
             assert row["joint_centre_error_m:sphere-geometric"] > row["joint_centre_error_m:obrien"]
+
+
+def test_study_plots_show_proportions_in_0_1_and_panels_in_a_grid(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    import matplotlib.image as mpimg
+
+    from simbench.experiments.study import METRICS
+
+    path = study_file(tmp_path)
+    asked = sorted(set(METRICS) - {"orientation_rmse_deg"})  # 7 metrics: two rows of panels
+    path.write_text(
+        path.read_text().replace(
+            'metrics = ["joint_centre_error_m", "limb_length_error_m", "hierarchy_correct"]',
+            f"metrics = {json.dumps(asked)}",
+        )
+    )
+    study = st.load_study(path)
+    every = st.trials(study)
+    table = pa.Table.from_pylist(
+        [
+            {"trial": t.trial_id, "cell": t.cell, "replicate": t.replicate, "seed": t.seed}
+            | dict(t.params)
+            | {m: 0.01 for m in asked}
+            | {"hierarchy_correct": float(t.replicate == 0)}  # one of two right in every cell
+            for t in every
+        ]
+    )
+    assert study_report.metric_columns(study, table.to_pydict()) == [
+        m for m in table.column_names if m in asked
+    ]
+    (plot,) = study_report.plot_study(study, table, tmp_path)
+    height, width = mpimg.imread(plot).shape[:2]
+    assert width <= 2000 and height >= 2 * 250  # 4 panels a row (1440 px), 2 rows
+    # a 0/1 metric: the share right, with Wilson's interval, never outside [0, 1]
+    x = np.array([0.0, 0.0, 1.0, 1.0])
+    _, mean, lo, hi = study_report._confidence_band(x, np.array([0.0, 0.0, 1.0, 1.0]), binary=True)
+    assert list(mean) == [0.0, 1.0] and (lo >= 0).all() and (hi <= 1).all()
+    assert lo[0] == 0.0 and hi[0] == pytest.approx(0.6576, abs=1e-4)  # Wilson, 0 of 2
+    assert lo[1] == pytest.approx(0.3424, abs=1e-4) and hi[1] == 1.0
+    assert study_report.metric_display("hierarchy_correct") == ("hierarchy_correct (proportion)", 1.0, True)
+    assert study_report.metric_display("joint_centre_error_m:score") == (
+        "joint_centre_error_m:score (mm)",
+        1000.0,
+        False,
+    )
+    assert study_report.parameter_display(study.parameters[0]) == (
+        "position_noise_m (mm)",
+        pytest.approx(1000.0),
+    )

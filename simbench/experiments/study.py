@@ -84,6 +84,9 @@ class Parameter:
     low: float = math.nan
     high: float = math.nan
     log: bool = False
+    #: The unit the file gave the values in (a key of :data:`simbench.units.UNITS`): the plots
+    #: and the summary show the parameter in it.
+    unit: str = "1"
 
 
 @dataclass(frozen=True)
@@ -188,7 +191,7 @@ def _parse_parameter(p: Any, where: str, kind: str, base_sensors: SensorConfig) 
         extra = sorted({"low", "high", "log"} & set(p))
         if extra:
             raise InputError(f"{where}: {extra} apply to random sampling; a grid takes values")
-        return Parameter(name, values=tuple(float(v) * factor for v in values))
+        return Parameter(name, values=tuple(float(v) * factor for v in values), unit=unit)
     low, high = p.get("low"), p.get("high")
     if not (
         _is_number(low) and _is_number(high) and math.isfinite(low) and math.isfinite(high) and low < high
@@ -204,7 +207,7 @@ def _parse_parameter(p: Any, where: str, kind: str, base_sensors: SensorConfig) 
         raise InputError(f"{where}, key log: expected true or false, got {log!r}")
     if log and low <= 0:
         raise InputError(f"{where}, key low: log sampling needs low > 0, got {low!r}")
-    return Parameter(name, low=float(low) * factor, high=float(high) * factor, log=log)
+    return Parameter(name, low=float(low) * factor, high=float(high) * factor, log=log, unit=unit)
 
 
 def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], SensorConfig]:

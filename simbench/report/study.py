@@ -13,12 +13,23 @@ from typing import Any, Protocol
 
 import numpy as np
 from matplotlib.figure import Figure
-from scipy.stats import spearmanr
+from scipy.stats import norm, spearmanr
 
 from simbench.report.plots import save_figure
+from simbench.units import UNITS
 
 #: Columns of a study's table that identify a trial (not parameters, not metrics).
 ID_COLUMNS = ("trial", "cell", "replicate", "seed")
+
+#: At most this many panels in a row of a figure (one figure at most 4 x 3.6 in x 100 dpi wide).
+PANELS_PER_ROW = 4
+
+#: How a metric is shown, by the suffix of its name (before any ``:<method>``): the unit of the
+#: axis and the factor from the table's SI value. Lengths in millimetres.
+METRIC_DISPLAY = {"_m": ("mm", 1000.0), "_deg": ("deg", 1.0), "_s": ("s", 1.0)}
+
+#: Metrics that are 0 or 1 per trial: shown as a proportion with a Wilson interval.
+BINARY_METRICS = ("hierarchy_correct",)
 
 
 class StudyParameter(Protocol):
@@ -26,12 +37,14 @@ class StudyParameter(Protocol):
 
     name: str
     values: tuple[float, ...]  # the grid's values, SI (empty for random sampling)
+    unit: str  # the unit the study gave the values in (shown in it)
 
 
 class StudyDescription(Protocol):
     """What the report reads of a study (:class:`simbench.experiments.study.Study`)."""
 
     name: str
+    metrics: Sequence[str]
     seed: int
     seeds_per_cell: int
     kind: str  # "grid" or "random"
@@ -40,42 +53,90 @@ class StudyDescription(Protocol):
 
 
 def metric_columns(study: StudyDescription, data: Mapping[str, list]) -> list[str]:
-    """The metric columns of a study's table (``table.to_pydict()``), in table order."""
+    """The columns of a study's table (``table.to_pydict()``) that hold the metrics the study
+    asked for (its ``metrics``; a ``<metric>:<method>`` column counts as ``<metric>``), in table
+    order."""
     names = {p.name for p in study.parameters}
-    return [c for c in data if c not in ID_COLUMNS and c not in names]
+    wanted = set(study.metrics)
+    return [c for c in data if c not in ID_COLUMNS and c not in names and c.split(":", 1)[0] in wanted]
 
 
-def _confidence_band(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(xs, mean, half_width)``: the mean of ``y`` at each distinct ``x`` and its 95 % normal
-    confidence half-width over the finite values there."""
+def metric_display(metric: str) -> tuple[str, float, bool]:
+    """``(axis label, factor from SI, binary)`` of a metric column: lengths in mm, a 0/1 metric as
+    a proportion, anything else as its name says (:data:`METRIC_DISPLAY`)."""
+    base = metric.split(":", 1)[0]
+    if base in BINARY_METRICS:
+        return f"{metric} (proportion)", 1.0, True
+    for suffix, (unit, factor) in METRIC_DISPLAY.items():
+        if base.endswith(suffix):
+            return f"{metric} ({unit})", factor, False
+    return metric, 1.0, False
+
+
+def parameter_display(p: StudyParameter) -> tuple[str, float]:
+    """``(axis label, factor from SI)`` of a parameter: in the unit the study gave it in."""
+    unit = getattr(p, "unit", "1") or "1"
+    factor = UNITS[unit][1]
+    short = p.name.split(".")[-1]
+    return (short if unit == "1" else f"{short} ({unit})"), 1.0 / factor
+
+
+def wilson_interval(
+    successes: np.ndarray, n: np.ndarray, level: float = 0.95
+) -> tuple[np.ndarray, np.ndarray]:
+    """Wilson score interval ``(lo, hi)`` of a proportion, inside [0, 1] (``nan`` where n = 0)."""
+    k, n = np.asarray(successes, dtype=float), np.asarray(n, dtype=float)
+    z = float(norm.ppf(0.5 + level / 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p = k / n
+        centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+        half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return np.clip(centre - half, 0.0, 1.0), np.clip(centre + half, 0.0, 1.0)
+
+
+def _confidence_band(
+    x: np.ndarray, y: np.ndarray, binary: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(xs, mean, lo, hi)``: the mean of ``y`` at each distinct ``x`` and its 95 % confidence
+    band over the finite values there: normal for a measurement, Wilson's interval (inside
+    [0, 1]) for a 0/1 metric."""
     xs = np.unique(x)
-    mean = np.array([np.nanmean(y[x == v]) for v in xs])
-    n = np.array([np.sum(np.isfinite(y[x == v])) for v in xs])
-    sem = np.array(
-        [np.nanstd(y[x == v], ddof=1) if c > 1 else 0.0 for v, c in zip(xs, n, strict=True)]
-    ) / np.sqrt(np.maximum(n, 1))
-    return xs, mean, 1.96 * sem
+    groups = [y[(x == v) & np.isfinite(y)] for v in xs]
+    n = np.array([g.size for g in groups], dtype=float)
+    mean = np.array([g.mean() if g.size else np.nan for g in groups])
+    if binary:
+        lo, hi = wilson_interval(np.array([g.sum() for g in groups]), n)
+        return xs, mean, lo, hi
+    sem = np.array([g.std(ddof=1) if g.size > 1 else 0.0 for g in groups]) / np.sqrt(np.maximum(n, 1))
+    return xs, mean, mean - 1.96 * sem, mean + 1.96 * sem
 
 
 def _plot_parameter(
     study: StudyDescription, data: Mapping[str, list], name: str, metrics: list[str], path: Path
 ) -> None:
-    """Every metric against one parameter, one panel each."""
-    x = np.array(data[name])
-    fig = Figure(figsize=(3.6 * len(metrics), 3))
-    axes = fig.subplots(1, len(metrics), squeeze=False)
-    for ax, m in zip(axes[0], metrics, strict=True):
-        y = np.array(data[m], dtype=float)
+    """Every metric against one parameter, one panel each, at most :data:`PANELS_PER_ROW` a row."""
+    parameter = next(p for p in study.parameters if p.name == name)
+    x_label, x_factor = parameter_display(parameter)
+    x = np.array(data[name], dtype=float) * x_factor
+    cols = min(PANELS_PER_ROW, len(metrics))
+    rows = -(-len(metrics) // cols)
+    fig = Figure(figsize=(3.6 * cols, 3 * rows))
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax, m in zip(axes, metrics, strict=False):
+        y_label, y_factor, binary = metric_display(m)
+        y = np.array(data[m], dtype=float) * y_factor
+        ax.set_xlabel(x_label)
+        ax.set_ylabel(y_label, fontsize=8)
         if study.kind == "random":  # every trial its own value: a scatter, no bands
             ax.plot(x, y, ".", alpha=0.7)
-            ax.set_xlabel(name.split(".", 1)[-1])
-            ax.set_title(m, fontsize=8)
             continue
-        xs, mean, half = _confidence_band(x, y)
+        xs, mean, lo, hi = _confidence_band(x, y, binary)
         ax.plot(xs, mean, "o-")
-        ax.fill_between(xs, mean - half, mean + half, alpha=0.25)
-        ax.set_xlabel(name.split(".")[-1])
-        ax.set_title(m, fontsize=8)
+        ax.fill_between(xs, lo, hi, alpha=0.25)
+        if binary:
+            ax.set_ylim(-0.05, 1.05)
+    for ax in axes[len(metrics) :]:
+        ax.set_visible(False)
     fig.tight_layout()
     save_figure(fig, path)
 
@@ -84,16 +145,19 @@ def _plot_heatmap(
     a: StudyParameter, b: StudyParameter, data: Mapping[str, list], metric: str, path: Path
 ) -> None:
     """The mean of one metric over the grid of two parameters (``a`` vertical, ``b`` across)."""
-    xa, xb, y = np.array(data[a.name]), np.array(data[b.name]), np.array(data[metric], dtype=float)
+    xa, xb = np.array(data[a.name]), np.array(data[b.name])
+    label, factor, _ = metric_display(metric)
+    y = np.array(data[metric], dtype=float) * factor
     grid = np.array([[np.nanmean(y[(xa == va) & (xb == vb)]) for vb in b.values] for va in a.values])
+    (a_label, a_factor), (b_label, b_factor) = parameter_display(a), parameter_display(b)
     fig = Figure(figsize=(5, 4))
     ax = fig.subplots()
     im = ax.imshow(grid, origin="lower", aspect="auto")
-    ax.set_xticks(range(len(b.values)), [f"{v:.3g}" for v in b.values])
-    ax.set_yticks(range(len(a.values)), [f"{v:.3g}" for v in a.values])
-    ax.set_xlabel(b.name.split(".")[-1])
-    ax.set_ylabel(a.name.split(".")[-1])
-    fig.colorbar(im, label=metric)
+    ax.set_xticks(range(len(b.values)), [f"{v * b_factor:.3g}" for v in b.values])
+    ax.set_yticks(range(len(a.values)), [f"{v * a_factor:.3g}" for v in a.values])
+    ax.set_xlabel(b_label)
+    ax.set_ylabel(a_label)
+    fig.colorbar(im, label=label)
     fig.tight_layout()
     save_figure(fig, path)
 
@@ -122,18 +186,31 @@ def plot_study(study: StudyDescription, table: Any, out: Path) -> list[Path]:
     return written
 
 
-def _cell_means(data: Mapping[str, list], names: list[str], metrics: list[str]) -> list[str]:
-    """Markdown table: each cell's parameter values and mean metrics."""
+def _cell_means(study: StudyDescription, data: Mapping[str, list], metrics: list[str]) -> list[str]:
+    """Markdown table: each cell's parameter values (in the study's units) and mean metrics (as
+    the plots show them)."""
+    shown = [parameter_display(p) for p in study.parameters]
+    metric_shown = [metric_display(m) for m in metrics]
     lines = [
-        "| " + " | ".join([*names, *[f"mean {m}" for m in metrics]]) + " |",
-        "|" + "---|" * (len(names) + len(metrics)),
+        "| "
+        + " | ".join(
+            [
+                *(f"{p.name} ({p.unit})" if p.unit != "1" else p.name for p in study.parameters),
+                *[f"mean {label}" for label, _, _ in metric_shown],
+            ]
+        )
+        + " |",
+        "|" + "---|" * (len(shown) + len(metrics)),
     ]
     cell_arr = np.array(data.get("cell", []))
     for c in sorted(set(data.get("cell", []))):
         sel = cell_arr == c
         first = int(np.flatnonzero(sel)[0])
-        vals = [f"{data[n][first]:.4g}" for n in names]
-        vals += [f"{np.nanmean(np.array(data[m], dtype=float)[sel]):.4g}" for m in metrics]
+        vals = [f"{data[p.name][first] * f:.4g}" for p, (_, f) in zip(study.parameters, shown, strict=True)]
+        vals += [
+            f"{np.nanmean(np.array(data[m], dtype=float)[sel]) * f:.4g}"
+            for m, (_, f, _) in zip(metrics, metric_shown, strict=True)
+        ]
         lines.append("| " + " | ".join(vals) + " |")
     return lines
 
@@ -160,7 +237,11 @@ def _joint_centre_findings(study: StudyDescription, data: Mapping[str, list], na
             lines.append(f"| {n} | {r:+.2f} |")
     best = int(np.nanargmin([np.nanmean(err[cell_arr == c]) for c in cells]))
     pick = int(np.flatnonzero(cell_arr == cells[best])[0])
-    best_cell = ", ".join(f"{n} = {data[n][pick]:.4g}" for n in names)
+    best_cell = ", ".join(
+        f"{p.name} = {data[p.name][pick] * parameter_display(p)[1]:.4g}"
+        + ("" if p.unit == "1" else f" {p.unit}")
+        for p in study.parameters
+    )
     return [*lines, "", f"Smallest mean joint-centre error: {best_cell}."]
 
 
@@ -182,7 +263,7 @@ def summary_markdown(study: StudyDescription, table: Any, plots: list[Path]) -> 
         f"{len(data.get('trial', []))} trials: {study.kind} over {', '.join(names)}, {study.seeds_per_cell} "
         f"seed(s) per cell, study seed {study.seed}, base {study.base}.",
         "",
-        *_cell_means(data, names, metrics),
+        *_cell_means(study, data, metrics),
     ]
     if "condition" in data and "joint_centre_error_m" in data:
         lines += _joint_centre_findings(study, data, names)
