@@ -386,3 +386,27 @@ def test_study_plots_show_proportions_in_0_1_and_panels_in_a_grid(tmp_path):
         "position_noise_m (mm)",
         pytest.approx(1000.0),
     )
+
+
+def test_figures_of_many_panels_wrap_into_rows(tmp_path):
+    """The dm_control humanoid has 28 joints: their residual histograms were one row of 28 panels
+    (8960 x 280 px); now 7 rows of at most 4."""
+    from types import SimpleNamespace
+
+    import matplotlib.image as mpimg
+
+    from simbench.report.plots import PANELS_PER_ROW, plot_pictures, plot_residual_histograms
+
+    rng = np.random.default_rng(0)
+    joints = [
+        SimpleNamespace(name=f"joint {k}", fit=SimpleNamespace(frame_residual=rng.normal(size=200)))
+        for k in range(28)
+    ]
+    plot_residual_histograms(joints, tmp_path / "hist.png", scale=1.0)
+    height, width = mpimg.imread(tmp_path / "hist.png").shape[:2]
+    assert PANELS_PER_ROW == 4 and width <= 2000 and height >= 7 * 250
+    plot_pictures([np.zeros((40, 60, 3), np.uint8)] * 5, [f"p{k}" for k in range(5)], tmp_path / "pic.png")
+    height, width = mpimg.imread(tmp_path / "pic.png").shape[:2]
+    assert width <= 2000 and height >= 2 * 350  # 5 pictures: 4 and 1
+    with pytest.raises(ValueError, match="2 pictures, 1 titles"):
+        plot_pictures([np.zeros((4, 4, 3), np.uint8)] * 2, ["one"], tmp_path / "bad.png")

@@ -26,6 +26,22 @@ def save_figure(fig: Figure, path: Path, *, dpi: int = 100) -> None:
         fh.write(buf.getvalue())
 
 
+#: At most this many panels in a row: a figure of 4 panels of 4.8 in at 100 dpi is 1920 px wide.
+PANELS_PER_ROW = 4
+
+
+def panel_grid(n: int, width_in: float, height_in: float) -> tuple[np.ndarray, Figure]:
+    """``(axes, figure)``: ``n`` panels of ``width_in x height_in`` inches in rows of at most
+    :data:`PANELS_PER_ROW` (``axes`` flat, the unused ones hidden)."""
+    cols = max(1, min(PANELS_PER_ROW, n))
+    rows = max(1, -(-n // cols))
+    fig = Figure(figsize=(width_in * cols, height_in * rows))
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    return axes, fig
+
+
 def plot_residual_histograms(joints: Sequence[Joint], path: Path, scale: float) -> None:
     """Residual-norm histogram of every joint (O'Brien Figures 6-7).
 
@@ -36,14 +52,14 @@ def plot_residual_histograms(joints: Sequence[Joint], path: Path, scale: float) 
         scale: metres per input unit (the residuals are plotted in mm).
     """
     joints = list(joints)
-    fig = Figure(figsize=(3.2 * len(joints), 2.8))
-    axes = fig.subplots(1, len(joints), squeeze=False)
-    for ax, joint in zip(axes[0], joints, strict=True):
+    axes, fig = panel_grid(len(joints), 3.2, 2.8)
+    for k, (ax, joint) in enumerate(zip(axes, joints, strict=False)):
         residual_mm = np.asarray(joint.fit.frame_residual) * scale * 1e3
         ax.hist(residual_mm[np.isfinite(residual_mm)], bins=40, color="#4477aa")
         ax.set_title(joint.name, fontsize=9)
         ax.set_xlabel("residual norm (mm)")
-    axes[0][0].set_ylabel("frames")
+        if k % PANELS_PER_ROW == 0:
+            ax.set_ylabel("frames")
     fig.tight_layout()
     save_figure(fig, path)
 
@@ -131,9 +147,10 @@ def plot_pictures(images: Sequence[np.ndarray], titles: Sequence[str], path: Pat
         titles: one title per picture.
         path: the PNG to write.
     """
-    fig = Figure(figsize=(4.8 * len(images), 3.8))
-    axes = fig.subplots(1, len(images))
-    for ax, image, title in zip(np.atleast_1d(axes), images, titles, strict=True):
+    if len(images) != len(titles):
+        raise ValueError(f"plot_pictures: {len(images)} pictures, {len(titles)} titles")
+    axes, fig = panel_grid(len(images), 4.8, 3.8)
+    for ax, image, title in zip(axes, images, titles, strict=False):
         ax.imshow(image)
         ax.set_title(title, fontsize=8)
         ax.axis("off")

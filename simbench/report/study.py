@@ -15,14 +15,11 @@ import numpy as np
 from matplotlib.figure import Figure
 from scipy.stats import norm, spearmanr
 
-from simbench.report.plots import save_figure
+from simbench.report.plots import panel_grid, save_figure
 from simbench.units import UNITS
 
 #: Columns of a study's table that identify a trial (not parameters, not metrics).
 ID_COLUMNS = ("trial", "cell", "replicate", "seed")
-
-#: At most this many panels in a row of a figure (one figure at most 4 x 3.6 in x 100 dpi wide).
-PANELS_PER_ROW = 4
 
 #: How a metric is shown, by the suffix of its name (before any ``:<method>``): the unit of the
 #: axis and the factor from the table's SI value. Lengths in millimetres.
@@ -114,14 +111,12 @@ def _confidence_band(
 def _plot_parameter(
     study: StudyDescription, data: Mapping[str, list], name: str, metrics: list[str], path: Path
 ) -> None:
-    """Every metric against one parameter, one panel each, at most :data:`PANELS_PER_ROW` a row."""
+    """Every metric against one parameter, one panel each, in rows of at most
+    :data:`simbench.report.plots.PANELS_PER_ROW`."""
     parameter = next(p for p in study.parameters if p.name == name)
     x_label, x_factor = parameter_display(parameter)
     x = np.array(data[name], dtype=float) * x_factor
-    cols = min(PANELS_PER_ROW, len(metrics))
-    rows = -(-len(metrics) // cols)
-    fig = Figure(figsize=(3.6 * cols, 3 * rows))
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    axes, fig = panel_grid(len(metrics), 3.6, 3.0)
     for ax, m in zip(axes, metrics, strict=False):
         y_label, y_factor, binary = metric_display(m)
         y = np.array(data[m], dtype=float) * y_factor
@@ -135,8 +130,6 @@ def _plot_parameter(
         ax.fill_between(xs, lo, hi, alpha=0.25)
         if binary:
             ax.set_ylim(-0.05, 1.05)
-    for ax in axes[len(metrics) :]:
-        ax.set_visible(False)
     fig.tight_layout()
     save_figure(fig, path)
 
