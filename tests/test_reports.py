@@ -56,6 +56,9 @@ def test_quick_validate_writes_a_complete_report(quick_report):
         ratio = r["methods"][r["default"]]["total_deg"] / r["methods"]["triad"]["total_deg"]
         assert r["target_met"] == (ratio <= r["target_ratio"])
         assert r["methods"]["vqf (gyro-aided reference)"]["ratio_to_triad"] < 0.5
+    for t in results["humanoid"]["trials"]:  # a wrong tree names its wrong edges, both methods
+        assert isinstance(t["wrong_joints"], list) and isinstance(t["wrong_joints_mst"], list)
+        assert (t["wrong_joints_mst"] == []) == t["hierarchy_correct_mst"]
     s = results["summary"]
     assert s["linkage_sets"] == 2 and 0 < s["linkage_max_error_cm"] < 5
     assert s["slip_found"] is True
@@ -220,3 +223,14 @@ def test_baseline_update_shows_the_diff(tmp_path, capsys, monkeypatch):
     assert main(["baseline", "--update", "--file", str(path)]) == 0
     assert "max_length_error_cm: 1e-06 ->" in capsys.readouterr().out
     assert json.loads(path.read_text())["scenarios"]["linkage-flock-exercise"]["max_length_error_cm"] < 1
+
+
+def test_a_wrong_tree_is_named_by_its_edges():
+    from simbench.report.validation import _tree_verdict
+
+    assert _tree_verdict(True, []) == "correct"
+    assert (
+        _tree_verdict(False, ["thigh_l-thigh_r", "upper_arm_l-hand_l"])
+        == "wrong: thigh_l-thigh_r, upper_arm_l-hand_l"
+    )
+    assert _tree_verdict(False, []) == "wrong: (edges not recorded)"

@@ -292,6 +292,7 @@ def human_trial(
     given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
     rows = _length_rows(HUMANOID_ROWS, truth, estimated_lengths(given), scale)
     tree = compare_trees(cal.parent_of, ds.truth.parent_of)
+    tree_mst = compare_trees(mst.parent_of, ds.truth.parent_of)
     return {
         "trial": f"{subject} {motion.capitalize()} {k}",
         "subject": subject,
@@ -300,9 +301,10 @@ def human_trial(
         "rows": rows,
         "max_abs_error_cm": max(abs(r["difference_cm"]) for r in rows.values()),
         "hierarchy_correct": tree.correct,
-        "hierarchy_correct_mst": compare_trees(mst.parent_of, ds.truth.parent_of).correct,
+        "hierarchy_correct_mst": tree_mst.correct,
         "thigh_parents": {t: cal.parent_of.get(t) for t in ("thigh_l", "thigh_r")},
         "wrong_joints": list(tree.wrong_edges),
+        "wrong_joints_mst": list(tree_mst.wrong_edges),
         "slip_alarms": clean_alarms(rec, given),
         "inferred_lengths_cm": {
             label: length_of(got, key) * scale * 100 for label, key in HUMANOID_ROWS.items()

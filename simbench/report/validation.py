@@ -107,14 +107,21 @@ def _linkage(linkage: dict[str, Any]) -> list[str]:
     ]
 
 
+def _tree_verdict(correct: bool, wrong_edges: Any) -> str:
+    """``"correct"``, or ``"wrong: a-b, c-d"`` naming the inferred tree's edges the truth lacks."""
+    if correct:
+        return "correct"
+    return "wrong: " + (", ".join(wrong_edges) if wrong_edges else "(edges not recorded)")
+
+
 def _humanoid(humanoid: dict[str, Any]) -> list[str]:
     """O'Brien's Tables 2-4: the human subject's limb lengths and hierarchies."""
     trials = humanoid["trials"]
     hierarchies = [
         [
             t["trial"],
-            "correct" if t["hierarchy_correct"] else "WRONG",
-            "correct" if t["hierarchy_correct_mst"] else "WRONG",
+            _tree_verdict(t["hierarchy_correct"], t.get("wrong_joints", ())),
+            _tree_verdict(t["hierarchy_correct_mst"], t.get("wrong_joints_mst", ())),
             t["thigh_parents"]["thigh_l"],
             t["thigh_parents"]["thigh_r"],
             t["max_abs_error_cm"],
