@@ -299,7 +299,8 @@ def fit_joint(
     spectrum = read_spectrum(s, Vt.T, single_axis_ratio, keep)
     x = _min_norm(U, s, Vt, b, keep)
     if max(noise) > 0.0:
-        x = corrected_solution(A.T @ A, A.T @ b, Vt[keep].T, n_used, noise)
+        gram, rhs = (Vt.T * s**2) @ Vt, Vt.T @ (s * (U.T @ b))  # A^T A and A^T b from the SVD
+        x = corrected_solution(gram, rhs, Vt[keep].T, n_used, noise)
     residual = np.full(n_total, np.nan)
     residual[ok] = np.linalg.norm((A @ x - b).reshape(n_used, 3), axis=1)
     return JointFit(

@@ -514,7 +514,8 @@ def joint_covariance(
     Rp, Rc = R_w_p[ok], R_w_c[ok]
     A = np.concatenate([Rp, -Rc], axis=2).reshape(3 * n, 6)  # O'Brien eqs. 12-13
     b = (p_w_c[ok] - p_w_p[ok]).reshape(3 * n)  # O'Brien eq. 11
-    _, s, Vt = np.linalg.svd(np.linalg.qr(A, mode="r"))  # A's spectrum, from its 6 x 6 triangle
+    tri = np.linalg.qr(A, mode="r")  # A^T A = tri^T tri
+    _, s, Vt = np.linalg.svd(tri)  # A's spectrum, from its 6 x 6 triangle
     x = np.concatenate([fit.joint_in_parent, fit.joint_in_child])
     r = (b - A @ x).reshape(n, 3)
     _check_fit_matches(fit, s, r, ok)
@@ -525,7 +526,7 @@ def joint_covariance(
         [np.einsum("fji,fj->fi", Rp, r), -np.einsum("fji,fj->fi", Rc, r)], axis=1
     )  # (n, 6) A[f]^T r[f]
     if max(noise) > 0.0:  # corrected least squares (calibration.eiv): its normal matrix and scores
-        w_n, U_n = np.linalg.eigh(basis.T @ corrected_normal_matrix(A.T @ A, n, noise) @ basis)
+        w_n, U_n = np.linalg.eigh(basis.T @ corrected_normal_matrix(tri.T @ tri, n, noise) @ basis)
         root = basis @ (U_n / np.sqrt(np.clip(w_n, 1e-300, None)))  # (6, k): root root^T = V N_k^-1 V^T
         scores = scores + 2.0 * (noise_diagonal(noise) @ x)
     else:

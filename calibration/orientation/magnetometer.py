@@ -138,12 +138,7 @@ def fit_magnetometer(mag: np.ndarray, valid: np.ndarray | None = None) -> Magnet
     m = np.asarray(mag, dtype=float)
     if m.ndim != 2 or m.shape[1] != 3:
         raise CalibrationInputError(f"Expected mag of shape (frames, 3), got {m.shape}")
-    use = np.isfinite(m).all(axis=1)
-    if valid is not None:
-        use &= np.asarray(valid, dtype=bool)
-    m = m[use]
-    if m.shape[0] < MIN_SAMPLES:
-        raise CalibrationError(f"a magnetometer fit needs at least {MIN_SAMPLES} samples, got {m.shape[0]}")
+    m = _usable_samples(m, valid)
     try:
         ellipsoid = _fit_ellipsoid(m)
         if ellipsoid.determined:
@@ -222,12 +217,7 @@ def fit_circle_hard_iron(
         raise CalibrationInputError(
             f"Expected a dip within 80 degrees and a nonzero up, got {dip_rad} and {u}"
         )
-    use = np.isfinite(m).all(axis=1)
-    if valid is not None:
-        use &= np.asarray(valid, dtype=bool)
-    m = m[use]
-    if m.shape[0] < MIN_SAMPLES:
-        raise CalibrationError(f"a magnetometer fit needs at least {MIN_SAMPLES} samples, got {m.shape[0]}")
+    m = _usable_samples(m, valid)
     u = u / np.linalg.norm(u)
     _, vecs = np.linalg.eigh(np.cov(m.T))
     axis = vecs[:, 0] * np.sign(vecs[:, 0] @ u or 1.0)  # least spread: the turns' axis
@@ -449,3 +439,15 @@ def fit_disturbed_spans(
         parts = [(c, d) for c, d in fine if a <= c and d <= b]
         out += [whole] if whole.applied or len(parts) < 2 else [judged(c, d) for c, d in parts]
     return out
+
+
+def _usable_samples(m: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
+    """The finite rows of ``m`` (``(F, 3)``) that ``valid`` keeps, or an error when fewer than
+    :data:`MIN_SAMPLES` remain."""
+    use = np.isfinite(m).all(axis=1)
+    if valid is not None:
+        use &= np.asarray(valid, dtype=bool)
+    m = m[use]
+    if m.shape[0] < MIN_SAMPLES:
+        raise CalibrationError(f"a magnetometer fit needs at least {MIN_SAMPLES} samples, got {m.shape[0]}")
+    return m

@@ -72,7 +72,7 @@ def metric_display(metric: str) -> tuple[str, float, bool]:
 
 def parameter_display(p: StudyParameter) -> tuple[str, float]:
     """``(axis label, factor from SI)`` of a parameter: in the unit the study gave it in."""
-    unit = getattr(p, "unit", "1") or "1"
+    unit = p.unit
     factor = UNITS[unit][1]
     short = p.name.split(".")[-1]
     return (short if unit == "1" else f"{short} ({unit})"), 1.0 / factor

@@ -199,10 +199,10 @@ def _slerp_at(time_s: np.ndarray, q_wxyz: np.ndarray, at_s: np.ndarray) -> np.nd
     """``(F, N, 4)`` the orientations ``(F, N, 4)`` sampled at ``time_s`` interpolated to the times
     ``at_s`` (spherical linear interpolation, clamped at the ends): the same instants as the
     positions' linear interpolation, so that a delayed report is one consistent pose."""
-    t = np.clip(at_s, time_s[0], time_s[-1])
-    i = np.clip(np.searchsorted(time_s, t, side="right") - 1, 0, max(time_s.size - 2, 0))
     if time_s.size < 2:
-        return q_wxyz[np.zeros(t.size, dtype=np.int64)]
+        return q_wxyz[np.zeros(np.size(at_s), dtype=np.int64)]
+    t = np.clip(at_s, time_s[0], time_s[-1])
+    i = np.clip(np.searchsorted(time_s, t, side="right") - 1, 0, time_s.size - 2)
     frac = ((t - time_s[i]) / (time_s[i + 1] - time_s[i]))[:, None, None]
     R0, R1 = quat_to_matrix(q_wxyz[i]), quat_to_matrix(q_wxyz[i + 1])
     step = matrix_to_rotvec(np.swapaxes(R0, -1, -2) @ R1)  # (F, N, 3) body-frame increment
