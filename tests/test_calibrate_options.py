@@ -16,7 +16,7 @@ import pytest
 import simbench as sb
 from calibration import calibrate
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.uncertainty import covers
+from calibration.uncertainty import covers, holds_truth
 from simbench.cli import main
 from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_to_dict, read_calibration_json, write_calibration_json
@@ -123,7 +123,9 @@ def test_truth_lies_in_most_95_percent_regions(clean):
             k = ds.sensors.index(j.child)
             for part, truth in (("parent", lp[k]), ("child", lc[k])):
                 region = j.uncertainty.region(part)
-                hits.append(bool(covers(region.centre * s, truth, region.cov * s * s, dof=region.dof)))
+                hits.append(
+                    bool(covers(region.centre * s, truth, region.cov * s * s, threshold=region.threshold))
+                )
     assert len(hits) == 20
     assert np.mean(hits) >= 0.75, hits
 
@@ -268,17 +270,7 @@ def test_rotation_noise_correction_moves_the_joints_to_the_truth_and_its_regions
             )
             assert j.uncertainty.orientation_noise_rad2 == j.fit.orientation_noise_rad2
             in_parent, in_child = truth[names.index(j.child)]
-            held += [
-                covers(
-                    j.fit.joint_in_parent,
-                    in_parent,
-                    j.uncertainty.cov_in_parent,
-                    dof=j.uncertainty.dof_in_parent,
-                ),
-                covers(
-                    j.fit.joint_in_child, in_child, j.uncertainty.cov_in_child, dof=j.uncertainty.dof_in_child
-                ),
-            ]
+            held += list(holds_truth(j.uncertainty, in_parent, in_child))
         # the limb lengths follow the corrected joints
         thigh = next(x for x in fixed.lengths if x.segment == "thigh")
         true_thigh = np.linalg.norm(truth[1][1] - truth[2][0])
