@@ -25,8 +25,10 @@ from simbench.api import Orientations, calibrate, orient, read, score, simulate
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset, read_dataset, write_dataset
 from simbench.io.imu import ImuRecording
+from simbench.io.marker_data import MarkerData
 from simbench.io.poses import PoseRecording
 from simbench.score import CalibrationScore, OrientationScore
+from simbench.sim.marker_clusters import MarkerConfig
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 from simbench.sim.session import SessionConfig
 from simbench.versions import __version__, software_versions
@@ -37,6 +39,8 @@ __all__ = [
     "Dataset",
     "ImuRecording",
     "InputError",
+    "MarkerConfig",
+    "MarkerData",
     "OrientationScore",
     "Orientations",
     "PoseRecording",

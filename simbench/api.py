@@ -37,6 +37,7 @@ from simbench.orient import (
 )
 from simbench.score import CalibrationScore, OrientationScore, score_orientation
 from simbench.score import score as score_calibration
+from simbench.sim.marker_clusters import MarkerConfig, add_markers
 from simbench.sim.sensor_config import SensorConfig
 from simbench.sim.session import SessionConfig, run_session
 
@@ -53,6 +54,7 @@ def simulate(
     seed: int = _DEFAULT.seed,
     sensors_on: Sequence[str] | None = None,
     placement: Mapping[str, Sequence[float]] | None = None,
+    markers: MarkerConfig | bool = False,
 ) -> Dataset:
     """Simulate a capture session with MuJoCo physics and the chosen sensors.
 
@@ -68,11 +70,18 @@ def simulate(
         seed: seed of every random draw of the session (same seed, same data).
         sensors_on: bodies carrying a sensor (default: the model's).
         placement: ``{sensor: (dx, dy, dz)}`` shifts of sensors in their body frames, m.
+        markers: optical marker clusters on every sensor's segment (``True``: 4 per segment, no
+            skin motion or camera noise; a :class:`~simbench.sim.marker_clusters.MarkerConfig` to
+            choose), drawn from their own stream of ``seed``; ``False``: none.
 
     Returns:
         The Dataset: ``measured`` data as the instruments give it (positions in the tracker's
-        units: metres / ``position_unit_scale``) and the exact ``truth``.
+        units: metres / ``position_unit_scale``), the exact ``truth`` and the ``markers`` (m).
     """
+    if not isinstance(markers, bool | MarkerConfig):
+        raise InputError(
+            f"Expected markers to be True, False or a MarkerConfig, got {type(markers).__name__}"
+        )
     config = SessionConfig(
         model=model,
         motion=motion,
@@ -85,7 +94,10 @@ def simulate(
             (name, (float(v[0]), float(v[1]), float(v[2]))) for name, v in sorted((placement or {}).items())
         ),
     )
-    return run_session(config)
+    ds = run_session(config)
+    if markers is False:
+        return ds
+    return add_markers(ds, MarkerConfig() if markers is True else markers, seed=config.seed)
 
 
 def calibrate(
