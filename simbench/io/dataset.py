@@ -53,6 +53,7 @@ from simbench.io.hdf5 import open_hdf5
 from simbench.io.imu import ImuRecording
 from simbench.io.marker_data import MarkerData, read_markers_group, write_markers_group
 from simbench.io.poses import PoseRecording, first_bad_time
+from simbench.io.tables import dataset_to_pandas, dataset_to_xarray
 
 FORMAT = "simbench-dataset"
 FORMAT_VERSION = 1
@@ -194,6 +195,18 @@ class Dataset:
             source=str(self.meta.get("source", "dataset")),
             notes=tuple(notes),
         )
+
+    def to_pandas(self, *, layout: str = "long", source: str = "measured") -> Any:
+        """The data as a ``pandas.DataFrame``: ``layout`` ``"long"`` (one row per sample and sensor,
+        a ``(time_s, sensor)`` index) or ``"wide"`` (one row per sample, ``<sensor>_<quantity>``
+        columns); ``source`` ``"measured"``, ``"truth"``, ``"actual"`` or ``"markers"``. Columns and
+        units: :mod:`simbench.io.tables`. Needs pandas (``pip install 'simbench[export]'``)."""
+        return dataset_to_pandas(self, layout=layout, source=source)
+
+    def to_xarray(self) -> Any:
+        """Everything as one ``xarray.Dataset`` (dimensions ``time_s``, ``sensor``, ``axis``, ``quat``,
+        ``joint``, ``marker``; :mod:`simbench.io.tables`). Needs xarray (``simbench[export]``)."""
+        return dataset_to_xarray(self)
 
     def poses(self) -> PoseRecording:
         """The measured poses as the calibration reads them."""
