@@ -6,6 +6,7 @@
     cal = sb.calibrate(ds)                  # or calibration.calibrate(R_w_s, p_w_s, names) on arrays
     result = sb.score(cal, ds)              # errors per joint and limb, hierarchy right/wrong edges
     ori = sb.orient(ds, method="fontaine")  # orientations and their errors against the truth
+    sb.export(ds, sto="imu.sto", mjcf="skeleton.xml")  # files for OpenSim, MuJoCo and others
 
 Everything is in memory (no temporary files) and in SI units; a tracker's unit scale factor is
 carried by the Dataset and applied by :func:`score`.
@@ -16,6 +17,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,7 +26,8 @@ from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
 from calibration.orientation import Skeleton
 from simbench.errors import InputError
-from simbench.io.dataset import Dataset
+from simbench.io.dataset import Dataset, read_dataset
+from simbench.io.export import export_dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
@@ -228,4 +231,36 @@ def orient(
     )
 
 
-__all__ = ["Orientations", "calibrate", "orient", "read", "score", "simulate"]
+def export(
+    data: Dataset | str | os.PathLike[str],
+    *,
+    trc: str | os.PathLike[str] | None = None,
+    c3d: str | os.PathLike[str] | None = None,
+    sto: str | os.PathLike[str] | None = None,
+    imu_csv: str | os.PathLike[str] | None = None,
+    mjcf: str | os.PathLike[str] | None = None,
+    calibration: str | os.PathLike[str] | Mapping[str, Any] | None = None,
+    markers: str = "measured",
+    orientations: str = "measured",
+    trc_units: str = "mm",
+) -> dict[str, Path]:
+    """Write a dataset (or a dataset file) into the formats other tools read: markers to TRC and
+    C3D, sensor orientations to OpenSense's ``.sto``, raw IMU readings to CSV, the skeleton (of
+    ``calibration``, a calibration JSON, or of the truth) to MJCF. Arguments and checks:
+    :func:`simbench.io.export.export_dataset`; returns ``{kind: path}`` of the files written."""
+    ds = data if isinstance(data, Dataset) else read_dataset(data)
+    return export_dataset(
+        ds,
+        trc=trc,
+        c3d=c3d,
+        sto=sto,
+        imu_csv=imu_csv,
+        mjcf=mjcf,
+        calibration=calibration,
+        markers=markers,
+        orientations=orientations,
+        trc_units=trc_units,
+    )
+
+
+__all__ = ["Orientations", "calibrate", "export", "orient", "read", "score", "simulate"]
