@@ -62,7 +62,9 @@ def imu_csv_text(
     """The CSV text of raw readings (arguments as the fields of :class:`ImuReadings`)."""
     names = tuple(names)
     time_s = np.asarray(time_s, dtype=float)
-    f = time_s.shape[0] if time_s.ndim == 1 else -1
+    if time_s.ndim != 1:
+        raise InputError(f"Expected time_s of shape (frames,), got {time_s.shape}")
+    f = time_s.shape[0]
     arrays = {"acc": acc, "gyro": gyro, "mag": mag}
     for key, a in arrays.items():
         if np.shape(a) != (f, len(names), 3):
