@@ -78,6 +78,18 @@ def test_xarray_holds_everything(ds):
     assert '"seed": 4' in x.attrs["meta"]
 
 
+def test_tables_do_not_share_the_datasets_memory(ds):
+    for source, held in (("measured", ds.measured.p_w_s), ("markers", ds.markers.xyz)):
+        for layout in ("long", "wide"):
+            df = ds.to_pandas(source=source, layout=layout)
+            numbers = df.select_dtypes("number")
+            assert not any(np.shares_memory(numbers[c].to_numpy(), held) for c in numbers.columns)
+    x = ds.to_xarray()  # xarray keeps the arrays it is given: they must be copies
+    assert not np.shares_memory(x["markers_xyz"].to_numpy(), ds.markers.xyz)
+    assert not np.shares_memory(x["truth_joint_w"].to_numpy(), ds.truth.joint_w)
+    assert not np.shares_memory(x["p_w_s"].to_numpy(), ds.measured.p_w_s)
+
+
 def test_bad_requests(ds):
     with pytest.raises(InputError, match=r"Expected layout to be one of \('long', 'wide'\), got 'tall'"):
         ds.to_pandas(layout="tall")

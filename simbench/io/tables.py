@@ -105,7 +105,7 @@ def dataset_to_pandas(ds: Dataset, *, layout: str = "long", source: str = "measu
                 "the dataset has no markers (/markers); simulate them with `simbench simulate --markers`"
             )
         names, columns = ds.markers.labels, ["x", "y", "z"]
-        values = ds.markers.xyz
+        values = np.array(ds.markers.xyz)  # an own copy: the table never shares the dataset's memory
         units = {"time_s": "s", "x": "m", "y": "m", "z": "m"}
         key = "marker"
     else:
