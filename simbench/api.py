@@ -239,6 +239,7 @@ def export(
     sto: str | os.PathLike[str] | None = None,
     imu_csv: str | os.PathLike[str] | None = None,
     mjcf: str | os.PathLike[str] | None = None,
+    osim: str | os.PathLike[str] | None = None,
     calibration: str | os.PathLike[str] | Mapping[str, Any] | None = None,
     markers: str = "measured",
     orientations: str = "measured",
@@ -246,7 +247,7 @@ def export(
 ) -> dict[str, Path]:
     """Write a dataset (or a dataset file) into the formats other tools read: markers to TRC and
     C3D, sensor orientations to OpenSense's ``.sto``, raw IMU readings to CSV, the skeleton (of
-    ``calibration``, a calibration JSON, or of the truth) to MJCF. Arguments and checks:
+    ``calibration``, a calibration JSON, or of the truth) to MJCF and ``.osim``. Arguments and checks:
     :func:`simbench.io.export.export_dataset`; returns ``{kind: path}`` of the files written."""
     ds = data if isinstance(data, Dataset) else read_dataset(data)
     return export_dataset(
@@ -256,6 +257,7 @@ def export(
         sto=sto,
         imu_csv=imu_csv,
         mjcf=mjcf,
+        osim=osim,
         calibration=calibration,
         markers=markers,
         orientations=orientations,

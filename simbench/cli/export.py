@@ -14,10 +14,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``export`` subcommand to ``simbench``'s subparsers."""
     exp = sub.add_parser(
         "export",
-        help="a dataset into TRC, C3D, OpenSense .sto, IMU CSV and MJCF files",
+        help="a dataset into TRC, C3D, OpenSense .sto, IMU CSV, MJCF and .osim files",
         description="Write a simbench dataset (.h5) into the files other tools read: markers (TRC, "
         "C3D), sensor orientations in OpenSense's .sto layout, raw accelerometer, gyroscope and "
-        "magnetometer readings (CSV), the skeleton of a calibration or of the truth (MJCF). Every "
+        "magnetometer readings (CSV), the skeleton of a calibration or of the truth (MJCF, OpenSim .osim). "
+        "Every "
         "output is checked before the first file is written; each is written atomically.",
     )
     exp.add_argument("dataset", metavar="DATASET.h5", help="a simbench dataset (simbench simulate -o)")
@@ -26,10 +27,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     exp.add_argument("--sto", metavar="OUT.sto", help="sensor orientations in OpenSense's .sto layout")
     exp.add_argument("--imu-csv", metavar="OUT.csv", help="raw accelerometer, gyroscope, magnetometer")
     exp.add_argument("--mjcf", metavar="OUT.xml", help="the skeleton as an MJCF model MuJoCo loads")
+    exp.add_argument("--osim", metavar="OUT.osim", help="the same skeleton as an OpenSim model")
     exp.add_argument(
         "--calibration",
         metavar="CAL.json",
-        help="the skeleton of this calibration JSON (simbench calibrate --json; default: the truth)",
+        help="the skeleton (--mjcf, --osim) of this calibration JSON (simbench calibrate --json; default: "
+        "the truth)",
     )
     exp.add_argument(
         "--markers",
@@ -51,10 +54,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_export(args: argparse.Namespace) -> int:
     """``simbench export``: write the requested files."""
-    if not any((args.trc, args.c3d, args.sto, args.imu_csv, args.mjcf)):
-        raise InputError("nothing to export: give one or more of --trc, --c3d, --sto, --imu-csv, --mjcf")
-    if args.calibration is not None and args.mjcf is None:
-        raise InputError("--calibration gives the skeleton of --mjcf: give --mjcf OUT.xml too")
+    if not any((args.trc, args.c3d, args.sto, args.imu_csv, args.mjcf, args.osim)):
+        raise InputError(
+            "nothing to export: give one or more of --trc, --c3d, --sto, --imu-csv, --mjcf, --osim"
+        )
+    if args.calibration is not None and args.mjcf is None and args.osim is None:
+        raise InputError("--calibration gives the skeleton of --mjcf or --osim: give one of them too")
     written = export(
         args.dataset,
         trc=args.trc,
@@ -62,6 +67,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         sto=args.sto,
         imu_csv=args.imu_csv,
         mjcf=args.mjcf,
+        osim=args.osim,
         calibration=args.calibration,
         markers=args.markers,
         orientations=args.orientations,

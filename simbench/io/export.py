@@ -1,5 +1,5 @@
 """A Dataset into the files other tools read: markers (TRC, C3D), IMU orientations (OpenSense
-``.sto``), raw IMU readings (CSV) and the skeleton (MJCF), in one call.
+``.sto``), raw IMU readings (CSV) and the skeleton (MJCF, OpenSim ``.osim``), in one call.
 
 Every requested output is checked before the first file is written (a dataset without markers
 asked for a TRC file fails without writing anything), and each file is written atomically.
@@ -22,6 +22,7 @@ from simbench.io.dataset import Dataset, truth_calibration_dict
 from simbench.io.imu_csv import imu_csv_text
 from simbench.io.opensense import sto_text
 from simbench.io.skeleton_mjcf import skeleton_mjcf
+from simbench.io.skeleton_osim import skeleton_osim
 from simbench.io.trc import trc_text
 
 #: Which data an export takes: what the instruments measured, or the exact truth.
@@ -95,6 +96,7 @@ def export_dataset(
     sto: PathLike | None = None,
     imu_csv: PathLike | None = None,
     mjcf: PathLike | None = None,
+    osim: PathLike | None = None,
     calibration: PathLike | Mapping[str, Any] | None = None,
     markers: str = "measured",
     orientations: str = "measured",
@@ -110,24 +112,26 @@ def export_dataset(
         imu_csv: raw accelerometer, gyroscope and magnetometer readings (:mod:`simbench.io.imu_csv`).
         mjcf: the skeleton as MJCF (:mod:`simbench.io.skeleton_mjcf`) of ``calibration`` (a
             calibration JSON path or document), or of the dataset's truth when ``None``.
+        osim: the same skeleton as an OpenSim model (:mod:`simbench.io.skeleton_osim`).
         calibration: see ``mjcf``.
         markers: ``"measured"`` or ``"truth"`` marker positions for ``trc`` and ``c3d``.
         orientations: ``"measured"`` or ``"truth"`` orientations for ``sto``.
         trc_units: the TRC file's length unit (``mm``, ``m``, ``cm``, ``in``).
 
     Returns:
-        ``{kind: path}`` of the files written (kinds ``trc``, ``c3d``, ``sto``, ``imu_csv``, ``mjcf``).
+        ``{kind: path}`` of the files written (kinds ``trc``, ``c3d``, ``sto``, ``imu_csv``, ``mjcf``,
+        ``osim``).
 
     Raises:
         InputError: nothing to export, or data an export needs that the dataset lacks (nothing is
             written then).
     """
-    asked = {"trc": trc, "c3d": c3d, "sto": sto, "imu_csv": imu_csv, "mjcf": mjcf}
+    asked = {"trc": trc, "c3d": c3d, "sto": sto, "imu_csv": imu_csv, "mjcf": mjcf, "osim": osim}
     asked = {k: Path(v) for k, v in asked.items() if v is not None}
     if not asked:
-        raise InputError("nothing to export: give at least one of trc, c3d, sto, imu_csv, mjcf")
-    if calibration is not None and "mjcf" not in asked:
-        raise InputError("a calibration is used only for the MJCF skeleton: give mjcf too")
+        raise InputError("nothing to export: give at least one of trc, c3d, sto, imu_csv, mjcf, osim")
+    if calibration is not None and "mjcf" not in asked and "osim" not in asked:
+        raise InputError("a calibration is used only for the skeleton: give mjcf or osim too")
     for path in asked.values():
         if path.is_dir():
             raise InputError(f"cannot write {path}: it is a folder")
@@ -145,8 +149,12 @@ def export_dataset(
         texts["sto"] = sto_text(ds.sensors, ds.time_s, export_orientations(ds, orientations), rate_hz=rate)
     if "imu_csv" in asked:
         texts["imu_csv"] = imu_csv_text(ds.sensors, ds.time_s, *_imu_readings(ds))
-    if "mjcf" in asked:
-        texts["mjcf"] = skeleton_mjcf(_calibration_doc(ds, calibration)).xml
+    if "mjcf" in asked or "osim" in asked:
+        doc = _calibration_doc(ds, calibration)
+        if "mjcf" in asked:
+            texts["mjcf"] = skeleton_mjcf(doc).xml
+        if "osim" in asked:
+            texts["osim"] = skeleton_osim(doc)
     for kind, text in texts.items():
         atomic_write_text(asked[kind], text)
     if "c3d" in asked:

@@ -97,7 +97,7 @@ def _unit(v: Any, where: str) -> np.ndarray:
     return a / n
 
 
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """wxyz of the smallest rotation taking unit vector ``a`` to unit vector ``b``."""
     c = float(np.dot(a, b))
     if c < -1.0 + 1e-12:  # opposite: half a turn about any axis perpendicular to a
@@ -157,7 +157,7 @@ def _joint(j: Mapping[str, Any], scale: float) -> SkeletonJoint:
         return SkeletonJoint(j["parent"], j["child"], "ball", jip, jic, None, np.array([1.0, 0.0, 0.0, 0.0]))
     a_p = _unit(j["axis_in_parent"], f"{where}, axis_in_parent")
     a_c = _unit(j["axis_in_child"], f"{where}, axis_in_child")
-    return SkeletonJoint(j["parent"], j["child"], "hinge", jip, jic, a_c, _rotation_between(a_c, a_p))
+    return SkeletonJoint(j["parent"], j["child"], "hinge", jip, jic, a_c, rotation_between(a_c, a_p))
 
 
 def _bone_geoms(body: ET.Element, start: np.ndarray, ends: list[np.ndarray], name: str) -> None:
@@ -278,6 +278,7 @@ def skeleton_qpos(
 __all__ = [
     "SkeletonJoint",
     "SkeletonModel",
+    "rotation_between",
     "skeleton_joints",
     "skeleton_mjcf",
     "skeleton_qpos",
