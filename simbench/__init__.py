@@ -8,6 +8,7 @@ The public API (:mod:`simbench.api`)::
     cal = sb.calibrate(ds)
     result = sb.score(cal, ds)
     ori = sb.orient(ds, method="fontaine")
+    sb.export(ds, sto="imu.sto", mjcf="skeleton.xml")  # OpenSense orientations, MuJoCo skeleton
     rec = sb.read("recording.c3d")   # pose CSV, wide export, C3D, simbench HDF5, BROAD
 
 The layers and the import rule between them are in ARCHITECTURE.md.
@@ -21,12 +22,14 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
 
 from calibration import Calibration
-from simbench.api import Orientations, calibrate, orient, read, score, simulate
+from simbench.api import Orientations, calibrate, export, orient, read, score, simulate
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset, read_dataset, write_dataset
 from simbench.io.imu import ImuRecording
+from simbench.io.marker_data import MarkerData
 from simbench.io.poses import PoseRecording
 from simbench.score import CalibrationScore, OrientationScore
+from simbench.sim.marker_clusters import MarkerConfig
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 from simbench.sim.session import SessionConfig
 from simbench.versions import __version__, software_versions
@@ -37,6 +40,8 @@ __all__ = [
     "Dataset",
     "ImuRecording",
     "InputError",
+    "MarkerConfig",
+    "MarkerData",
     "OrientationScore",
     "Orientations",
     "PoseRecording",
@@ -44,6 +49,7 @@ __all__ = [
     "SessionConfig",
     "__version__",
     "calibrate",
+    "export",
     "load_sensor_config",
     "orient",
     "read",

@@ -6,6 +6,7 @@
     cal = sb.calibrate(ds)                  # or calibration.calibrate(R_w_s, p_w_s, names) on arrays
     result = sb.score(cal, ds)              # errors per joint and limb, hierarchy right/wrong edges
     ori = sb.orient(ds, method="fontaine")  # orientations and their errors against the truth
+    sb.export(ds, sto="imu.sto", mjcf="skeleton.xml")  # files for OpenSim, MuJoCo and others
 
 Everything is in memory (no temporary files) and in SI units; a tracker's unit scale factor is
 carried by the Dataset and applied by :func:`score`.
@@ -16,6 +17,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,7 +26,8 @@ from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
 from calibration.orientation import Skeleton
 from simbench.errors import InputError
-from simbench.io.dataset import Dataset
+from simbench.io.dataset import Dataset, read_dataset
+from simbench.io.export import export_dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
@@ -37,6 +40,7 @@ from simbench.orient import (
 )
 from simbench.score import CalibrationScore, OrientationScore, score_orientation
 from simbench.score import score as score_calibration
+from simbench.sim.marker_clusters import MarkerConfig, add_markers
 from simbench.sim.sensor_config import SensorConfig
 from simbench.sim.session import SessionConfig, run_session
 
@@ -53,6 +57,7 @@ def simulate(
     seed: int = _DEFAULT.seed,
     sensors_on: Sequence[str] | None = None,
     placement: Mapping[str, Sequence[float]] | None = None,
+    markers: MarkerConfig | bool = False,
 ) -> Dataset:
     """Simulate a capture session with MuJoCo physics and the chosen sensors.
 
@@ -68,11 +73,18 @@ def simulate(
         seed: seed of every random draw of the session (same seed, same data).
         sensors_on: bodies carrying a sensor (default: the model's).
         placement: ``{sensor: (dx, dy, dz)}`` shifts of sensors in their body frames, m.
+        markers: optical marker clusters on every sensor's segment (``True``: 4 per segment, no
+            skin motion or camera noise; a :class:`~simbench.sim.marker_clusters.MarkerConfig` to
+            choose), drawn from their own stream of ``seed``; ``False``: none.
 
     Returns:
         The Dataset: ``measured`` data as the instruments give it (positions in the tracker's
-        units: metres / ``position_unit_scale``) and the exact ``truth``.
+        units: metres / ``position_unit_scale``), the exact ``truth`` and the ``markers`` (m).
     """
+    if not isinstance(markers, bool | MarkerConfig):
+        raise InputError(
+            f"Expected markers to be True, False or a MarkerConfig, got {type(markers).__name__}"
+        )
     config = SessionConfig(
         model=model,
         motion=motion,
@@ -85,7 +97,10 @@ def simulate(
             (name, (float(v[0]), float(v[1]), float(v[2]))) for name, v in sorted((placement or {}).items())
         ),
     )
-    return run_session(config)
+    ds = run_session(config)
+    if markers is False:
+        return ds
+    return add_markers(ds, MarkerConfig() if markers is True else markers, seed=config.seed)
 
 
 def calibrate(
@@ -216,4 +231,38 @@ def orient(
     )
 
 
-__all__ = ["Orientations", "calibrate", "orient", "read", "score", "simulate"]
+def export(
+    data: Dataset | str | os.PathLike[str],
+    *,
+    trc: str | os.PathLike[str] | None = None,
+    c3d: str | os.PathLike[str] | None = None,
+    sto: str | os.PathLike[str] | None = None,
+    imu_csv: str | os.PathLike[str] | None = None,
+    mjcf: str | os.PathLike[str] | None = None,
+    osim: str | os.PathLike[str] | None = None,
+    calibration: str | os.PathLike[str] | Mapping[str, Any] | None = None,
+    markers: str = "measured",
+    orientations: str = "measured",
+    trc_units: str = "mm",
+) -> dict[str, Path]:
+    """Write a dataset (or a dataset file) into the formats other tools read: markers to TRC and
+    C3D, sensor orientations to OpenSense's ``.sto``, raw IMU readings to CSV, the skeleton (of
+    ``calibration``, a calibration JSON, or of the truth) to MJCF and ``.osim``. Arguments and checks:
+    :func:`simbench.io.export.export_dataset`; returns ``{kind: path}`` of the files written."""
+    ds = data if isinstance(data, Dataset) else read_dataset(data)
+    return export_dataset(
+        ds,
+        trc=trc,
+        c3d=c3d,
+        sto=sto,
+        imu_csv=imu_csv,
+        mjcf=mjcf,
+        osim=osim,
+        calibration=calibration,
+        markers=markers,
+        orientations=orientations,
+        trc_units=trc_units,
+    )
+
+
+__all__ = ["Orientations", "calibrate", "export", "orient", "read", "score", "simulate"]

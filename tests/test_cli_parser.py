@@ -9,7 +9,7 @@ import pytest
 from simbench.cli import build_parser, main
 from simbench.versions import __version__
 
-COMMANDS = ("calibrate", "scale", "simulate", "orient", "validate", "report", "baseline", "sweep")
+COMMANDS = ("calibrate", "scale", "simulate", "export", "orient", "validate", "report", "baseline", "sweep")
 
 
 def test_version_comes_from_the_versions_module(capsys):
@@ -39,6 +39,7 @@ def test_every_command_has_help_and_a_handler(capsys, command):
             "calibrate": ["calibrate", "poses.csv"],
             "scale": ["scale", "poses.csv", "--sensors", "a", "b", "--distance", "1"],
             "simulate": ["simulate", "-o", "out.h5"],
+            "export": ["export", "data.h5", "--trc", "out.trc"],
             "orient": ["orient", "imu.h5"],
             "report": ["report", "data.h5"],
             "sweep": ["sweep", "study.toml"],

@@ -40,9 +40,10 @@ PACKAGE_INIT = "simbench"
 
 #: Optional heavy dependencies that may be imported inside a function (the feature that needs
 #: them says which extra installs them): studies' Parquet files and Dask cluster, per-trial BLAS
-#: limits, the benchmark's reference (ahrs), and dm_control (seconds to import, needed only for
-#: ``dm_control:NAME`` models).
-LAZY_ALLOWED = {"pyarrow", "dask", "distributed", "threadpoolctl", "ahrs", "dm_control"}
+#: limits, the benchmark's reference (ahrs), dm_control (seconds to import, needed only for
+#: ``dm_control:NAME`` models), and the tables of ``Dataset.to_pandas``/``to_xarray`` (the
+#: ``export`` extra).
+LAZY_ALLOWED = {"pyarrow", "dask", "distributed", "threadpoolctl", "ahrs", "dm_control", "pandas", "xarray"}
 
 FORBIDDEN_IN_CALIBRATION = {"mujoco", "dm_control", "simbench"}
 

@@ -10,9 +10,26 @@ from markdown_it import MarkdownIt
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def python_examples() -> list[str]:
+#: The README's new-user flow: its blocks run in order, with its files, in ``tests/test_readme_flow.py``.
+FLOW_SECTION = "First steps"
+
+
+def readme_fences() -> list[tuple[str, str, str]]:
+    """``(section, language, code)`` of every fenced block of the README, ``section`` the title of
+    the ``##`` heading above it."""
     tokens = MarkdownIt("commonmark").parse((ROOT / "README.md").read_text(encoding="utf-8"))
-    return [t.content for t in tokens if t.type == "fence" and t.info.strip() == "python"]
+    out, section = [], ""
+    for k, t in enumerate(tokens):
+        if t.type == "heading_open" and t.tag == "h2":
+            section = tokens[k + 1].content
+        elif t.type == "fence":
+            out.append((section, t.info.strip(), t.content))
+    return out
+
+
+def python_examples() -> list[str]:
+    """The README's stand-alone Python examples (the new-user flow's are run by its own test)."""
+    return [code for section, lang, code in readme_fences() if lang == "python" and section != FLOW_SECTION]
 
 
 def test_readme_has_the_quickstart():

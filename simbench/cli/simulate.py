@@ -7,11 +7,12 @@ import json
 from pathlib import Path
 
 from simbench.api import simulate
-from simbench.cli.types import positive_float, seed
+from simbench.cli.types import non_negative_float, positive_float, seed
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
 from simbench.io.dataset import truth_calibration_dict, write_dataset
 from simbench.io.poses import write_pose_csv
+from simbench.sim.marker_clusters import MarkerConfig
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -49,6 +50,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     sim.add_argument(
         "--sensors-on", metavar="BODY,BODY,...", help="bodies that carry a sensor (default: the model's)"
     )
+    sim.add_argument(
+        "--markers",
+        action="store_true",
+        help="also simulate optical marker clusters on every sensor's segment (stored in the dataset; "
+        "`simbench export --trc/--c3d` writes them)",
+    )
+    sim.add_argument(
+        "--markers-per-segment", type=int, choices=(3, 4), default=4, help="markers per cluster (default 4)"
+    )
+    sim.add_argument(
+        "--marker-skin",
+        type=non_negative_float,
+        default=0.0,
+        metavar="MM",
+        help="markers' skin motion, standard deviation per coordinate in mm (default 0)",
+    )
+    sim.add_argument(
+        "--marker-noise",
+        type=non_negative_float,
+        default=0.0,
+        metavar="MM",
+        help="markers' camera noise, standard deviation per coordinate in mm (default 0)",
+    )
     sim.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="the dataset (HDF5)")
     sim.add_argument("--csv", metavar="OUT.csv", help="also export the measured poses as a pose CSV")
     sim.add_argument("--truth-json", metavar="OUT.json", help="also export the truth as calibration JSON")
@@ -76,6 +100,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
                 "--sensors-on: a capture needs at least 2 bodies, separated by commas, got "
                 f"{args.sensors_on!r}"
             )
+    asked = (args.markers_per_segment != 4, args.marker_skin > 0, args.marker_noise > 0)
+    if any(asked) and not args.markers:
+        raise InputError("--markers-per-segment, --marker-skin and --marker-noise need --markers")
+    markers = args.markers and MarkerConfig(
+        per_segment=args.markers_per_segment,
+        skin_sd_m=args.marker_skin * 1e-3,
+        camera_noise_m=args.marker_noise * 1e-3,
+    )
     ds = simulate(
         args.model,
         args.motion,
@@ -84,6 +116,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         rate_hz=args.rate,
         seed=args.seed,
         sensors_on=bodies,
+        markers=markers,
     )
     meta = ds.meta
     print(
@@ -95,6 +128,11 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"{1 / meta['physics_timestep_s']:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
     )
     print(f"  sensors on: {', '.join(ds.sensors)}")
+    if ds.markers is not None:
+        print(
+            f"  markers: {len(ds.markers.labels)} ({args.markers_per_segment} per segment; skin motion "
+            f"{args.marker_skin:g} mm, camera noise {args.marker_noise:g} mm)"
+        )
     if meta["mujoco_warnings"]:
         print(f"  MuJoCo warnings: {meta['mujoco_warnings']}")
     write_dataset(args.output, ds)

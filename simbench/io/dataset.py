@@ -26,6 +26,8 @@ z)``; SI units (m, s, rad, m/s^2, rad/s) and microtesla for magnetic field::
     /truth/single_axis     (J,)        the joint is a single hinge
     /truth/axis_in_parent, axis_in_child (J, 3)  its axis (NaN when not a hinge)
     /truth/p_b_s, q_b_s    (N, 3/4)    sensor placement in its body frame
+    /markers/...           optional: M optical markers (labels, segment, xyz (F, M, 3) m, ...;
+                           layout in :mod:`simbench.io.marker_data`); older files have none
 
 The world frame is ENU-like: z up (gravity -z), the Earth field's horizontal part along +y.
 Writes are atomic: the file appears complete or not at all.
@@ -49,7 +51,9 @@ from simbench.errors import InputError
 from simbench.io.atomic import atomic_path
 from simbench.io.hdf5 import open_hdf5
 from simbench.io.imu import ImuRecording
+from simbench.io.marker_data import MarkerData, read_markers_group, write_markers_group
 from simbench.io.poses import PoseRecording, first_bad_time
+from simbench.io.tables import dataset_to_pandas, dataset_to_xarray
 
 FORMAT = "simbench-dataset"
 FORMAT_VERSION = 1
@@ -120,7 +124,9 @@ class Truth:
 
 @dataclass(frozen=True)
 class Dataset:
-    """A capture session: times, sensor names, measured data, truth (if simulated), metadata."""
+    """A capture session: times, sensor names, measured data, truth (if simulated), metadata, and
+    optionally optical markers (``markers``: :class:`~simbench.io.marker_data.MarkerData`, positions
+    in metres whatever ``position_unit_scale`` says of the tracker's)."""
 
     time_s: np.ndarray
     sensors: tuple[str, ...]
@@ -129,6 +135,7 @@ class Dataset:
     meta: dict[str, Any] = field(default_factory=dict)
     #: The tracker's unit scale factor: ``measured.p_w_s`` is in metres / this (1 for metres).
     position_unit_scale: float = 1.0
+    markers: MarkerData | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "time_s", _frozen(self.time_s))
@@ -140,6 +147,18 @@ class Dataset:
             raise InputError(
                 f"Expected {f} times and {n} sensor names, got {self.time_s.shape[0]} and {len(self.sensors)}"
             )
+        if self.markers is not None:
+            if not isinstance(self.markers, MarkerData):
+                raise InputError(
+                    f"Expected markers to be MarkerData or None, got {type(self.markers).__name__}"
+                )
+            if self.markers.n_frames != f:
+                raise InputError(f"Expected markers over the {f} frames, got {self.markers.n_frames}")
+            unknown = sorted(set(self.markers.segment) - set(self.sensors))
+            if unknown:
+                raise InputError(
+                    f"Expected marker segments among the sensors {list(self.sensors)}, got {unknown}"
+                )
 
     def truth_joint_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """True ``(joint_in_parent, joint_in_child)``, each ``(N, 3)`` indexed by the child sensor
@@ -176,6 +195,18 @@ class Dataset:
             source=str(self.meta.get("source", "dataset")),
             notes=tuple(notes),
         )
+
+    def to_pandas(self, *, layout: str = "long", source: str = "measured") -> Any:
+        """The data as a ``pandas.DataFrame``: ``layout`` ``"long"`` (one row per sample and sensor,
+        a ``(time_s, sensor)`` index) or ``"wide"`` (one row per sample, ``<sensor>_<quantity>``
+        columns); ``source`` ``"measured"``, ``"truth"``, ``"actual"`` or ``"markers"``. Columns and
+        units: :mod:`simbench.io.tables`. Needs pandas (``pip install 'simbench[export]'``)."""
+        return dataset_to_pandas(self, layout=layout, source=source)
+
+    def to_xarray(self) -> Any:
+        """Everything as one ``xarray.Dataset`` (dimensions ``time_s``, ``sensor``, ``axis``, ``quat``,
+        ``joint``, ``marker``; :mod:`simbench.io.tables`). Needs xarray (``simbench[export]``)."""
+        return dataset_to_xarray(self)
 
     def poses(self) -> PoseRecording:
         """The measured poses as the calibration reads them."""
@@ -230,6 +261,7 @@ def write_dataset(path: str | os.PathLike[str], ds: Dataset) -> None:
                 if isinstance(value, tuple):
                     value = np.array(value, dtype=h5py.string_dtype())
                 g.create_dataset(x.name, data=value)
+        write_markers_group(fh, ds.markers)
 
 
 def _array(node: Any, path: Path, name: str, kind: str = "number") -> np.ndarray:
@@ -350,6 +382,7 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
                         f"/measured {measured.valid.shape}"
                     )
             truth = Truth(**values)
+        markers = read_markers_group(fh, path, time_s.size)
     meta["source"] = str(path)
     try:
         return Dataset(
@@ -359,6 +392,7 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
             truth=truth,
             meta=meta,
             position_unit_scale=scale,
+            markers=markers,
         )
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None

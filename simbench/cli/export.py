@@ -1,0 +1,78 @@
+"""``simbench export``: a dataset into the files OpenSim, MuJoCo and other tools read."""
+
+from __future__ import annotations
+
+import argparse
+
+from simbench.api import export
+from simbench.errors import InputError
+from simbench.io.export import SOURCES
+from simbench.units import LENGTH_UNITS
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``export`` subcommand to ``simbench``'s subparsers."""
+    exp = sub.add_parser(
+        "export",
+        help="a dataset into TRC, C3D, OpenSense .sto, IMU CSV, MJCF and .osim files",
+        description="Write a simbench dataset (.h5) into the files other tools read: markers (TRC, "
+        "C3D), sensor orientations in OpenSense's .sto layout, raw accelerometer, gyroscope and "
+        "magnetometer readings (CSV), the skeleton of a calibration or of the truth (MJCF, OpenSim .osim). "
+        "Every "
+        "output is checked before the first file is written; each is written atomically.",
+    )
+    exp.add_argument("dataset", metavar="DATASET.h5", help="a simbench dataset (simbench simulate -o)")
+    exp.add_argument("--trc", metavar="OUT.trc", help="markers as TRC text (needs simulate --markers)")
+    exp.add_argument("--c3d", metavar="OUT.c3d", help="markers as C3D, in mm (needs simulate --markers)")
+    exp.add_argument("--sto", metavar="OUT.sto", help="sensor orientations in OpenSense's .sto layout")
+    exp.add_argument("--imu-csv", metavar="OUT.csv", help="raw accelerometer, gyroscope, magnetometer")
+    exp.add_argument("--mjcf", metavar="OUT.xml", help="the skeleton as an MJCF model MuJoCo loads")
+    exp.add_argument("--osim", metavar="OUT.osim", help="the same skeleton as an OpenSim model")
+    exp.add_argument(
+        "--calibration",
+        metavar="CAL.json",
+        help="the skeleton (--mjcf, --osim) of this calibration JSON (simbench calibrate --json; default: "
+        "the truth)",
+    )
+    exp.add_argument(
+        "--markers",
+        choices=SOURCES,
+        default="measured",
+        help="marker positions: measured (skin motion, camera noise) or the exact truth (default measured)",
+    )
+    exp.add_argument(
+        "--orientations",
+        choices=SOURCES,
+        default="measured",
+        help="sensor orientations: measured, or the truth of the sensors as worn (default measured)",
+    )
+    exp.add_argument(
+        "--trc-units", choices=sorted(LENGTH_UNITS), default="mm", help="the TRC file's units (default mm)"
+    )
+    exp.set_defaults(func=cmd_export)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    """``simbench export``: write the requested files."""
+    if not any((args.trc, args.c3d, args.sto, args.imu_csv, args.mjcf, args.osim)):
+        raise InputError(
+            "nothing to export: give one or more of --trc, --c3d, --sto, --imu-csv, --mjcf, --osim"
+        )
+    if args.calibration is not None and args.mjcf is None and args.osim is None:
+        raise InputError("--calibration gives the skeleton of --mjcf or --osim: give one of them too")
+    written = export(
+        args.dataset,
+        trc=args.trc,
+        c3d=args.c3d,
+        sto=args.sto,
+        imu_csv=args.imu_csv,
+        mjcf=args.mjcf,
+        osim=args.osim,
+        calibration=args.calibration,
+        markers=args.markers,
+        orientations=args.orientations,
+        trc_units=args.trc_units,
+    )
+    for kind, path in written.items():
+        print(f"wrote {path} ({kind})")
+    return 0
