@@ -366,7 +366,7 @@ def supported_rank(A: np.ndarray, rank: int) -> int:
     Returns:
         ``rank`` or fewer, at least ``min(rank, 3)``.
     """
-    _, _, Vt = np.linalg.svd(A.reshape(-1, 6), full_matrices=False)
+    _, _, Vt = np.linalg.svd(np.linalg.qr(A.reshape(-1, 6), mode="r"))
     h = np.sum(np.square(A @ Vt.T), axis=1)  # (n, 6) information per frame and direction
     total = h.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -393,7 +393,7 @@ def _determined_basis(A: np.ndarray, rank: int, single_axis_ratio: float) -> tup
     """``(6, rank)`` the leading right singular vectors of ``A`` (``(n, 3, 6)``) -- the directions
     :func:`calibration.joint.fit_joint` determines (it drops directions from the weakest up) --
     and the spectrum read from them (rank, single-axis verdict, axis)."""
-    _, s, Vt = np.linalg.svd(A.reshape(-1, 6), full_matrices=False)
+    _, s, Vt = np.linalg.svd(np.linalg.qr(A.reshape(-1, 6), mode="r"))  # A's spectrum, from its triangle
     keep = np.arange(6) < rank
     return Vt[:rank].T, read_spectrum(s, Vt.T, single_axis_ratio, keep)
 
@@ -439,13 +439,27 @@ def _irls(  # positional: private
     tol: float,
 ) -> tuple[np.ndarray, int, bool]:
     """One loss's IRLS: reweight by the residual norms, solve the weighted problem in the span of
-    ``V`` (``(6, k)``), repeat until ``x`` settles. ``A`` is ``(n, 3, 6)``, ``b`` ``(n, 3)``."""
-    AV = A @ V  # (n, 3, k)
+    ``V`` (``(6, k)``), repeat until ``x`` settles. ``A`` is ``(n, 3, 6)``, ``b`` ``(n, 3)``.
+
+    Each weighted solve is an increment from the current ``x``: with ``e = b - A x`` (which the
+    weights need anyway), ``dy = (sum_f w_f M_f)^-1 sum_f w_f (A_f V)^T e_f`` and
+    ``M_f = (A_f V)^T (A_f V)`` formed once, so an iteration costs a weighted sum over the frames
+    instead of a QR factorisation of the ``3 n x k`` weighted system, and the increment form keeps
+    the accuracy of the residual (iterative refinement) where the normal matrix alone would square
+    the condition number.
+    """
+    n, k = A.shape[0], V.shape[1]
+    rows = A.reshape(3 * n, 6)
+    AV = rows @ V  # (3 n, k)
+    gram = np.einsum("fai,faj->fij", AV.reshape(n, 3, k), AV.reshape(n, 3, k)).reshape(n, k * k)  # M_f
     for it in range(1, max_iter + 1):
-        r, scale = _residual_and_scale(A, b, x, floor)
-        sw = np.sqrt(loss_weights(r / scale, loss, c))
-        y, *_ = np.linalg.lstsq((AV * sw[:, None, None]).reshape(-1, V.shape[1]), (b * sw[:, None]).ravel())
-        x_new = V @ y
+        e = b - (rows @ x).reshape(n, 3)
+        r = np.sqrt(np.einsum("fa,fa->f", e, e))
+        scale = max(float(np.median(r)) / CHI3_MEDIAN, floor)
+        w = loss_weights(r / scale, loss, c)
+        rhs = AV.T @ (e * w[:, None]).reshape(3 * n)  # sum_f w_f (A_f V)^T e_f
+        step_y, *_ = np.linalg.lstsq((w @ gram).reshape(k, k), rhs, rcond=None)
+        x_new = V @ (V.T @ x + step_y)
         step = float(np.max(np.abs(x_new - x)))
         x = x_new
         if step <= tol * max(float(np.max(np.abs(x))), scale):

@@ -280,7 +280,10 @@ def _joint_methods(methods: dict[str, Any] | None) -> list[str]:
         "O'Brien's 95 % regions (both sensor frames of every joint) that hold the true centre: "
         "batch means over blocks long against the residual's correlation (`calibration.uncertainty`, "
         "the default of `simbench calibrate --intervals`) against i.i.d. residuals; and the fit "
-        "corrected for the rotations' noise (`obrien-eiv`, `calibration.eiv`), batch means. "
+        "corrected for the rotations' noise (`obrien-eiv`, `calibration.eiv`), batch means. A "
+        "batch-means region is bounded by the 95 % quantile of its own statistic simulated under the "
+        "working model (`calibration.uncertainty.working_model_null`), or by Hotelling's T² where "
+        "the recording is too short for the blocks the residual's correlation asks for. "
         "Target 93-97 %.",
         "",
         markdown_table(
