@@ -195,6 +195,12 @@ def plot_limb_errors(humanoid: dict[str, Any], path: Path) -> None:
     save_figure(limb_errors_figure(humanoid), path)
 
 
+def _finite(values: Any) -> np.ndarray:
+    """The finite values of a series (``None`` from JSON counts as missing)."""
+    x = np.array([np.nan if v is None else v for v in values], dtype=float)
+    return x[np.isfinite(x)]
+
+
 @dataclass(frozen=True)
 class LimbSpread:
     """One limb of one subject over the trials: its true length and each trial's estimate.
@@ -349,12 +355,6 @@ def slip_figure(slip: dict[str, Any]) -> Figure:
 def plot_slip(slip: dict[str, Any], path: Path) -> None:
     """Write :func:`slip_figure` to ``path`` (PNG)."""
     save_figure(slip_figure(slip), path)
-
-
-def _finite(values: Any) -> np.ndarray:
-    """The finite values of a series (``None`` from JSON counts as missing)."""
-    x = np.array([np.nan if v is None else v for v in values], dtype=float)
-    return x[np.isfinite(x)]
 
 
 def orientation_figure(orientation: dict[str, Any]) -> Figure:
