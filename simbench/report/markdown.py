@@ -24,7 +24,7 @@ _MARKDOWN = MarkdownIt("commonmark", {"html": False}).enable("table")
 
 _STYLE = (
     "body{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}"
-    "table{border-collapse:collapse;font-size:13px;margin:1em 0}"
+    "table{border-collapse:collapse;font-size:13px;margin:1em 0;display:block;max-width:100%;overflow-x:auto}"
     "td,th{border:1px solid #bbb;padding:3px 7px}th{background:#eee}"
     "code{background:#f3f3f3;padding:0 2px}img{max-width:100%}"
 )

@@ -12,10 +12,9 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-from matplotlib.figure import Figure
 from scipy.stats import norm, spearmanr
 
-from simbench.report.plots import panel_grid, save_figure
+from simbench.report.plots import PALETTE, SEQUENTIAL_CMAP, figure_axes, panel_grid, save_figure
 from simbench.units import UNITS
 
 #: Columns of a study's table that identify a trial (not parameters, not metrics).
@@ -123,11 +122,11 @@ def _plot_parameter(
         ax.set_xlabel(x_label)
         ax.set_ylabel(y_label, fontsize=8)
         if study.kind == "random":  # every trial its own value: a scatter, no bands
-            ax.plot(x, y, ".", alpha=0.7)
+            ax.plot(x, y, ".", color=PALETTE[0], alpha=0.7)
             continue
         xs, mean, lo, hi = _confidence_band(x, y, binary)
-        ax.plot(xs, mean, "o-")
-        ax.fill_between(xs, lo, hi, alpha=0.25)
+        ax.plot(xs, mean, "o-", color=PALETTE[0])
+        ax.fill_between(xs, lo, hi, color=PALETTE[0], alpha=0.25)
         if binary:
             ax.set_ylim(-0.05, 1.05)
     fig.tight_layout()
@@ -143,9 +142,8 @@ def _plot_heatmap(
     y = np.array(data[metric], dtype=float) * factor
     grid = np.array([[np.nanmean(y[(xa == va) & (xb == vb)]) for vb in b.values] for va in a.values])
     (a_label, a_factor), (b_label, b_factor) = parameter_display(a), parameter_display(b)
-    fig = Figure(figsize=(5, 4))
-    ax = fig.subplots()
-    im = ax.imshow(grid, origin="lower", aspect="auto")
+    (ax,), fig = figure_axes(5, 4)
+    im = ax.imshow(grid, origin="lower", aspect="auto", cmap=SEQUENTIAL_CMAP)
     ax.set_xticks(range(len(b.values)), [f"{v * b_factor:.3g}" for v in b.values])
     ax.set_yticks(range(len(a.values)), [f"{v * a_factor:.3g}" for v in a.values])
     ax.set_xlabel(b_label)

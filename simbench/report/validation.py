@@ -17,7 +17,14 @@ from simbench.report.markdown import markdown_table
 from simbench.report.output import write_report_files
 from simbench.report.paper_tables import paper_tables_markdown
 from simbench.report.pictures import render_joint_centres
-from simbench.report.plots import plot_limb_errors, plot_orientation, plot_residual_histograms, plot_slip
+from simbench.report.plots import (
+    limb_spread,
+    plot_limb_errors,
+    plot_limb_lengths,
+    plot_orientation,
+    plot_residual_histograms,
+    plot_slip,
+)
 from simbench.report.realism import realism_markdown
 from simbench.sim.models import load_capture_model
 from simbench.versions import software_versions
@@ -147,6 +154,22 @@ def _humanoid(humanoid: dict[str, Any]) -> list[str]:
             ],
             hierarchies,
         ),
+        "",
+        *_limb_spread(humanoid),
+    ]
+
+
+def _limb_spread(humanoid: dict[str, Any]) -> list[str]:
+    """Each subject's limb lengths over its trials (seeds): the truth, the mean estimate and its
+    spread (the scatter of the figures shows every trial)."""
+    rows = [
+        [s.subject, s.limb, s.true_mm, s.mean_mm, s.sd_mm, len(s.estimated_mm)] for s in limb_spread(humanoid)
+    ]
+    return [
+        "Limb lengths over each subject's trials (one seed each): the mean estimate and the sample "
+        "standard deviation over the trials, mm (figure: estimate against truth).",
+        "",
+        markdown_table(["subject", "limb", "true (mm)", "mean estimate (mm)", "s.d. (mm)", "trials"], rows),
         "",
     ]
 
@@ -422,14 +445,18 @@ def write_report(results: dict[str, Any], keep: dict[str, Any], out: Path) -> di
     images["Residual norms per joint, linkage set 1 (O'Brien Figures 6-7)"] = "residual_histograms.png"
     plot_limb_errors(results["humanoid"], out / "limb_errors.png")
     images["Limb-length error per segment and trial"] = "limb_errors.png"
+    plot_limb_lengths(results["humanoid"], out / "limb_lengths.png")
+    images["Limb lengths: estimate against truth over each subject's trials (seeds)"] = "limb_lengths.png"
     plot_slip(results["slip"], out / "slip.png")
     images["Residual over time and detected slip"] = "slip.png"
     plot_orientation(results["orientation"], out / "orientation.png")
-    images["Orientation error over time"] = "orientation.png"
+    images["Orientation error: each estimator over the frames, the default over time"] = "orientation.png"
     ds = keep["linkage_ds"]
     n = ds.time_s.size
     frames = [n // 5, n // 2, 4 * n // 5]
     cm = load_capture_model("linkage")
     if render_joint_centres(cm, ds, linkage_cal.joints, scale, frames, out / "pictures_linkage.png"):
-        images["Linkage pictures: true (green) and estimated (red) joint centres"] = "pictures_linkage.png"
+        images["Linkage pictures: true (blue spheres) and estimated (vermillion cubes) joint centres"] = (
+            "pictures_linkage.png"
+        )
     return write_report_files(out, validation_markdown(results, images), results)
