@@ -16,7 +16,8 @@ consecutive blocks of frames, each block's score
 ``var = B / (B - 1) sum_b g_b^2`` over the ``B`` blocks that hold frames (the scores sum to
 zero by the normal equations; :func:`score_variance` weighs a partial block by its length). With
 correlation shorter than a block, ``t_j`` follows Student's t with ``B - 1`` degrees of freedom
-(the effective number of independent samples is ``B``, not the frame count).
+(the effective number of independent samples is ``B``, not the frame count). A direction is
+undetermined when ``|t_j|`` is below the two-sided critical value at :data:`TEST_LEVEL`.
 
 **The blocks** are ``L = 2^k`` frames long, ``k`` the smallest with at most :data:`N_BLOCKS`
 (32) blocks, the last one partial (:func:`block_edges`): 17 to 32 blocks for any recording
@@ -24,8 +25,7 @@ longer than 32 frames. They depend on the recording's length only through ``L``,
 calibration fed frame by frame (:mod:`calibration.streaming`) holds the same blocks in constant
 memory (merging neighbours when ``L`` doubles) and reaches the same verdict as the batch.
 (Until issue 17 the rule was 16 equal blocks over the whole recording, which a stream cannot
-keep: the cut points move with every frame.) A direction is undetermined when ``|t_j|`` is below the two-sided critical
-value at :data:`TEST_LEVEL`.
+keep: the cut points move with every frame.)
 
 Only the three directions along which the relative rotation varies (``s_j^2 < n``, see
 :func:`testable_directions`) may be dropped. A direction is also kept when it is *precise*: the
