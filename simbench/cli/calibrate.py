@@ -17,6 +17,7 @@ from calibration import (
 from calibration.robust import LOSSES
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
+from simbench.cli.live import add_follow_arguments, follow_csv
 from simbench.cli.table import format_table
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
@@ -113,6 +114,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help=f"expected slip false alarms per hour of joint time (default {FALSE_ALARMS_PER_HOUR:g})",
     )
     cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
+    add_follow_arguments(cal)
     cal.set_defaults(func=cmd_calibrate)
 
 
@@ -166,6 +168,16 @@ def implausible_lengths(lengths: list, units: str) -> str:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
+    if args.follow:
+        follow_csv(
+            args.input,
+            units=args.units,
+            rate_hz=args.rate_hz,
+            timeout_s=args.timeout,
+            refresh_s=args.refresh,
+            slip=not args.no_slip,
+        )
+        return 0
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
     sensors = f"its sensors: {', '.join(rec.names)}"
