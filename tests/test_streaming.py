@@ -53,7 +53,11 @@ def _assert_same(batch, live, *, rms_atol):
         assert_allclose(s.fit.joint_in_parent, b.fit.joint_in_parent, rtol=0, atol=1e-9)
         assert_allclose(s.fit.joint_in_child, b.fit.joint_in_child, rtol=0, atol=1e-9)
         assert s.fit.rms_residual == pytest.approx(b.fit.rms_residual, rel=0, abs=rms_atol)
-        assert (s.fit.rank, s.fit.single_axis, s.fit.n_frames) == (b.fit.rank, b.fit.single_axis, b.fit.n_frames)
+        assert (s.fit.rank, s.fit.single_axis, s.fit.n_frames) == (
+            b.fit.rank,
+            b.fit.single_axis,
+            b.fit.n_frames,
+        )
         assert_allclose(s.fit.singular_values, b.fit.singular_values, rtol=1e-9)
     finite = np.isfinite(batch.residual_matrix)
     assert np.array_equal(finite, np.isfinite(live.residual_matrix))
@@ -99,14 +103,19 @@ def test_statistics_hold_the_batch_blocks():
     assert np.array_equal(live.block_count, batch.block_count)  # the same frames in every block
     # sums of ~100 rotation products per block, added in another order
     assert_allclose(live.block_gram, batch.block_gram, rtol=0, atol=1e-10)
-    assert_allclose(live.block_cross - live.block_self_cross, batch.block_cross - batch.block_self_cross, atol=1e-10)
+    assert_allclose(
+        live.block_cross - live.block_self_cross, batch.block_cross - batch.block_self_cross, atol=1e-10
+    )
 
 
 def test_known_hierarchy_and_paper_tree_equal_the_batch():
     skeleton, cap = _capture(n_frames=2000)
     R, p = cap.R_w_s, cap.p_w_s
     ok = np.ones(R.shape[:2], dtype=bool)
-    for kwargs in ({"parent_of": dict(skeleton.parent_of)}, {"hierarchy_method": "mst", "root": skeleton.names[2]}):
+    for kwargs in (
+        {"parent_of": dict(skeleton.parent_of)},
+        {"hierarchy_method": "mst", "root": skeleton.names[2]},
+    ):
         sc = StreamingCalibrator(skeleton.names, rate_hz=RATE, slip=False, **kwargs)
         _feed(sc, R, p, ok, 0, 2000, np.random.default_rng(2))
         batch = calibrate(R, p, skeleton.names, keep_frame_residuals=False, **kwargs)
@@ -151,9 +160,14 @@ def test_memory_does_not_grow_with_the_session():
 
 def test_bad_input_names_expected_and_received_shapes():
     sc = StreamingCalibrator(["a", "b", "c"], rate_hz=RATE)
-    with pytest.raises(CalibrationInputError, match=r"Expected R_w_s to have shape \(3, 3, 3\) or \(frames, 3, 3, 3\), got \(2, 3, 3\)"):
+    with pytest.raises(
+        CalibrationInputError,
+        match=r"Expected R_w_s to have shape \(3, 3, 3\) or \(frames, 3, 3, 3\), got \(2, 3, 3\)",
+    ):
         sc.push(np.zeros((2, 3, 3)), np.zeros((2, 3)))
-    with pytest.raises(CalibrationInputError, match=r"Expected p_w_s to have shape \(5, 3, 3\) to match R_w_s, got \(5, 3\)"):
+    with pytest.raises(
+        CalibrationInputError, match=r"Expected p_w_s to have shape \(5, 3, 3\) to match R_w_s, got \(5, 3\)"
+    ):
         sc.push(np.zeros((5, 3, 3, 3)), np.zeros((5, 3)))
     with pytest.raises(CalibrationInputError, match=r"Expected valid to have shape \(3,\), got \(2,\)"):
         sc.push(np.zeros((3, 3, 3)), np.zeros((3, 3)), np.ones(2, bool))
