@@ -34,7 +34,7 @@ joint of the current tree, the residual (with the joint as fitted so far) in the
 the child's frame; ``d`` the mean over the last ``w`` frames minus the mean over the ``w`` frames
 before; its robust scale, correlation time and tail threshold
 (:mod:`calibration.slip_stats`, the same functions) from the last :data:`SLIP_HISTORY_S` seconds
-of ``d`` (frames near an alert left out), refreshed every second; an alert when ``|d / scale|``
+of ``d`` (frames near an alert left out), refreshed every 5 s; an alert when ``|d / scale|``
 crosses the threshold, which is set for ``false_alarms_per_hour`` per joint (default
 :data:`calibration.slip.FALSE_ALARMS_PER_HOUR`, the batch's: ``J`` joints give ``J`` expected false
 alarms an hour under the detector's exponential-tail model). A jump of ``X`` times the threshold
@@ -87,7 +87,6 @@ from calibration.skeleton import segment_lengths, sensor_placements
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.slip_stats import (
     change_point,
-    correlation_frames,
     robust_scale,
     tail_threshold,
     whitened_norm,
@@ -97,7 +96,7 @@ from calibration.slip_stats import (
 FLUSH_S = 0.1
 
 #: Seconds between refits of the tree and joints the slip monitor uses.
-REFIT_S = 0.5
+REFIT_S = 2.0
 
 #: Default slip window ``w``, seconds: an alert comes at most this late after a clear jump.
 SLIP_WINDOW_S = 0.5
@@ -109,14 +108,17 @@ SLIP_HISTORY_S = 60.0
 SLIP_WARMUP_S = 5.0
 
 #: A joint's slip history restarts when its fit moves by more than this many times its residual's
-#: white noise (one component's standard deviation) since the history began ...
-SETTLED_NOISE_FACTOR = 3.0
+#: white noise (one component's standard deviation) since the history began (early in a session
+#: the fit moves by centimetres) ... Measured on 8 humanoid exercise sessions (Polhemus Liberty,
+#: 2 cm slips, benchmarks/bench_live.py): 3 restarted so often that 2 slips fell in a warm-up;
+#: 10 caught 7 of 8 within 0.5 s with the same false alarms; never restarting, 7 with one more.
+SETTLED_NOISE_FACTOR = 10.0
 
 #: ... or by more than this, metres (the floor for noise-free data).
 SETTLED_FLOOR_M = 1e-6
 
 #: Seconds between refreshes of a joint's noise model (scale, correlation, threshold).
-SLIP_MODEL_S = 1.0
+SLIP_MODEL_S = 5.0
 
 #: A joint has moved enough when its second-largest rms rotation reaches this, degrees (a sinusoid
 #: of +-7 degrees; a joint moved less than about 10 degrees gets a centre decimetres off: DESIGN.md).
@@ -442,8 +444,7 @@ class StreamingCalibrator:
         arrays += [x for block in self._pending for x in block]
         arrays += [x for x in self._d3.carry or ()]
         if self._monitor is not None:
-            for mon in self._monitor.joints.values():
-                arrays += [x for x in vars(mon).values() if isinstance(x, np.ndarray)]
+            arrays += self._monitor.arrays()
         return int(sum(x.nbytes for x in arrays))
 
     @property
@@ -654,37 +655,30 @@ class _ThirdDifferenceSums:
         )
 
 
-class _JointMonitor:
-    """One joint's causal slip statistic: its two sensors' last ``2 w + 3`` poses and the history of
-    its normalised window difference."""
-
-    def __init__(self, parent: int, child: int, history: int) -> None:
-        self.parent, self.child = parent, child
-        self.R = np.zeros((0, 2, 3, 3))  # parent's and child's rotations
-        self.p = np.zeros((0, 2, 3))
-        self.ok = np.zeros(0, dtype=bool)
-        self.frame0 = 0  # frame index of the first held pose
-        self.hist = np.full((history, 2, 3), np.nan)  # ring of the normalised d
-        self.n_hist = 0  # values written to the ring
-        self.scale = np.zeros((2, 3))
-        self.threshold = np.full(2, np.inf)
-        self.model_at = -(10**18)
-        self.quiet_until = -1  # no alert, and no history, up to this frame
-        self.lp = np.zeros(3)
-        self.lc = np.zeros(3)
-        self.hist_fit = np.full(6, np.nan)  # the joint as fitted when the history (re)started
-        self.sigma = 0.0  # white noise of one residual component lately, metres
-
-    def restart_history(self) -> None:
-        """Forget the history (its statistic came from a joint fitted elsewhere)."""
-        self.n_hist = 0
-        self.threshold = np.full(2, np.inf)
-        self.model_at = -(10**18)
-        self.hist_fit = np.concatenate([self.lp, self.lc])
+def _correlation_frames(x: np.ndarray) -> np.ndarray:
+    """``(k,)`` :func:`calibration.slip_stats.correlation_frames` of each column of ``x``
+    (``(n, k)``, no gaps), in one batch of FFTs."""
+    n = x.shape[0]
+    xc = x - x.mean(axis=0)
+    fx = np.fft.rfft(xc, 2 * n, axis=0)
+    num = np.fft.irfft(fx * np.conj(fx), axis=0)[:n]
+    cov = num / (n - np.arange(n))[:, None]
+    out = np.ones(x.shape[1])
+    for k in np.flatnonzero(cov[0] > 0):
+        rho = cov[:, k] / cov[0, k]
+        stop = np.flatnonzero(~(rho > 0))
+        m = int(stop[0]) if stop.size else n
+        out[k] = max(1.0, float(1.0 + 2.0 * rho[1:m].sum()))
+    return out
 
 
 class _SlipMonitor:
-    """The causal slip detector over the joints of the current tree (module docstring)."""
+    """The causal slip detector over the joints of the current tree (module docstring).
+
+    The last ``2 w + 3`` poses of every sensor are held once for all joints; each joint's row of
+    the ``(J, ...)`` arrays holds its fit, its history of the normalised window difference and its
+    noise model.
+    """
 
     def __init__(self, owner: StreamingCalibrator, window: int) -> None:
         self.owner = owner
@@ -693,12 +687,38 @@ class _SlipMonitor:
         self.history = max(4 * window, round(SLIP_HISTORY_S * self.rate))
         self.warmup = max(2 * window, round(SLIP_WARMUP_S * self.rate))
         self.model_every = max(1, round(SLIP_MODEL_S * self.rate))
-        self.joints: dict[tuple[int, int], _JointMonitor] = {}
+        n = len(owner.names)
+        self.R = np.zeros((0, n, 3, 3))  # held poses, from frame frame0 on
+        self.p = np.zeros((0, n, 3))
+        self.ok = np.zeros((0, n), dtype=bool)
+        self.frame0 = 0
+        self.keys: list[tuple[int, int]] = []
         self.slipped: set[int] = set()  # sensors alerted on
-        self._latest: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         self.alerts: list[SlipAlert] = []
         self._taken = 0
         self.ready = False
+        self._rows(0)
+        self._latest: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _rows(self, j: int) -> None:
+        """Fresh per-joint arrays for ``j`` joints."""
+        self.par = np.zeros(j, dtype=np.int64)
+        self.chi = np.zeros(j, dtype=np.int64)
+        self.lp = np.zeros((j, 3))
+        self.lc = np.zeros((j, 3))
+        self.hist = np.full((j, self.history, 2, 3), np.nan)  # rings of the normalised d
+        self.n_hist = np.zeros(j, dtype=np.int64)
+        self.scale = np.zeros((j, 2, 3))
+        self.threshold = np.full((j, 2), np.inf)
+        self.model_at = np.full(j, -(2**62), dtype=np.int64)
+        self.quiet_until = np.full(j, -1, dtype=np.int64)  # no alert, no history, up to this frame
+        self.hist_fit = np.full((j, 6), np.nan)  # the joint as fitted when its history (re)started
+        self.sigma = np.zeros(j)  # white noise of one residual component lately, metres
+
+    def arrays(self) -> list[np.ndarray]:
+        """Every array held (for :attr:`StreamingCalibrator.nbytes`)."""
+        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "hist", "n_hist", "scale", "threshold")
+        return [getattr(self, k) for k in (*names, "model_at", "quiet_until", "hist_fit", "sigma")]
 
     def take_new(self) -> list[SlipAlert]:
         out = self.alerts[self._taken :]
@@ -708,139 +728,143 @@ class _SlipMonitor:
     def set_joints(self, cal: Calibration) -> None:
         """Follow the tree's joints (a joint new to the tree starts afresh)."""
         names = self.owner.names
-        current: dict[tuple[int, int], _JointMonitor] = {}
-        for j in cal.joints:
-            key = (names.index(j.parent), names.index(j.child))
-            mon = self.joints.get(key) or _JointMonitor(*key, self.history)
-            mon.lp, mon.lc = j.fit.joint_in_parent.copy(), j.fit.joint_in_child.copy()
+        keys = [(names.index(j.parent), names.index(j.child)) for j in cal.joints]
+        if keys != self.keys:  # the tree changed: rows move, new joints start afresh
+            old = {k: i for i, k in enumerate(self.keys)}
+            kept = {
+                name: getattr(self, name) for name in ("hist", "n_hist", "scale", "threshold", "model_at")
+            }
+            kept |= {name: getattr(self, name) for name in ("quiet_until", "hist_fit", "sigma")}
+            self._rows(len(keys))
+            for i, key in enumerate(keys):
+                if key in old:
+                    for name, arr in kept.items():
+                        getattr(self, name)[i] = arr[old[key]]
+        self.keys = keys
+        self.par = np.array([k[0] for k in keys], dtype=np.int64)
+        self.chi = np.array([k[1] for k in keys], dtype=np.int64)
+        self.lp = np.array([j.fit.joint_in_parent for j in cal.joints]).reshape(-1, 3)
+        self.lc = np.array([j.fit.joint_in_child for j in cal.joints]).reshape(-1, 3)
+        for i, key in enumerate(keys):
             if self.slipped & set(key):
-                mon.quiet_until = _FOREVER
-            # a statistic computed with a joint since moved by more than the residual's white
-            # noise is not this joint's noise (early in a session the fit still moves by cm)
-            shift = np.max(np.abs(np.concatenate([mon.lp, mon.lc]) - mon.hist_fit))
-            if not shift <= max(SETTLED_NOISE_FACTOR * mon.sigma, SETTLED_FLOOR_M):
-                mon.restart_history()
-            current[key] = mon
-        self.joints = current
+                self.quiet_until[i] = _FOREVER
+        # a statistic computed with a joint since moved by more than the residual's white noise is
+        # not this joint's noise (early in a session the fit still moves by centimetres)
+        shift = np.max(
+            np.abs(np.concatenate([self.lp, self.lc], axis=1) - self.hist_fit), axis=1, initial=0.0
+        )
+        restart = ~(shift <= np.maximum(SETTLED_NOISE_FACTOR * self.sigma, SETTLED_FLOOR_M))
+        self.n_hist[restart] = 0
+        self.threshold[restart] = np.inf
+        self.model_at[restart] = -(2**62)
+        self.hist_fit[restart] = np.concatenate([self.lp, self.lc], axis=1)[restart]
         self.ready = True
 
     def update(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, start: int) -> None:
         """Examine frames ``start .. start + len(R)`` (already validated, invalid poses zeroed)."""
-        # every joint's statistic first, so that an alert can look at its neighbours' jumps
-        self._latest: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-        work = []
-        for key, mon in self.joints.items():
-            pair = [mon.parent, mon.child]
-            got = self._statistic(mon, R[:, pair], p[:, pair], ok[:, pair].all(axis=1), start)
-            if got is not None:
-                self._latest[key] = (got[0], got[1])
-                work.append((mon, *got))
-        for mon, dn, frames, e, oks, e0, Rs in work:
-            self._examine(mon, dn, frames, e, oks, e0, Rs)
-
-    def _statistic(
-        self, mon: _JointMonitor, R: np.ndarray, p: np.ndarray, ok: np.ndarray, start: int
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, np.ndarray] | None:
-        """Hold the new poses; ``(dn, frames, e, ok, e0)``: the normalised window difference
-        ``(c, 2, 3)`` ending at ``frames``, and the residual ``e`` ``(m, 2, 3)`` of the held and
-        new frames from frame ``e0`` on, with their rotations ``(m, 2, 3, 3)``; ``None`` while fewer
-        than ``2 w + 3`` frames are held."""
         w = self.w
-        if mon.ok.size == 0 or mon.frame0 + mon.ok.size != start:  # first frames, or a gap in the stream
-            mon.R, mon.p, mon.ok, mon.frame0 = R[:0], p[:0], ok[:0], start
-        Rs, ps, oks = np.concatenate([mon.R, R]), np.concatenate([mon.p, p]), np.concatenate([mon.ok, ok])
-        first = start - mon.frame0  # index of the first new frame
-        m = oks.size
-        # O'Brien eq. 8 with the joint as fitted now, for the held and the new frames; then in the
-        # parent's and the child's frame
-        r = Rs[:, 0] @ mon.lp + ps[:, 0] - Rs[:, 1] @ mon.lc - ps[:, 1]
-        r = np.where(oks[:, None], r, 0.0)
-        e = np.einsum("fiab,fa->fib", Rs, r)  # (m, 2, 3)
-        ends = np.arange(max(first, 2 * w + 2), m)  # windows ending at each new frame, 3 frames before
-        out = None
-        if ends.size:
-            cs = np.zeros((m + 1, 2, 3))
-            cs[1:] = np.cumsum(e, axis=0)
-            cn = np.zeros(m + 1)
-            cn[1:] = np.cumsum(oks)
-            # white noise of the residual from its third differences (calibration.pair_noise),
-            # over the *earlier* window only: a jump in the later one does not inflate it
-            d3 = np.diff(r, n=3, axis=0)
-            ok4 = oks[3:] & oks[2:-1] & oks[1:-2] & oks[:-3]
-            q = np.where(ok4, np.einsum("fa,fa->f", d3, d3), 0.0)
-            cq, cq_n = np.zeros(m - 2), np.zeros(m - 2)
-            cq[1:], cq_n[1:] = np.cumsum(q), np.cumsum(ok4)
-            hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
-            na, nb = cn[hi] - cn[mid], cn[mid] - cn[lo]
-            q_lo, q_hi = lo - 3, mid - 3  # third differences starting in [lo - 3, mid - 3)
-            n_q = cq_n[q_hi] - cq_n[q_lo]
-            with np.errstate(invalid="ignore", divide="ignore"):
-                var = (cq[q_hi] - cq[q_lo]) / n_q / (3.0 * THIRD_DIFFERENCE_GAIN)  # per component
-                d = (cs[hi] - cs[mid]) / na[:, None, None] - (cs[mid] - cs[lo]) / nb[:, None, None]
-                se = np.sqrt(var * (1.0 / na + 1.0 / nb))
-                dn = np.where(se[:, None, None] > 0, d / se[:, None, None], 0.0)
-            dn[~((na >= w / 2) & (nb >= w / 2) & (n_q >= w / 2))] = np.nan
-            if np.isfinite(var).any():
-                mon.sigma = float(np.sqrt(np.nanmedian(var)))
-            out = (dn, mon.frame0 + ends, e, oks, mon.frame0, Rs)
+        if self.ok.shape[0] and self.frame0 + self.ok.shape[0] != start:  # a gap in the stream
+            self.R, self.p, self.ok = self.R[:0], self.p[:0], self.ok[:0]
+        if not self.ok.shape[0]:
+            self.frame0 = start
+        Rs, ps, oks = np.concatenate([self.R, R]), np.concatenate([self.p, p]), np.concatenate([self.ok, ok])
+        first, m, e0 = start - self.frame0, oks.shape[0], self.frame0
         keep = 2 * w + 3
-        mon.R, mon.p, mon.ok = Rs[-keep:], ps[-keep:], oks[-keep:]
-        mon.frame0 += m - mon.ok.size
-        return out
+        self.R, self.p, self.ok = Rs[-keep:], ps[-keep:], oks[-keep:]
+        self.frame0 += m - self.ok.shape[0]
+        ends = np.arange(max(first, 2 * w + 2), m)  # windows ending at each new frame, 3 frames before
+        if not self.keys or not ends.size:
+            return
+        par, chi = self.par, self.chi
+        # O'Brien eq. 8 for every joint with the joint as fitted now, for the held and the new
+        # frames; then in the parent's and the child's frame
+        Rp, Rc = Rs[:, par], Rs[:, chi]  # (m, J, 3, 3)
+        r = np.einsum("mjab,jb->mja", Rp, self.lp) + ps[:, par] - np.einsum("mjab,jb->mja", Rc, self.lc)
+        r -= ps[:, chi]
+        okj = oks[:, par] & oks[:, chi]  # (m, J)
+        r = np.where(okj[:, :, None], r, 0.0)
+        e = np.stack([np.einsum("mjab,mja->mjb", Rp, r), np.einsum("mjab,mja->mjb", Rc, r)], axis=2)
+        cs = np.concatenate([np.zeros((1, *e.shape[1:])), np.cumsum(e, axis=0)])
+        cn = np.concatenate([np.zeros((1, okj.shape[1])), np.cumsum(okj, axis=0)])
+        # white noise of the residual from its third differences (calibration.pair_noise), over
+        # the *earlier* window only: a jump in the later one does not inflate it
+        d3 = np.diff(r, n=3, axis=0)
+        ok4 = okj[3:] & okj[2:-1] & okj[1:-2] & okj[:-3]
+        q = np.where(ok4, np.einsum("fja,fja->fj", d3, d3), 0.0)
+        cq = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(q, axis=0)])
+        cq_n = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(ok4, axis=0)])
+        hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
+        na, nb = cn[hi] - cn[mid], cn[mid] - cn[lo]  # (c, J)
+        n_q = cq_n[mid - 3] - cq_n[lo - 3]  # third differences starting in [lo - 3, mid - 3)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            var = (cq[mid - 3] - cq[lo - 3]) / n_q / (3.0 * THIRD_DIFFERENCE_GAIN)  # per component
+            d = (cs[hi] - cs[mid]) / na[..., None, None] - (cs[mid] - cs[lo]) / nb[..., None, None]
+            se = np.sqrt(var * (1.0 / na + 1.0 / nb))
+            dn = np.where(se[..., None, None] > 0, d / se[..., None, None], 0.0)  # (c, J, 2, 3)
+        dn[~((na >= w / 2) & (nb >= w / 2) & (n_q >= w / 2))] = np.nan
+        last = var[-1]  # the newest earlier window's white noise
+        self.sigma = np.where(np.isfinite(last), np.sqrt(np.where(np.isfinite(last), last, 0.0)), self.sigma)
+        frames = e0 + ends
+        self._latest = (dn, frames)
+        self._examine(dn, frames, e, okj, Rs, e0)
 
     def _examine(
-        self,
-        mon: _JointMonitor,
-        dn: np.ndarray,
-        frames: np.ndarray,
-        e: np.ndarray,
-        ok: np.ndarray,
-        e0: int,
-        Rs: np.ndarray,
+        self, dn: np.ndarray, frames: np.ndarray, e: np.ndarray, okj: np.ndarray, Rs: np.ndarray, e0: int
     ) -> None:
-        """Test each new normalised ``d`` (``(c, 2, 3)`` at ``frames``), then add the quiet ones to
-        the history."""
-        for lo in range(0, dn.shape[0], self.model_every):
-            hi = min(dn.shape[0], lo + self.model_every)
-            if frames[lo] - mon.model_at >= self.model_every:
-                self._model(mon)
-                mon.model_at = int(frames[lo])
-            if mon.n_hist >= self.warmup and np.all(np.isfinite(mon.threshold)):
-                z = np.stack([whitened_norm(dn[lo:hi, i], mon.scale[i]) for i in range(2)], axis=1)
-                ratio = np.nan_to_num(z / mon.threshold, nan=0.0, posinf=0.0)
-                over = np.flatnonzero((ratio.max(axis=1) > 1.0) & (frames[lo:hi] > mon.quiet_until))
-                if over.size:
-                    at = lo + int(over[0])
-                    if self._steady(mon, int(frames[at]), e, ok, e0, Rs):
-                        self._alert(mon, z[at - lo], int(frames[at]), e, ok, e0)
-                    else:  # the joint's misfit following the motion: look again a little later
-                        mon.quiet_until = max(mon.quiet_until, int(frames[at]) + self.w // 4)
-            use = np.isfinite(dn[lo:hi]).all(axis=(1, 2)) & (frames[lo:hi] > mon.quiet_until)
-            for k in np.flatnonzero(use):
-                mon.hist[mon.n_hist % self.history] = dn[lo + k]
-                mon.n_hist += 1
+        """Test the new normalised ``d`` of every joint (``(c, J, 2, 3)`` at ``frames``), then add the
+        quiet ones to the histories."""
+        # every SLIP_MODEL_S, and as soon as a joint without a model has its warm-up's history
+        fresh = (self.n_hist >= self.warmup) & ~np.isfinite(self.threshold).all(axis=1)
+        for j in np.flatnonzero((frames[0] - self.model_at >= self.model_every) | fresh):
+            if self._model(j):
+                self.model_at[j] = frames[0]
+        ready = (self.n_hist >= self.warmup) & np.isfinite(self.threshold).all(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.linalg.norm(
+                np.where(self.scale > 0, dn / np.where(self.scale > 0, self.scale, 1.0), 0.0), axis=3
+            )
+            ratio = np.nan_to_num(z / self.threshold, nan=0.0, posinf=0.0)  # (c, J, 2)
+        over = (ratio.max(axis=2) > 1.0) & ready
+        for j in np.flatnonzero(over.any(axis=0)):
+            for at in np.flatnonzero(over[:, j]):
+                frame = int(frames[at])
+                if frame <= self.quiet_until[j]:
+                    continue
+                pair = [self.par[j], self.chi[j]]
+                if self._steady(j, frame, e[:, j], okj[:, j], e0, Rs[:, pair]):
+                    self._alert(j, z[at, j], frame, e[:, j], okj[:, j], e0)
+                else:  # the joint's misfit following the motion: look again a little later
+                    self.quiet_until[j] = max(self.quiet_until[j], frame + self.w // 4)
+                break
+        use = np.isfinite(dn).all(axis=(2, 3)) & (frames[:, None] > self.quiet_until[None, :])
+        for j in range(len(self.keys)):
+            idx = np.flatnonzero(use[:, j])
+            if idx.size:
+                slots = (self.n_hist[j] + np.arange(idx.size)) % self.history
+                self.hist[j, slots] = dn[idx, j]
+                self.n_hist[j] += idx.size
 
-    def _model(self, mon: _JointMonitor) -> None:
-        """Refresh the joint's noise model from its history (:mod:`calibration.slip`'s)."""
-        if mon.n_hist < max(8, self.w):
-            return
-        filled = min(mon.n_hist, self.history)
+    def _model(self, j: int) -> bool:
+        """Refresh joint ``j``'s noise model from its history (:mod:`calibration.slip`'s); False
+        while the history is shorter than the warm-up."""
+        n_hist = int(self.n_hist[j])
+        if n_hist < self.warmup:
+            return False
+        filled = min(n_hist, self.history)
         # the ring in time order, so that the correlation time sees neighbours as neighbours
-        start = mon.n_hist % self.history if mon.n_hist > self.history else 0
-        hist = mon.hist[(start + np.arange(filled)) % self.history]
+        start = n_hist % self.history if n_hist > self.history else 0
+        hist = self.hist[j, (start + np.arange(filled)) % self.history]  # (filled, 2, 3)
+        tau = _correlation_frames(hist.reshape(filled, 6)).reshape(2, 3).max(axis=1)
         use = np.ones(filled, dtype=bool)
         for i in range(2):
-            d = hist[:, i]
-            scale = robust_scale(d, use)
-            z = whitened_norm(d, scale)
-            tau = max(correlation_frames(d[:, k], use) for k in range(3))
-            tests_per_hour = len(_FRAME_NAMES) * 3600.0 * self.rate / tau
-            mon.scale[i] = scale
-            mon.threshold[i] = tail_threshold(z, tests_per_hour, self.owner.false_alarms_per_hour, tau)
+            scale = robust_scale(hist[:, i], use)
+            z = whitened_norm(hist[:, i], scale)
+            tests_per_hour = len(_FRAME_NAMES) * 3600.0 * self.rate / tau[i]
+            self.scale[j, i] = scale
+            self.threshold[j, i] = tail_threshold(z, tests_per_hour, self.owner.false_alarms_per_hour, tau[i])
+        return True
 
-    def _steady(
-        self, mon: _JointMonitor, frame: int, e: np.ndarray, ok: np.ndarray, e0: int, Rs: np.ndarray
-    ) -> bool:
+    def _steady(self, j: int, frame: int, e: np.ndarray, ok: np.ndarray, e0: int, Rs: np.ndarray) -> bool:
         """Whether a jump up to ``frame`` is a step of the residual's mean that the joint's own fit
         error does not explain.
 
@@ -849,13 +873,14 @@ class _SlipMonitor:
         window means. Over the last ``2 w`` frames, each sensor frame's residual is regressed on a
         step at its least-squares change point, a constant and those six columns; the jump stands
         when the fitted step, over its white-noise standard error, still crosses the threshold.
+        ``e`` is ``(m, 2, 3)`` from frame ``e0``, ``Rs`` the two sensors' ``(m, 2, 3, 3)``.
         """
         end = frame - e0 + 1
         lo = max(0, end - 2 * self.w)
         ok_w = ok[lo:end]
         R = Rs[lo:end][ok_w]  # (m, 2, 3, 3)
         m = R.shape[0]
-        if m < 12 or not mon.sigma > 0:
+        if m < 12 or not self.sigma[j] > 0:
             return True  # nothing to regress on: the window test alone decides
         for i in range(2):
             e_i = e[lo:end, i][ok_w]
@@ -868,15 +893,15 @@ class _SlipMonitor:
             X = X.reshape(3 * m, 12)
             gram_inv = np.linalg.pinv(X.T @ X)
             theta = gram_inv @ (X.T @ e_i.reshape(3 * m))
-            se = mon.sigma * np.sqrt(np.clip(np.diagonal(gram_inv)[:3], 0.0, None))
+            se = self.sigma[j] * np.sqrt(np.clip(np.diagonal(gram_inv)[:3], 0.0, None))
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = np.where(se > 0, theta[:3] / se, 0.0)
-            if whitened_norm(t[None], mon.scale[i])[0] > mon.threshold[i]:
+            if whitened_norm(t[None], self.scale[j, i])[0] > self.threshold[j, i]:
                 return True
         return False
 
-    def _moved_side(self, mon: _JointMonitor, z: np.ndarray, frame: int) -> int:
-        """0 (parent) or 1 (child): which sensor of a jumping joint moved.
+    def _moved_side(self, j: int, z: np.ndarray, frame: int) -> int:
+        """0 (parent) or 1 (child): which sensor of the jumping joint ``j`` moved.
 
         A moved sensor's other joints jump with it, the other sensor's do not: each side's evidence
         is the largest ``z / threshold`` of its other joints at the jump (from ``w / 4`` frames
@@ -885,21 +910,20 @@ class _SlipMonitor:
         sensors only, or both sides jumping alike), the side whose frame holds the jump more
         significantly (:mod:`calibration.slip`'s rule, weak over a short window).
         """
+        assert self._latest is not None
+        dn, frames = self._latest
+        near = frames >= frame - self.w // 4
+        with np.errstate(invalid="ignore", divide="ignore"):
+            zz = np.linalg.norm(
+                np.where(self.scale > 0, dn[near] / np.where(self.scale > 0, self.scale, 1.0), 0.0), axis=3
+            )
+            ratio = np.nan_to_num(zz / self.threshold, nan=0.0, posinf=0.0).max(
+                axis=(0, 2), initial=0.0
+            )  # (J,)
         evidence: list[float | None] = []
-        for sensor in (mon.parent, mon.child):
-            ratios = []
-            for key, (dn, frames) in self._latest.items():
-                other = self.joints[key]
-                if other is mon or sensor not in key:
-                    continue
-                near = frames >= frame - self.w // 4
-                if not near.any():
-                    continue
-                thr = np.where(np.isfinite(other.threshold), other.threshold, np.inf)
-                zz = np.stack([whitened_norm(dn[near, k], other.scale[k]) for k in range(2)], axis=1)
-                ratios.append(float(np.nanmax(np.nan_to_num(zz / thr, nan=0.0), initial=0.0)))
-            has_other = any(sensor in key for key in self.joints if self.joints[key] is not mon)
-            evidence.append(max(ratios, default=0.0) if has_other else None)
+        for sensor in (self.par[j], self.chi[j]):
+            others = [k for k, key in enumerate(self.keys) if k != j and sensor in key]
+            evidence.append(float(ratio[others].max()) if others else None)
         a, b = evidence
         if a is None and b is not None and b < 0.5:
             return 0
@@ -907,15 +931,13 @@ class _SlipMonitor:
             return 1
         if a is not None and b is not None and max(a, b) >= 0.5 and a != b:
             return 0 if a > b else 1
-        return int(np.argmax(np.nan_to_num(z / mon.threshold, nan=0.0, posinf=0.0)))
+        return int(np.argmax(np.nan_to_num(z / self.threshold[j], nan=0.0, posinf=0.0)))
 
-    def _alert(
-        self, mon: _JointMonitor, z: np.ndarray, frame: int, e: np.ndarray, ok: np.ndarray, e0: int
-    ) -> None:
+    def _alert(self, j: int, z: np.ndarray, frame: int, e: np.ndarray, ok: np.ndarray, e0: int) -> None:
         names = self.owner.names
         w = self.w
-        i = self._moved_side(mon, z, frame)
-        sensor = names[mon.parent if i == 0 else mon.child]
+        i = self._moved_side(j, z, frame)
+        moved = int(self.par[j] if i == 0 else self.chi[j])
         # the change of mean within the last 2 w frames up to the crossing, in the sensor's frame
         end = frame - e0 + 1
         lo = max(0, end - 2 * w)
@@ -932,24 +954,22 @@ class _SlipMonitor:
         # joint that jumped, raise no more alerts (until the sensor is re-fixed and a new
         # calibration started); the other joints of the jumping joint's sensors stay quiet, and keep
         # the jump out of their noise models, for 2 w frames
-        moved = mon.parent if i == 0 else mon.child
         self.slipped.add(moved)
-        mon.quiet_until = _FOREVER
-        for other in self.joints.values():
-            if moved in (other.parent, other.child):
-                other.quiet_until = _FOREVER
-            elif {other.parent, other.child} & {mon.parent, mon.child}:
-                other.quiet_until = max(other.quiet_until, frame + 2 * w)
+        for k, key in enumerate(self.keys):
+            if k == j or moved in key:
+                self.quiet_until[k] = _FOREVER
+            elif set(key) & {int(self.par[j]), int(self.chi[j])}:
+                self.quiet_until[k] = max(self.quiet_until[k], frame + 2 * w)
         self.alerts.append(
             SlipAlert(
-                sensor=sensor,
-                joint=f"{names[mon.parent]}-{names[mon.child]}",
+                sensor=names[moved],
+                joint=f"{names[self.par[j]]}-{names[self.chi[j]]}",
                 frame=int(slip_frame),
                 time_s=self.owner.start_time_s + slip_frame / self.rate,
                 raised_frame=frame,
                 size_m=size,
                 z=float(z[i]),
-                threshold=float(mon.threshold[i]),
+                threshold=float(self.threshold[j, i]),
                 false_alarms_per_hour=self.owner.false_alarms_per_hour,
             )
         )

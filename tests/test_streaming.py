@@ -241,3 +241,14 @@ def test_causal_alert_after_a_slip_and_no_other():
     quiet = StreamingCalibrator(skeleton.names, rate_hz=RATE)
     quiet.push(clean.R_w_s, clean.p_w_s)
     assert quiet.alerts == ()
+
+
+def test_batched_correlation_time_is_slip_stats():
+    from calibration.slip_stats import correlation_frames
+    from calibration.streaming import _correlation_frames
+
+    rng = np.random.default_rng(6)
+    x = np.cumsum(rng.normal(size=(3000, 4)), axis=0) * 0.01 + rng.normal(size=(3000, 4))
+    x[:, 3] = 1.0  # a constant: no correlation to measure
+    want = [correlation_frames(x[:, k]) for k in range(4)]
+    assert_allclose(_correlation_frames(x), want, rtol=1e-9)
