@@ -795,13 +795,18 @@ class _SlipMonitor:
         cq_n = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(ok4, axis=0)])
         hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
         na, nb = cn[hi] - cn[mid], cn[mid] - cn[lo]  # (c, J)
-        n_q = cq_n[mid - 3] - cq_n[lo - 3]  # third differences starting in [lo - 3, mid - 3)
+        n_q = cq_n[mid - 3] - cq_n[lo - 3]  # third differences over the earlier window's frames
+        n_qa = cq_n[hi - 3] - cq_n[mid]  # ... and over the later window's
+        gain = 3.0 * THIRD_DIFFERENCE_GAIN  # per component
         with np.errstate(invalid="ignore", divide="ignore"):
-            var = (cq[mid - 3] - cq[lo - 3]) / n_q / (3.0 * THIRD_DIFFERENCE_GAIN)  # per component
+            var = (cq[mid - 3] - cq[lo - 3]) / n_q / gain
+            var_a = (cq[hi - 3] - cq[mid]) / n_qa / gain
             d = (cs[hi] - cs[mid]) / na[..., None, None] - (cs[mid] - cs[lo]) / nb[..., None, None]
-            se = np.sqrt(var * (1.0 / na + 1.0 / nb))
+            # each window's mean with its own noise: a magnetic tracker's noise jumps with the
+            # distance to its transmitter (a step adds only 6 step^2 to the later window's sum)
+            se = np.sqrt(var_a / na + var / nb)
             dn = np.where(se[..., None, None] > 0, d / se[..., None, None], 0.0)  # (c, J, 2, 3)
-        dn[~((na >= w / 2) & (nb >= w / 2) & (n_q >= w / 2))] = np.nan
+        dn[~((na >= w / 2) & (nb >= w / 2) & (n_q >= w / 2) & (n_qa >= w / 2))] = np.nan
         last = var[-1]  # the newest earlier window's white noise
         self.sigma = np.where(np.isfinite(last), np.sqrt(np.where(np.isfinite(last), last, 0.0)), self.sigma)
         frames = e0 + ends
