@@ -165,6 +165,8 @@ def test_calibrate_follow_on_the_command_line(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0
     assert "simbench final" in out and "frames: 300" in out
+    assert main(["calibrate", str(path), "--follow", "--json", str(tmp_path / "x.json")]) == 2
+    assert "--follow calibrates a pose CSV live; it does not take --json" in capsys.readouterr().err
     bad = tmp_path / "bad.csv"
     bad.write_text("t,sensor,x\n")
     assert main(["calibrate", str(bad), "--follow", "--timeout", "0.2"]) == 2

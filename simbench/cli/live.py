@@ -19,7 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from calibration.errors import CalibrationError
+from calibration.hierarchy import HIERARCHY_METHODS
+from calibration.joint import SINGLE_AXIS_RATIO
 from calibration.rotations import quat_to_matrix
+from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.streaming import LiveState, SlipAlert, StreamingCalibrator
 from simbench.cli.table import text_table
 from simbench.cli.types import positive_float
@@ -187,9 +190,33 @@ def live_table(source: str, state: LiveState, *, final: bool = False) -> str:
     return "\n".join(lines)
 
 
-def _calibrator(names: tuple[str, ...], rate_hz: float, start_s: float, slip: bool) -> StreamingCalibrator:
+@dataclass(frozen=True)
+class LiveOptions:
+    """The calibrator's options the live commands pass on (:class:`StreamingCalibrator`)."""
+
+    slip: bool = True
+    parent_of: dict[str, str] | None = None
+    root: str | None = None
+    hierarchy_method: str = HIERARCHY_METHODS[0]
+    single_axis_ratio: float = SINGLE_AXIS_RATIO
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR
+
+
+def _calibrator(
+    names: tuple[str, ...], rate_hz: float, start_s: float, options: LiveOptions
+) -> StreamingCalibrator:
     try:
-        return StreamingCalibrator(names, rate_hz=rate_hz, start_time_s=start_s, slip=slip)
+        return StreamingCalibrator(
+            names,
+            rate_hz=rate_hz,
+            start_time_s=start_s,
+            slip=options.slip,
+            parent_of=options.parent_of,
+            root=options.root,
+            hierarchy_method=options.hierarchy_method,
+            single_axis_ratio=options.single_axis_ratio,
+            false_alarms_per_hour=options.false_alarms_per_hour,
+        )
     except CalibrationError as exc:
         raise InputError(str(exc)) from None
 
@@ -200,7 +227,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     rec = read_poses(args.input, args.units)
     if rec.n_frames < 2 or not np.isfinite(rec.rate_hz):
         raise InputError(f"{args.input}: too few frames to replay ({rec.n_frames})")
-    cal = _calibrator(rec.names, rec.rate_hz, float(rec.time_s[0]), not args.no_slip)
+    cal = _calibrator(rec.names, rec.rate_hz, float(rec.time_s[0]), LiveOptions(slip=not args.no_slip))
     printer = LivePrinter(str(args.input), args.refresh, clear=sys.stdout.isatty())
     printer.next_at = float(rec.time_s[0]) + args.refresh
     block = max(1, round(rec.rate_hz / 20))  # 50 ms of frames at a time
@@ -322,7 +349,7 @@ def follow_csv(
     rate_hz: float | None = None,
     timeout_s: float | None = None,
     refresh_s: float = REFRESH_S,
-    slip: bool = True,
+    options: LiveOptions = LiveOptions(),
     out: Callable[[str], None] = print,
     clock: Callable[[], float] = time.monotonic,
 ) -> StreamingCalibrator | None:
@@ -348,7 +375,7 @@ def follow_csv(
                 return
             rate = rate_hz if rate_hz is not None else (len(times) - 1) / (times[-1] - times[0])
             assert follower.names is not None
-            cal = _calibrator(follower.names, rate, float(times[0]), slip)
+            cal = _calibrator(follower.names, rate, float(times[0]), options)
             printer.next_at = float(times[0]) + refresh_s
             for _, R, p, ok in waiting:
                 cal.push(R, p, ok)
@@ -378,7 +405,7 @@ def follow_csv(
         if times[-1] > times[0]:
             rate_hz = rate_hz or (len(times) - 1) / (times[-1] - times[0])
             assert follower.names is not None
-            cal = _calibrator(follower.names, rate_hz, float(times[0]), slip)
+            cal = _calibrator(follower.names, rate_hz, float(times[0]), options)
             for _, R, p, ok in waiting:
                 cal.push(R, p, ok)
     if cal is None:
