@@ -252,3 +252,24 @@ def test_batched_correlation_time_is_slip_stats():
     x[:, 3] = 1.0  # a constant: no correlation to measure
     want = [correlation_frames(x[:, k]) for k in range(4)]
     assert_allclose(_correlation_frames(x), want, rtol=1e-9)
+
+
+def test_equals_the_batch_on_a_simulated_session():
+    # MuJoCo physics, Polhemus Liberty noise, latency and dropouts (6 missing poses), 20 s at 120 Hz
+    from simbench.sim.plan import SessionConfig, load_session_model
+    from simbench.sim.session import run_session
+
+    config = SessionConfig(
+        model="linkage", motion="exercise", duration_s=20.0, seed=3, sensors="polhemus-liberty"
+    )
+    rec = run_session(config, load_session_model(config)).poses()
+    sc = StreamingCalibrator(rec.names, rate_hz=rec.rate_hz)
+    rng = np.random.default_rng(7)
+    done = 0
+    for stop in (500, 1201, rec.time_s.size):
+        _feed(sc, rec.R_w_s, rec.p_w_s, rec.valid, done, stop, rng)
+        done = stop
+        sl = slice(0, stop)
+        batch = calibrate(rec.R_w_s[sl], rec.p_w_s[sl], rec.names, valid=rec.valid[sl])
+        # the batch's exact residuals: millimetres of noise, far above the rounding floor
+        _assert_same(batch, sc.calibration(), rms_atol=1e-9)
