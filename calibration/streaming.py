@@ -82,7 +82,7 @@ from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.pair_sums import PairSums
 from calibration.pairs import PairSolutions, PairStatistics, pair_fit_spectrum, solve_pairs
-from calibration.pipeline import Calibration, Joint, _warnings
+from calibration.pipeline import Calibration, Joint, fit_warnings
 from calibration.skeleton import segment_lengths, sensor_placements
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.slip_stats import (
@@ -508,7 +508,7 @@ class StreamingCalibrator:
             loop_candidates=loops,
             lengths=tuple(segment_lengths(names, tree.joints, lp, lc)),
             placements=tuple(sensor_placements(names, tree.joints, lp, lc)),
-            warnings=tuple(_warnings(joints, names, missing, loops, self.n_frames)),
+            warnings=tuple(fit_warnings(joints, names, missing, loops, self.n_frames)),
             n_frames=self.n_frames,
             missing=missing,
             hierarchy_method=self.hierarchy_method,
