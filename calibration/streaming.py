@@ -918,13 +918,14 @@ class _SlipMonitor:
         assert self._latest is not None
         dn, frames = self._latest
         near = frames >= frame - self.w // 4
+        # joints still in their warm-up have no model: their normalised d against this joint's
+        # threshold (the normalised d's scale is about 1 where the noise is white)
+        modelled = np.isfinite(self.threshold).all(axis=1) & (self.scale > 0).all(axis=(1, 2))
+        scale = np.where(modelled[:, None, None], self.scale, 1.0)
+        threshold = np.where(modelled[:, None], self.threshold, np.max(self.threshold[j]))
         with np.errstate(invalid="ignore", divide="ignore"):
-            zz = np.linalg.norm(
-                np.where(self.scale > 0, dn[near] / np.where(self.scale > 0, self.scale, 1.0), 0.0), axis=3
-            )
-            ratio = np.nan_to_num(zz / self.threshold, nan=0.0, posinf=0.0).max(
-                axis=(0, 2), initial=0.0
-            )  # (J,)
+            zz = np.linalg.norm(dn[near] / scale, axis=3)  # (c, J, 2)
+            ratio = np.nan_to_num(zz / threshold, nan=0.0, posinf=0.0).max(axis=(0, 2), initial=0.0)  # (J,)
         evidence: list[float | None] = []
         for sensor in (self.par[j], self.chi[j]):
             others = [k for k, key in enumerate(self.keys) if k != j and sensor in key]
