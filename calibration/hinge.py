@@ -11,13 +11,21 @@ t statistic against ``c_j = 0`` is ``t_j = (v_j . A^T b) / sqrt(var)``, where ``
 variance of the score ``v_j . A^T e`` (``e`` the residual). Residuals of real joints are
 strongly autocorrelated (soft tissue, play, tracker distortion that follow the motion), so the
 variance is not ``sigma^2 s_j^2`` but is estimated by batch means: the recording is cut into
-:data:`N_BLOCKS` consecutive blocks of frames, each block's score
+consecutive blocks of frames, each block's score
 ``g_b = sum_{f in b} (A_f v_j) . r_f`` is summed from the full model's residual ``r``, and
 ``var = B / (B - 1) sum_b g_b^2`` over the ``B`` blocks that hold frames (the scores sum to
-zero by the normal equations). With correlation shorter than a block, ``t_j`` follows Student's
-t with ``B - 1`` degrees of freedom (the effective number of independent samples is ``B``, not
-the frame count). A direction is undetermined when ``|t_j|`` is below the two-sided critical
-value at :data:`TEST_LEVEL`.
+zero by the normal equations; :func:`score_variance` weighs a partial block by its length). With
+correlation shorter than a block, ``t_j`` follows Student's t with ``B - 1`` degrees of freedom
+(the effective number of independent samples is ``B``, not the frame count). A direction is
+undetermined when ``|t_j|`` is below the two-sided critical value at :data:`TEST_LEVEL`.
+
+**The blocks** are ``L = 2^k`` frames long, ``k`` the smallest with at most :data:`N_BLOCKS`
+(32) blocks, the last one partial (:func:`block_edges`): 17 to 32 blocks for any recording
+longer than 32 frames. They depend on the recording's length only through ``L``, so a
+calibration fed frame by frame (:mod:`calibration.streaming`) holds the same blocks in constant
+memory (merging neighbours when ``L`` doubles) and reaches the same verdict as the batch.
+(Until issue 17 the rule was 16 equal blocks over the whole recording, which a stream cannot
+keep: the cut points move with every frame.)
 
 Only the three directions along which the relative rotation varies (``s_j^2 < n``, see
 :func:`testable_directions`) may be dropped. A direction is also kept when it is *precise*: the
@@ -46,19 +54,42 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats as _stats
 
-#: Consecutive blocks of frames for the batch-means variance of the scores.
-N_BLOCKS = 16
+#: Most blocks of frames for the batch-means variance of the scores (:func:`block_edges`): a
+#: recording longer than this many frames is cut into between ``N_BLOCKS / 2 + 1`` and
+#: ``N_BLOCKS`` blocks.
+N_BLOCKS = 32
 
 #: Two-sided level of the test: the chance that a true hinge (noise only along its axis) is
 #: called a ball joint, when the residual's correlation is shorter than a block.
 TEST_LEVEL = 1e-3
 
 
+def block_frames(n_frames: int) -> int:
+    """``L = 2^k`` frames per block, ``k`` the smallest integer with ``ceil(n_frames / L) <= N_BLOCKS``.
+
+    The blocks depend on the frames seen so far only through ``L``, which doubles as a recording
+    grows: a calibration that receives frames one at a time (:mod:`calibration.streaming`) keeps
+    at most :data:`N_BLOCKS` blocks and merges neighbours in pairs when the next frame would open
+    one more, and so holds exactly the blocks the whole recording gets here, in constant memory.
+    """
+    n = max(int(n_frames), 0)
+    length = 1
+    while -(-n // length) > N_BLOCKS:
+        length *= 2
+    return length
+
+
 def block_edges(n_frames: int) -> np.ndarray:
-    """``(B + 1,)`` frame indices cutting ``n_frames`` frames into ``B = min(N_BLOCKS, n_frames)``
-    consecutive blocks of (nearly) equal length."""
-    n_blocks = max(1, min(N_BLOCKS, int(n_frames)))
-    return np.rint(np.linspace(0, n_frames, n_blocks + 1)).astype(np.int64)
+    """``(B + 1,)`` frame indices cutting ``n_frames`` frames into ``B = ceil(n_frames / L)``
+    consecutive blocks of ``L`` frames (:func:`block_frames`), the last one partial.
+
+    ``B`` is ``n_frames`` up to :data:`N_BLOCKS` frames (one frame a block), then between
+    ``N_BLOCKS / 2 + 1`` and ``N_BLOCKS``; a recording of no frames is one empty block.
+    """
+    n = max(int(n_frames), 0)
+    length = block_frames(n)
+    edges = np.arange(0, n, length, dtype=np.int64)
+    return np.append(edges, n) if n else np.array([0, 0], dtype=np.int64)
 
 
 def block_of_frame(n_frames: int) -> np.ndarray:
@@ -68,7 +99,14 @@ def block_of_frame(n_frames: int) -> np.ndarray:
 
 
 def score_variance(block_scores: np.ndarray, block_counts: np.ndarray) -> np.ndarray:
-    """Batch-means variance of every direction's score.
+    """Batch-means variance of every direction's score, for blocks of any lengths.
+
+    With ``n_b`` frames in block ``b`` and ``n = sum n_b``, a score whose per-frame long-run
+    variance is ``sigma^2`` has block sums of variance ``n_b sigma^2`` that add up to zero (the
+    normal equations), so ``E sum_b g_b^2 = sigma^2 (n - sum_b n_b^2 / n)``; the variance of the
+    whole score, ``n sigma^2``, is estimated by ``n sum_b g_b^2 / (n - sum_b n_b^2 / n)``. For
+    ``B`` equal blocks this is the textbook ``B / (B - 1) sum_b g_b^2``; the last, partial block
+    of :func:`block_edges` (and blocks thinned by missing frames) enter with their true weight.
 
     Args:
         block_scores: ``(..., B, 6)`` ``sum_{f in b} (A_f v_j) . r_f`` per block and direction,
@@ -76,12 +114,14 @@ def score_variance(block_scores: np.ndarray, block_counts: np.ndarray) -> np.nda
         block_counts: ``(..., B)`` frames in each block.
 
     Returns:
-        ``(..., 6)`` ``B / (B - 1) sum_b g_b^2`` over the ``B`` blocks holding frames (length
-        squared); NaN where fewer than two blocks hold frames.
+        ``(..., 6)`` the variance (length squared); NaN where fewer than two blocks hold frames.
     """
-    n_blocks = np.count_nonzero(np.asarray(block_counts) > 0, axis=-1)[..., None]
+    counts = np.asarray(block_counts, dtype=float)
+    n_blocks = np.count_nonzero(counts > 0, axis=-1)[..., None]
+    n = np.sum(counts, axis=-1)[..., None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        var = np.sum(np.square(block_scores), axis=-2) * n_blocks / (n_blocks - 1)
+        spread = n - np.sum(counts * counts, axis=-1)[..., None] / n
+        var = np.sum(np.square(block_scores), axis=-2) * n / spread
     return np.where(n_blocks >= 2, var, np.nan)
 
 
@@ -120,9 +160,14 @@ def precise_directions(
 
 
 def critical_t(block_counts: np.ndarray) -> np.ndarray:
-    """``(...,)`` two-sided critical ``|t|`` at :data:`TEST_LEVEL` with ``B - 1`` degrees of freedom."""
-    n_blocks = np.count_nonzero(np.asarray(block_counts) > 0, axis=-1)
-    dof = np.maximum(n_blocks - 1, 1)
+    """``(...,)`` two-sided critical ``|t|`` at :data:`TEST_LEVEL` with ``B_eff - 1`` degrees of
+    freedom, ``B_eff = n^2 / sum_b n_b^2`` the effective number of blocks (``B`` for equal blocks,
+    less when the last block is partial or gaps thin some blocks); at least 1."""
+    counts = np.asarray(block_counts, dtype=float)
+    n = np.sum(counts, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        n_eff = np.where(n > 0, n * n / np.sum(counts * counts, axis=-1), 0.0)
+    dof = np.maximum(n_eff - 1.0, 1.0)
     return _stats.t.ppf(1.0 - TEST_LEVEL / 2.0, dof)
 
 

@@ -318,7 +318,7 @@ def calibrate(
     loops = tuple(
         (names[a], names[b], r) for a, b, r in loop_candidates(residual, tree, loop_factor=loop_factor)
     )
-    warnings = _warnings(joints, names, missing, loops, n_frames) + refit_warnings
+    warnings = fit_warnings(joints, names, missing, loops, n_frames) + refit_warnings
     warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames)
     lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
     if refit:
@@ -625,15 +625,24 @@ def _length_uncertainties(
     return tuple(out)
 
 
-def _warnings(
+def fit_warnings(
     joints: Sequence[Joint],
     names: tuple[str, ...],
     missing: np.ndarray,
     loops: Sequence[tuple[str, str, float]],
     n_frames: int,
 ) -> list[str]:
-    """Plain-language notes: single-axis joints, dropped frames, missing poses, loop joints (joints
-    the motion hardly determines: :func:`_diagnostic_warnings`)."""
+    """Plain-language notes that the joint fits and statistics alone give (no pass over the data;
+    the batch and the streaming calibration share them): single-axis joints, dropped frames,
+    missing poses, loop joints (joints the motion hardly determines: :func:`_diagnostic_warnings`).
+
+    Args:
+        joints: the tree's joints.
+        names: ``(N,)`` sensor names.
+        missing: ``(N,)`` frames each sensor's pose was missing in.
+        loops: ``(sensor a, sensor b, rms residual m)`` pairs left out of the tree that fit as well.
+        n_frames: frames in the recording.
+    """
     warnings: list[str] = []
     for joint in joints:
         fit = joint.fit

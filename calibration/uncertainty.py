@@ -66,11 +66,11 @@ is underestimated (by about ``tau / (2 L)`` for an AR(1) series). The rule: the 
 autocorrelation time ``tau`` (frames) of the scores along the kept directions (Sokal's automatic
 window, ``M >= 5 tau(M)``; the largest over the directions, :func:`integrated_autocorrelation_time`)
 gives blocks of ``L = ceil(BLOCK_FACTOR tau)`` frames (:data:`BLOCK_FACTOR` = 10, so the bias is
-about 5 % of the variance), and ``B = floor(n_total / L)`` blocks on the recording's time line
-(cut like :func:`calibration.hinge.block_edges`, which is the case ``B = 16``). When the recording
-is too short for that (``B < MIN_BLOCKS``), :data:`MIN_BLOCKS` shorter blocks are used and a
-warning says the intervals may be too narrow. ``n_blocks=`` overrides the rule (``16`` reproduces
-the hinge test's blocks).
+about 5 % of the variance), and ``B = floor(n_total / L)`` nearly equal blocks on the recording's
+time line (:func:`block_edges`). When the recording is too short for that (``B < MIN_BLOCKS``),
+:data:`MIN_BLOCKS` shorter blocks are used and a warning says the intervals may be too narrow.
+``n_blocks=`` overrides the rule. (The hinge test of :mod:`calibration.hinge` has blocks of its own,
+``2^k`` frames long, that a calibration fed frame by frame can keep.)
 
 **Quantiles.** The number of blocks is small, so the estimated covariance is uncertain itself:
 per-axis intervals use Student's ``t`` with the degrees of freedom of the centre's own three
@@ -702,8 +702,7 @@ def integrated_autocorrelation_time(series: np.ndarray, *, valid: np.ndarray | N
 
 
 def block_edges(n_frames: int, n_blocks: int) -> np.ndarray:
-    """``(n_blocks + 1,)`` frame indices cutting ``n_frames`` into consecutive, nearly equal blocks
-    (the rule of :func:`calibration.hinge.block_edges`, for any number of blocks)."""
+    """``(n_blocks + 1,)`` frame indices cutting ``n_frames`` into consecutive, nearly equal blocks."""
     n_blocks = max(1, min(int(n_blocks), int(n_frames)))
     return np.rint(np.linspace(0, n_frames, n_blocks + 1)).astype(np.int64)
 

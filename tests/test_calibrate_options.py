@@ -131,8 +131,9 @@ def test_truth_lies_in_most_95_percent_regions(clean):
 
 
 def test_tukey_fit_resists_the_slip(slipped):
-    """Measured (seed 1): least squares puts the elbow 20 mm off, Tukey's fit 1.5 mm; the joints
-    the slip does not touch move by less than a millimetre either way."""
+    """Measured (seed 1): least squares puts the elbow 9.0 mm off (20 mm with the hinge test's
+    16 equal blocks before issue 17, which dropped two of its directions, now one), Tukey's fit
+    0.8 mm; the joints the slip does not touch move by less than a millimetre either way."""
     parent_of = slipped.truth.parent_of
     plain = sb.calibrate(slipped, hierarchy=parent_of)
     robust = sb.calibrate(slipped, hierarchy=parent_of, robust="tukey", intervals=True)
@@ -141,7 +142,7 @@ def test_tukey_fit_resists_the_slip(slipped):
     touched = [j.name for j in plain.joints if SLIPPED in (j.parent, j.child)]
     assert touched
     for name in touched:
-        assert e_plain[name] > 0.01  # the slip pulls the least-squares centre by centimetres
+        assert e_plain[name] > 0.005  # the slip pulls the least-squares centre by millimetres
         assert e_robust[name] < 0.25 * e_plain[name] and e_robust[name] < 0.004
     for name in set(e_plain) - set(touched):
         assert e_robust[name] < e_plain[name] + 0.001

@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from calibration import fit_joint
-from calibration.hinge import N_BLOCKS, block_edges, hinge_verdict
+from calibration.hinge import N_BLOCKS, block_edges, block_frames, critical_t, hinge_verdict, score_variance
 from calibration.pairs import pair_statistics, solve_pairs
 from calibration.rotations import rotvec_to_matrix
 from simbench.sim.synthetic import messy_joint
@@ -81,9 +81,9 @@ def test_all_pairs_path_agrees_with_fit_joint(amp):
 def test_block_sums_are_the_statistics_of_each_block():
     cap = _capture(BALL_3_AXES, 3, n_frames=500)
     stats = pair_statistics(cap.R_w_s, cap.p_w_s, chunk_frames=64)
-    edges = block_edges(500)
-    assert len(edges) == N_BLOCKS + 1 and edges[0] == 0 and edges[-1] == 500
-    for k in (0, 7, N_BLOCKS - 1):
+    edges = block_edges(500)  # 16 frames a block: 31 full blocks and one of 4 frames
+    assert len(edges) == 33 and edges[0] == 0 and edges[-1] == 500 and edges[-2] == 496
+    for k in (0, 7, 31):
         part = pair_statistics(cap.R_w_s[edges[k] : edges[k + 1]], cap.p_w_s[edges[k] : edges[k + 1]])
         assert_allclose(stats.block_gram[k], part.gram, atol=1e-9)
         assert_allclose(stats.block_count[k], part.count)
@@ -120,3 +120,47 @@ def test_verdict_drops_weakest_directions_while_not_significant():
     assert keep.sum(axis=1).tolist() == [5, 5, 3]  # row 1: direction 4 kept, 5 significant
     precise[0, 5] = True  # a centre placed within its scatter is measured, even at 0
     assert hinge_verdict(floor, t, np.full(3, 4.0), testable, precise)[0].all()
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 31, 32, 33, 64, 65, 500, 6000, 7201, 2**20 + 1])
+def test_blocks_are_powers_of_two_long_and_at_most_n_blocks(n):
+    edges = block_edges(n)
+    length = block_frames(n)
+    assert edges[0] == 0 and edges[-1] == n
+    assert length & (length - 1) == 0  # a power of two
+    assert len(edges) - 1 <= N_BLOCKS
+    if n:
+        assert np.all(np.diff(edges)[:-1] == length) and 0 < edges[-1] - edges[-2] <= length
+    if length > 1:  # the smallest such power: half of it would need more blocks
+        assert -(-n // (length // 2)) > N_BLOCKS
+
+
+def test_blocks_of_a_prefix_are_merged_blocks_of_the_whole():
+    # the streaming calibration's premise: every block of a longer recording is a union of
+    # consecutive blocks of any shorter prefix (cut where the prefix's blocks are cut)
+    for n_short, n_long in ((40, 41), (100, 1000), (1000, 1_000_000), (5000, 5001)):
+        short, long = set(block_edges(n_short)[:-1].tolist()), block_edges(n_long)[:-1]
+        assert set(long[long < n_short].tolist()) <= short
+
+
+def test_score_variance_weighs_a_partial_block_by_its_length():
+    rng = np.random.default_rng(3)
+    g = rng.normal(size=(5, 6))
+    g -= g.mean(axis=0)  # block scores sum to zero, as the normal equations make them
+    equal = score_variance(g, np.full(5, 100))
+    assert_allclose(equal, 5 / 4 * np.sum(g**2, axis=0), rtol=1e-12)  # the textbook B/(B-1)
+    counts = np.array([100, 100, 100, 100, 10])
+    n, s2 = counts.sum(), np.sum(counts**2)
+    assert_allclose(score_variance(g, counts), n * np.sum(g**2, axis=0) / (n - s2 / n), rtol=1e-12)
+    assert np.isnan(score_variance(g[:1], counts[:1])).all()  # one block: no variance
+    # white noise: the estimate is unbiased for the whole score's variance with unequal blocks
+    counts = np.array([64] * 9 + [7])
+    frames = rng.normal(size=(20000, counts.sum()))
+    frames -= frames.mean(axis=1, keepdims=True)  # the zero-sum constraint of the fit
+    blocks = np.add.reduceat(frames, np.r_[0, np.cumsum(counts)[:-1]], axis=1)
+    est = score_variance(blocks[:, :, None], counts)[:, 0]
+    # the true variance of a single score before centring is counts.sum(); 20000 draws: 2 % tolerance
+    assert_allclose(np.mean(est), counts.sum(), rtol=0.02)
+    # effective number of blocks: B for equal blocks, less for a partial one
+    assert critical_t(np.full(5, 100)) == pytest.approx(critical_t(np.full(5, 7)))
+    assert critical_t(np.full(10, 64)) < critical_t(counts) < critical_t(np.full(9, 64))

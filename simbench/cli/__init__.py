@@ -13,12 +13,12 @@ import sys
 from collections.abc import Sequence
 
 from calibration import CalibrationError
-from simbench.cli import baseline, calibrate, export, orient, report, scale, simulate, sweep, validate
+from simbench.cli import baseline, calibrate, export, orient, replay, report, scale, simulate, sweep, validate
 from simbench.errors import InputError
 from simbench.versions import __version__
 
 #: The subcommands in the order ``simbench --help`` lists them; each module adds its parser.
-COMMANDS = (calibrate, scale, simulate, export, orient, validate, report, baseline, sweep)
+COMMANDS = (calibrate, replay, scale, simulate, export, orient, validate, report, baseline, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:

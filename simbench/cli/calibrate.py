@@ -17,6 +17,7 @@ from calibration import (
 from calibration.robust import LOSSES
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
+from simbench.cli.live import LiveOptions, add_follow_arguments, follow_csv
 from simbench.cli.table import format_table
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
@@ -113,6 +114,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help=f"expected slip false alarms per hour of joint time (default {FALSE_ALARMS_PER_HOUR:g})",
     )
     cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
+    add_follow_arguments(cal)
     cal.set_defaults(func=cmd_calibrate)
 
 
@@ -166,6 +168,8 @@ def implausible_lengths(lengths: list, units: str) -> str:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
+    if args.follow:
+        return _follow(args)
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
     sensors = f"its sensors: {', '.join(rec.names)}"
@@ -221,4 +225,39 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         )
         write_calibration_json(args.json, doc)
         print(f"\n  wrote {args.json}")
+    return 0
+
+
+def _follow(args: argparse.Namespace) -> int:
+    """``simbench calibrate --follow``: the live calibration of a growing pose CSV."""
+    unsupported = [
+        flag
+        for flag, value in (
+            ("--json", args.json),
+            ("--robust", args.robust),
+            ("--intervals", args.intervals),
+            ("--correct-rotation-noise", args.correct_rotation_noise),
+            ("--clusters", args.clusters),
+            ("--wide", args.wide),
+        )
+        if value
+    ]
+    if unsupported:
+        raise InputError(f"--follow calibrates a pose CSV live; it does not take {', '.join(unsupported)}")
+    options = LiveOptions(
+        slip=not args.no_slip,
+        parent_of=read_hierarchy_json(args.hierarchy) if args.hierarchy else None,
+        root=args.root,
+        hierarchy_method=args.hierarchy_method,
+        single_axis_ratio=args.single_axis_ratio,
+        false_alarms_per_hour=args.slip_false_alarms_per_hour,
+    )
+    follow_csv(
+        args.input,
+        units=args.units,
+        rate_hz=args.rate_hz,
+        timeout_s=args.timeout,
+        refresh_s=args.refresh,
+        options=options,
+    )
     return 0

@@ -1,0 +1,981 @@
+"""Calibration while the subject is still suited: frames pushed one at a time (issue 17).
+
+O'Brien et al. (section 5) note that the calibration is fast enough to run during the capture, so
+that a bad session or a slipped sensor can be re-taken on the spot. Every fit of
+:func:`calibration.pipeline.calibrate` is a sum over frames (:mod:`calibration.pairs`), so
+:class:`StreamingCalibrator` keeps the same sufficient statistics and answers at any time with
+what the batch calibration would answer on the frames pushed so far:
+
+- **Pair statistics** (:class:`calibration.pair_sums.PairSums`, positions centred per frame as in
+  the batch) per block of the single-axis test: blocks of ``L = 2^k`` frames, at most
+  :data:`calibration.hinge.N_BLOCKS`; when the next frame would open one block more, neighbours
+  are merged in pairs and ``L`` doubles. These are exactly the blocks
+  :func:`calibration.hinge.block_edges` gives the whole recording, so the joints, residuals,
+  hierarchy and single-axis verdicts are those of the batch (equal to rounding: the sums are
+  added in another order; measured below 1e-12 m on the joint centres).
+- **Third-difference statistics** for the misfit hierarchy's noise
+  (:mod:`calibration.pair_noise`): the residual's third difference is linear in the joint,
+  ``D3 e = D3 A x - D3 b``, so ``sum |D3 e|^2`` is a quadratic form in ``x`` whose matrices are
+  sums over frames too (the pair statistics of the third-differenced poses, plus each sensor's
+  own ``sum D3R_i^T D3R_i`` weighted by the pair's validity). Three frames carry over between
+  pushes.
+
+Memory does not grow with the session: the statistics are ``O(N_BLOCKS * sensors^2)``, the slip
+monitor keeps :data:`SLIP_HISTORY_S` seconds of its statistic per joint, and frames are held
+only until the next flush (:data:`FLUSH_S`).
+
+**Residuals.** The rms residuals come from the normal equations (the batch's
+``keep_frame_residuals=False``); the batch's default recomputes them from the data in a second
+pass, which a stream cannot make. Both agree to 1e-9 m unless the residual itself is at the
+rounding floor of the normal equations (about 1e-8 m on noise-free data, :mod:`calibration.pairs`).
+
+**Slip alerts** (:class:`SlipAlert`) are the detector of :mod:`calibration.slip` made causal: per
+joint of the current tree, the residual (with the joint as fitted so far) in the parent's and in
+the child's frame; ``d`` the mean over the last ``w`` frames minus the mean over the ``w`` frames
+before; its robust scale, correlation time and tail threshold
+(:mod:`calibration.slip_stats`, the same functions) from the last :data:`SLIP_HISTORY_S` seconds
+of ``d`` (frames near an alert left out), refreshed every 5 s; an alert when ``|d / scale|``
+crosses the threshold, which is set for ``false_alarms_per_hour`` per joint (default
+:data:`calibration.slip.FALSE_ALARMS_PER_HOUR`, the batch's: ``J`` joints give ``J`` expected false
+alarms an hour under the detector's exponential-tail model). A jump of ``X`` times the threshold
+is seen ``w / X`` frames after it happens (at most ``w``; default 0.5 s). The alert names the
+sensor whose other joints jump too (or a leaf sensor whose neighbour's other joints do not;
+failing both, the sensor whose frame holds the jump more significantly), the least-squares change
+point within the
+last ``2 w`` frames as the time, and the change of mean across it as the size. One slip moves
+every joint of its sensor: alerts on joints sharing a sensor within ``2 w`` frames of an alert are
+folded into it, and a sensor once alerted on raises no more alerts (its joints' fits now mix
+two placements; re-fix the sensor and start a new calibration). A crossing must also be a step
+that the joint's own fit error does not explain (:meth:`_SlipMonitor._steady`). No alert is
+raised in the first :data:`SLIP_WARMUP_S` seconds of a joint
+(the noise model needs history). Unlike the batch detector, the joint is not refitted around a
+candidate (that needs the frames after it): a slip's misfit spreads into later frames slowly, as
+the fit absorbs it.
+
+**Operator guidance** (:class:`Coverage`): the three weak singular values of a joint's normal
+matrix, ``s_k^2 = n (1 - sigma_k(M))`` with ``M`` the mean relative rotation
+(:mod:`calibration.joint`), give for small rotations the relative rotation's variance about
+three principal axes (parent sensor frame): ``c_k = sum_l w_l - 2 w_k`` with ``w_k = s_k^2 / n``.
+A joint is "moved enough" when its second-largest rms rotation reaches
+:data:`MIN_ROTATION_DEG` (two axes turned: all six directions determined); otherwise the advice
+names that axis ("move more about axis X"; for a hinge, an axis across the hinge's).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.hierarchy import (
+    HIERARCHY_METHODS,
+    LOOP_FACTOR,
+    hierarchy_from_parents,
+    loop_candidates,
+    misfit_weights,
+    spanning_tree,
+)
+from calibration.hinge import N_BLOCKS
+from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit
+from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
+from calibration.pair_sums import PairSums
+from calibration.pairs import PairSolutions, PairStatistics, pair_fit_spectrum, solve_pairs
+from calibration.pipeline import Calibration, Joint, fit_warnings
+from calibration.skeleton import segment_lengths, sensor_placements
+from calibration.slip import FALSE_ALARMS_PER_HOUR
+from calibration.slip_stats import (
+    change_point,
+    robust_scale,
+    tail_threshold,
+    whitened_norm,
+)
+
+#: Seconds of frames held before they are added to the statistics (and the slip monitor runs).
+FLUSH_S = 0.1
+
+#: Seconds between refits of the tree and joints the slip monitor uses.
+REFIT_S = 2.0
+
+#: Default slip window ``w``, seconds: an alert comes at most this late after a clear jump.
+SLIP_WINDOW_S = 0.5
+
+#: Seconds of the slip statistic each joint keeps for its noise model.
+SLIP_HISTORY_S = 60.0
+
+#: Seconds of a joint's history before it may raise an alert.
+SLIP_WARMUP_S = 5.0
+
+#: A joint's slip history restarts when its fit moves by more than this many times its residual's
+#: white noise (one component's standard deviation) since the history began (early in a session
+#: the fit moves by centimetres) ... Measured on 8 humanoid exercise sessions (Polhemus Liberty,
+#: 2 cm slips, benchmarks/bench_live.py): 3 restarted so often that 2 slips fell in a warm-up;
+#: 10 caught 7 of 8 within 0.5 s with the same false alarms; never restarting, 7 with one more.
+SETTLED_NOISE_FACTOR = 10.0
+
+#: ... or by more than this, metres (the floor for noise-free data).
+SETTLED_FLOOR_M = 1e-6
+
+#: Seconds between refreshes of a joint's noise model (scale, correlation, threshold).
+SLIP_MODEL_S = 5.0
+
+#: A joint has moved enough when its second-largest rms rotation reaches this, degrees (a sinusoid
+#: of +-7 degrees; a joint moved less than about 10 degrees gets a centre decimetres off: DESIGN.md).
+MIN_ROTATION_DEG = 5.0
+
+_FRAME_NAMES = ("parent", "child")
+
+_FOREVER = 2**62  # a frame no session reaches
+
+
+@dataclass(frozen=True)
+class SlipAlert:
+    """A sensor that may have moved on the body, found causally (module docstring).
+
+    Attributes:
+        sensor: the sensor that probably moved.
+        joint: ``"parent-child"`` the joint whose residual jumped first.
+        frame: the estimated first frame after the jump (index since the first push).
+        time_s: ``frame / rate_hz`` plus the calibrator's ``start_time_s``, seconds.
+        raised_frame: the frame at which the alert was raised (frames pushed so far, minus one).
+        size_m: the jump of the residual's mean in the sensor's frame, metres.
+        z: the whitened jump when the alert was raised (dimensionless).
+        threshold: the threshold it crossed.
+        false_alarms_per_hour: the rate the threshold was set for, per joint.
+    """
+
+    sensor: str
+    joint: str
+    frame: int
+    time_s: float
+    raised_frame: int
+    size_m: float
+    z: float
+    threshold: float
+    false_alarms_per_hour: float
+
+    @property
+    def message(self) -> str:
+        """``"sensor S may have slipped at t s, size X cm"``."""
+        return (
+            f"sensor {self.sensor} may have slipped at {self.time_s:.2f} s, size {self.size_m * 100:.1f} cm"
+        )
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """How well a joint's motion so far determines its centre (module docstring).
+
+    Attributes:
+        joint: ``"parent-child"``.
+        rotation_rms_deg: ``(3,)`` rms relative rotation about each principal axis, degrees,
+            largest first (small-angle reading of the fit's singular values).
+        axes_in_parent: ``(3, 3)`` the principal axes as rows, unit vectors in the parent
+            sensor's frame, in the order of ``rotation_rms_deg``.
+        condition: ``s_max / s_min`` of the fit's ``A`` (``inf`` if a direction is exactly free).
+        moved_enough: the second-largest rms rotation is at least :data:`MIN_ROTATION_DEG`.
+        advice: ``"moved enough"`` or ``"move more about axis [x, y, z] (parent frame)"``.
+    """
+
+    joint: str
+    rotation_rms_deg: np.ndarray
+    axes_in_parent: np.ndarray
+    condition: float
+    moved_enough: bool
+    advice: str
+
+
+@dataclass(frozen=True)
+class LiveState:
+    """What the streaming calibration knows after the frames pushed so far.
+
+    Attributes:
+        calibration: the batch calibration's result on the same frames (joints in both frames,
+            residual matrix, hierarchy, single-axis verdicts, limb lengths, placements); joints
+            carry no per-frame residuals, and the warnings are those of the statistics (no
+            jackknife diagnostics).
+        coverage: one per joint of ``calibration``, in its order.
+        alerts: every slip alert raised so far, in time order.
+        n_frames: frames pushed.
+        time_s: time of the last frame pushed, seconds.
+        false_alarms_per_hour: expected false slip alerts per hour over all current joints.
+    """
+
+    calibration: Calibration
+    coverage: tuple[Coverage, ...]
+    alerts: tuple[SlipAlert, ...]
+    n_frames: int
+    time_s: float
+    false_alarms_per_hour: float
+
+
+class StreamingCalibrator:
+    """Incremental calibration: push frames, read the batch calibration of all frames so far.
+
+    Example::
+
+        cal = StreamingCalibrator(names, rate_hz=120.0)
+        for R, p, ok in source:          # (S, 3, 3), (S, 3), (S,) per frame, or blocks of frames
+            cal.push(R, p, ok)
+            for alert in cal.new_alerts():
+                print(alert.message)
+        state = cal.state()              # joints, hierarchy, residuals, coverage, alerts
+
+    Args:
+        names: ``S`` unique sensor names.
+        rate_hz: frames per second (slip windows and times), > 0.
+        parent_of: a known hierarchy ``{child: parent}``; inferred when ``None``.
+        root: root sensor name (see :func:`calibration.pipeline.calibrate`).
+        hierarchy_method: ``"misfit"`` or ``"mst"`` (:mod:`calibration.hierarchy`).
+        single_axis_ratio: see :mod:`calibration.joint`.
+        loop_factor: see :func:`calibration.hierarchy.loop_candidates`.
+        slip: run the causal slip monitor.
+        slip_window_s: ``w`` of the monitor, seconds.
+        false_alarms_per_hour: per joint, the rate the alert threshold is set for.
+        start_time_s: time of the first frame, seconds.
+    """
+
+    def __init__(
+        self,
+        names: Sequence[str],
+        *,
+        rate_hz: float,
+        parent_of: Mapping[str, str] | None = None,
+        root: str | None = None,
+        hierarchy_method: str = HIERARCHY_METHODS[0],
+        single_axis_ratio: float = SINGLE_AXIS_RATIO,
+        loop_factor: float = LOOP_FACTOR,
+        slip: bool = True,
+        slip_window_s: float = SLIP_WINDOW_S,
+        false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+        start_time_s: float = 0.0,
+    ) -> None:
+        self.names = _checked_names(names)
+        n = len(self.names)
+        if not (np.isfinite(rate_hz) and rate_hz > 0):
+            raise CalibrationInputError(f"rate_hz must be a positive finite number, got {rate_hz}")
+        if hierarchy_method not in HIERARCHY_METHODS:
+            raise CalibrationInputError(
+                f"hierarchy_method must be one of {list(HIERARCHY_METHODS)}, got {hierarchy_method!r}"
+            )
+        if not 0.0 < single_axis_ratio < 1.0:
+            raise CalibrationInputError(f"single_axis_ratio must be in (0, 1), got {single_axis_ratio}")
+        if root is not None and root not in self.names:
+            raise CalibrationInputError(f"root {root!r} is not a sensor; sensors are {list(self.names)}")
+        if not (np.isfinite(false_alarms_per_hour) and false_alarms_per_hour > 0):
+            raise CalibrationInputError(
+                f"false_alarms_per_hour must be a positive finite number, got {false_alarms_per_hour}"
+            )
+        window = round(slip_window_s * rate_hz)
+        if slip and window < 2:
+            raise CalibrationInputError(
+                f"slip_window_s * rate_hz must give at least 2 frames, got {slip_window_s} s at {rate_hz} Hz"
+            )
+        # a known hierarchy is checked now, not at the first read
+        self._tree_given = (
+            None if parent_of is None else hierarchy_from_parents(parent_of, self.names, root=root)
+        )
+        self.rate_hz = float(rate_hz)
+        self.start_time_s = float(start_time_s)
+        self.parent_of = None if parent_of is None else dict(parent_of)
+        self.root = root
+        self.hierarchy_method = hierarchy_method
+        self.single_axis_ratio = float(single_axis_ratio)
+        self.loop_factor = float(loop_factor)
+        self.false_alarms_per_hour = float(false_alarms_per_hour)
+        self.n_frames = 0  # frames pushed
+        self._n_summed = 0  # frames added to the statistics
+        self._block_len = 1
+        self._blocks: list[PairSums] = []
+        self._d3 = _ThirdDifferenceSums(n)
+        self._flush = max(1, round(FLUSH_S * rate_hz))
+        self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._n_pending = 0
+        self._refit_every = max(1, round(REFIT_S * rate_hz))
+        self._refit_at = 0  # frames summed at the last refit of the slip monitor's joints
+        self._monitor = _SlipMonitor(self, window) if slip else None
+
+    # ---------------------------------------------------------------- input
+    def push(self, R_w_s: np.ndarray, p_w_s: np.ndarray, valid: np.ndarray | None = None) -> None:
+        """Add one frame or a block of frames.
+
+        Args:
+            R_w_s: ``(S, 3, 3)`` or ``(F, S, 3, 3)`` rotations, sensor to world.
+            p_w_s: ``(S, 3)`` or ``(F, S, 3)`` sensor positions in world, metres.
+            valid: optional ``(S,)`` or ``(F, S)`` bool, False where a pose is missing;
+                non-finite poses are always missing.
+
+        Raises:
+            CalibrationInputError: shapes that do not match the sensors or each other.
+        """
+        R, p, ok = self._checked(R_w_s, p_w_s, valid)
+        if R.shape[0] == 0:
+            return
+        self._pending.append((R, p, ok))
+        self._n_pending += R.shape[0]
+        self.n_frames += R.shape[0]
+        if self._n_pending >= self._flush:
+            self._drain()
+
+    def _checked(
+        self, R_w_s: np.ndarray, p_w_s: np.ndarray, valid: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = len(self.names)
+        R = np.asarray(R_w_s, dtype=float)
+        p = np.asarray(p_w_s, dtype=float)
+        single = R.ndim == 3
+        if R.shape[-3:] != (n, 3, 3) or R.ndim not in (3, 4):
+            raise CalibrationInputError(
+                f"Expected R_w_s to have shape ({n}, 3, 3) or (frames, {n}, 3, 3), got {R.shape}"
+            )
+        want = (n, 3) if single else (R.shape[0], n, 3)
+        if p.shape != want:
+            raise CalibrationInputError(f"Expected p_w_s to have shape {want} to match R_w_s, got {p.shape}")
+        if single:
+            R, p = R[None], p[None]
+        f = R.shape[0]
+        ok = np.isfinite(R.reshape(f, n, 9)).all(axis=2) & np.isfinite(p).all(axis=2)
+        if valid is not None:
+            v = np.asarray(valid)
+            if v.shape != want[:-1]:
+                raise CalibrationInputError(f"Expected valid to have shape {want[:-1]}, got {v.shape}")
+            ok &= v.reshape(f, n).astype(bool)
+        if not ok.all():  # as calibration.poses.iter_chunks: no NaN reaches a product
+            R = np.where(ok[:, :, None, None], R, 0.0)
+            p = np.where(ok[:, :, None], p, 0.0)
+        else:  # own copies: the caller may reuse its buffers
+            R, p = R.copy(), p.copy()
+        return R, p, ok
+
+    def _drain(self) -> None:
+        """Add the pending frames to the statistics and run the slip monitor on them."""
+        if not self._pending:
+            return
+        if len(self._pending) == 1:
+            R, p, ok = self._pending[0]
+        else:
+            R, p, ok = (np.concatenate(x) for x in zip(*self._pending, strict=True))
+        self._pending, self._n_pending = [], 0
+        self._add_to_blocks(R, p, ok)
+        self._d3.add(R, p, ok)
+        start = self._n_summed
+        self._n_summed += R.shape[0]
+        if self._monitor is not None:
+            if self._n_summed - self._refit_at >= self._refit_every or not self._monitor.ready:
+                self._refit_monitor()
+            self._monitor.update(R, p, ok, start)
+
+    def _add_to_blocks(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
+        """Add frames to their blocks of :func:`calibration.hinge.block_edges`, merging when full."""
+        n = len(self.names)
+        buf = np.empty((R.shape[0], 3, 4 * n))
+        lo, frame = 0, self._n_summed
+        while lo < R.shape[0]:
+            k = frame // self._block_len
+            if k >= N_BLOCKS:  # one block more than allowed: merge neighbours, L doubles
+                self._blocks = [_merged(self._blocks[i : i + 2]) for i in range(0, len(self._blocks), 2)]
+                self._block_len *= 2
+                continue
+            while len(self._blocks) <= k:
+                self._blocks.append(PairSums(n))
+            hi = min(R.shape[0], lo + (k + 1) * self._block_len - frame)
+            self._blocks[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
+            frame += hi - lo
+            lo = hi
+
+    # ---------------------------------------------------------------- output
+    def statistics(self) -> PairStatistics:
+        """The pair statistics of every frame pushed (those of :func:`calibration.pairs.pair_statistics`)."""
+        self._drain()
+        n = len(self.names)
+        blocks = [b.result() for b in self._blocks] or [PairSums(n).result()]
+        gram, cross, self_cross, sq_dist, count = (np.stack(x) for x in zip(*blocks, strict=True))
+        return PairStatistics(
+            gram=gram.sum(axis=0),
+            cross=cross.sum(axis=0),
+            self_cross=self_cross.sum(axis=0),
+            sq_dist=sq_dist.sum(axis=0),
+            count=count.sum(axis=0),
+            n_frames=self.n_frames,
+            block_gram=gram,
+            block_cross=cross,
+            block_self_cross=self_cross,
+            block_count=count,
+        )
+
+    def calibration(self) -> Calibration:
+        """The calibration of every frame pushed, as :func:`calibration.pipeline.calibrate` gives it
+        with ``keep_frame_residuals=False`` (module docstring).
+
+        Raises:
+            CalibrationError: too few frames yet, or sensors that share no usable frames.
+        """
+        stats = self.statistics()
+        cal, _ = self._solve(stats)
+        return cal
+
+    def state(self) -> LiveState:
+        """The calibration, each joint's coverage and the slip alerts so far.
+
+        Raises:
+            CalibrationError: too few frames yet, or sensors that share no usable frames.
+        """
+        stats = self.statistics()
+        cal, sol = self._solve(stats)
+        coverage = tuple(_coverage(j, sol, k) for k, j in enumerate(cal.joints))
+        return LiveState(
+            calibration=cal,
+            coverage=coverage,
+            alerts=self.alerts,
+            n_frames=self.n_frames,
+            time_s=self.start_time_s + (self.n_frames - 1) / self.rate_hz,
+            false_alarms_per_hour=self.false_alarms_per_hour * len(cal.joints),
+        )
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of numpy arrays the calibrator holds (statistics, pending frames, slip monitor):
+        bounded by the sensors, the rate and the options, not by the frames pushed."""
+        arrays: list[np.ndarray] = []
+        for sums in [*self._blocks, self._d3.sums]:
+            arrays += [x for x in vars(sums).values() if isinstance(x, np.ndarray)]
+        arrays.append(self._d3.self_gram)
+        arrays += [x for block in self._pending for x in block]
+        arrays += [x for x in self._d3.carry or ()]
+        if self._monitor is not None:
+            arrays += self._monitor.arrays()
+        return int(sum(x.nbytes for x in arrays))
+
+    @property
+    def alerts(self) -> tuple[SlipAlert, ...]:
+        """Every slip alert raised so far (frames still pending are not yet examined)."""
+        return () if self._monitor is None else tuple(self._monitor.alerts)
+
+    def new_alerts(self) -> list[SlipAlert]:
+        """The alerts raised since the last call."""
+        return [] if self._monitor is None else self._monitor.take_new()
+
+    def _solve(self, stats: PairStatistics) -> tuple[Calibration, PairSolutions]:
+        """The batch pipeline's steps 2-5 on the statistics (:mod:`calibration.pipeline`)."""
+        names, n = self.names, len(self.names)
+        if self.n_frames < MIN_FRAMES:
+            raise CalibrationError(f"calibration needs at least {MIN_FRAMES} frames, got {self.n_frames}")
+        per_sensor = np.diagonal(stats.count)
+        if np.max(stats.count - np.diag(per_sensor)) < MIN_FRAMES:
+            raise CalibrationError(
+                f"no pair of sensors has {MIN_FRAMES} frames where both poses are valid "
+                f"(frames: {stats.n_frames}, most valid frames of one sensor: {int(np.max(per_sensor))})"
+            )
+        i, j = np.triu_indices(n, k=1)
+        pairs = solve_pairs(stats, i, j, single_axis_ratio=self.single_axis_ratio)
+        residual = np.full((n, n), np.inf)
+        residual[i, j] = residual[j, i] = pairs.rms_residual
+        if self._tree_given is not None:
+            tree = self._tree_given
+        else:
+            weights = residual
+            if self.hierarchy_method == "misfit":
+                nu = self._d3.noise_variance(i, j, pairs.joint_in_parent, pairs.joint_in_child)
+                noise = np.zeros((n, n))
+                noise[i, j] = noise[j, i] = nu
+                weights = misfit_weights(residual, noise)
+            root = None if self.root is None else names.index(self.root)
+            tree = spanning_tree(weights, root=root, names=names)
+        par = np.array([p for p, _ in tree.joints], dtype=np.int64)
+        chi = np.array([c for _, c in tree.joints], dtype=np.int64)
+        sol = solve_pairs(stats, par, chi, single_axis_ratio=self.single_axis_ratio)
+        too_few = [
+            f"{names[p]}-{names[c]}" for k, (p, c) in enumerate(tree.joints) if sol.n_frames[k] < MIN_FRAMES
+        ]
+        if too_few:
+            raise CalibrationError(
+                f"joints with fewer than {MIN_FRAMES} frames where both sensors are valid: {too_few}"
+            )
+        joints = tuple(_joint(names, sol, k, self.n_frames, self.single_axis_ratio) for k in range(len(par)))
+        missing = stats.n_frames - per_sensor.astype(np.int64)
+        loops = tuple(
+            (names[a], names[b], r)
+            for a, b, r in loop_candidates(residual, tree, loop_factor=self.loop_factor)
+        )
+        lp, lc = sol.joint_in_parent, sol.joint_in_child
+        cal = Calibration(
+            names=names,
+            hierarchy=tree,
+            hierarchy_given=self._tree_given is not None,
+            joints=joints,
+            residual_matrix=residual,
+            loop_candidates=loops,
+            lengths=tuple(segment_lengths(names, tree.joints, lp, lc)),
+            placements=tuple(sensor_placements(names, tree.joints, lp, lc)),
+            warnings=tuple(fit_warnings(joints, names, missing, loops, self.n_frames)),
+            n_frames=self.n_frames,
+            missing=missing,
+            hierarchy_method=self.hierarchy_method,
+        )
+        return cal, sol
+
+    def _refit_monitor(self) -> None:
+        """Give the slip monitor the current tree and joints (nothing while too few frames)."""
+        try:
+            cal, _ = self._solve(self.statistics())  # called from _drain: nothing pending
+        except CalibrationError:
+            return
+        self._refit_at = self._n_summed
+        assert self._monitor is not None
+        self._monitor.set_joints(cal)
+
+
+def _checked_names(names: Sequence[str]) -> tuple[str, ...]:
+    out = tuple(str(x) for x in names)
+    if len(out) < 2:
+        raise CalibrationInputError(f"calibration needs at least 2 sensors, got {len(out)} ({list(out)})")
+    if len(set(out)) != len(out):
+        dup = sorted({x for x in out if out.count(x) > 1})
+        raise CalibrationInputError(f"sensor names must be unique, repeated: {dup}")
+    return out
+
+
+def _merged(blocks: list[PairSums]) -> PairSums:
+    """One :class:`PairSums` holding the sums of one or two consecutive blocks."""
+    out = blocks[0]
+    for other in blocks[1:]:
+        out.full += other.full
+        out.n_full += other.n_full
+        out.gram += other.gram
+        out.cross += other.cross
+        out.weighted_self += other.weighted_self
+        out.dot += other.dot
+        out.weighted_sq += other.weighted_sq
+        out.count += other.count
+    return out
+
+
+def _joint(
+    names: tuple[str, ...], sol: PairSolutions, k: int, n_frames: int, single_axis_ratio: float
+) -> Joint:
+    """Joint ``k`` of the solved tree, as :func:`calibration.pipeline.calibrate` builds it (no
+    per-frame residuals)."""
+    spec = pair_fit_spectrum(sol, k, single_axis_ratio)
+    fit = JointFit(
+        joint_in_parent=sol.joint_in_parent[k].copy(),
+        joint_in_child=sol.joint_in_child[k].copy(),
+        rms_residual=float(sol.rms_residual[k]),
+        frame_residual=None,
+        singular_values=sol.singular_values[k].copy(),
+        rank=spec.rank,
+        single_axis=spec.single_axis,
+        axis_in_parent=spec.axis_in_parent,
+        axis_in_child=spec.axis_in_child,
+        n_frames=int(sol.n_frames[k]),
+        n_dropped=n_frames - int(sol.n_frames[k]),
+        weakest_t=float(sol.t_statistic[k, 5]),
+    )
+    return Joint(names[sol.parent[k]], names[sol.child[k]], fit)
+
+
+def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
+    """The rotation a joint has seen about its principal axes, and what to do (module docstring)."""
+    n = float(sol.n_frames[k])
+    s = sol.singular_values[k]
+    v = sol.right_vectors[k]
+    weak = np.square(s[3:]) / max(n, 1.0)  # w_k = 1 - sigma_k(M), ascending rotation coverage
+    c = np.clip(np.sum(weak) - 2.0 * weak, 0.0, None)  # variance about each principal axis, rad^2
+    axes = v[:3, 3:].T  # parent-frame halves of the weak directions
+    axes = axes / np.maximum(np.linalg.norm(axes, axis=1, keepdims=True), 1e-300)
+    order = np.argsort(-c, kind="stable")
+    rms = np.degrees(np.sqrt(c[order]))
+    axes = axes[order]
+    enough = bool(rms[1] >= MIN_ROTATION_DEG)
+    if enough:
+        advice = "moved enough"
+    else:
+        a = axes[1] * (1.0 if axes[1][np.argmax(np.abs(axes[1]))] >= 0 else -1.0)
+        advice = f"move more about axis {np.round(a, 2).tolist()} ({joint.parent} frame)"
+    return Coverage(
+        joint=joint.name,
+        rotation_rms_deg=rms,
+        axes_in_parent=axes,
+        condition=joint.fit.condition,
+        moved_enough=enough,
+        advice=advice,
+    )
+
+
+class _ThirdDifferenceSums:
+    """Sums over frames of the third-differenced poses: the misfit hierarchy's noise as a quadratic
+    form in each pair's joint (module docstring; :func:`calibration.pair_noise.pair_noise_variance`)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.sums = PairSums(n)
+        self.self_gram = np.zeros((n, n, 9))  # [i, j] sum w_i w_j D3R_i^T D3R_i
+        self.carry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
+        if self.carry is not None:
+            R, p, ok = (np.concatenate([a, b]) for a, b in zip(self.carry, (R, p, ok), strict=True))
+        self.carry = (R[-3:], p[-3:], ok[-3:])
+        if R.shape[0] < 4:
+            return
+        d3R = np.diff(R, n=3, axis=0)
+        d3p = np.diff(p, n=3, axis=0)
+        ok4 = ok[3:] & ok[2:-1] & ok[1:-2] & ok[:-3]
+        c = d3R.shape[0]
+        if not ok4.all():
+            d3R = np.where(ok4[:, :, None, None], d3R, 0.0)
+            d3p = np.where(ok4[:, :, None], d3p, 0.0)
+        self.sums.add(d3R, d3p, ok4, np.empty((c, 3, 4 * self.n)))
+        w = ok4.astype(float)
+        own = np.einsum("fsai,fsaj->fsij", d3R, d3R).reshape(c, self.n * 9)  # invalid rows are zero
+        self.self_gram += (w.T @ own).reshape(self.n, self.n, 9).transpose(1, 0, 2)
+
+    def noise_variance(
+        self, parent: np.ndarray, child: np.ndarray, joint_in_parent: np.ndarray, joint_in_child: np.ndarray
+    ) -> np.ndarray:
+        """``(P,)`` the noise variance of each pair's residual for the given joints, m^2 (as
+        :func:`calibration.pair_noise.pair_noise_variance` computes it from the frames)."""
+        gram, cross, self_cross, sq_dist, count = self.sums.result()
+        lp, lc = np.asarray(joint_in_parent), np.asarray(joint_in_child)
+        g = gram[parent, child]  # (P, 3, 3) sum D3R_p^T D3R_c
+        sp = self.self_gram[parent, child].reshape(-1, 3, 3)
+        sc = self.self_gram[child, parent].reshape(-1, 3, 3)
+        quad = (
+            np.einsum("pi,pij,pj->p", lp, sp, lp)
+            + np.einsum("pi,pij,pj->p", lc, sc, lc)
+            - 2.0 * np.einsum("pi,pij,pj->p", lp, g, lc)
+        )
+        h_p = cross[parent, child] - self_cross[parent, child]
+        h_c = cross[child, parent] - self_cross[child, parent]
+        lin = np.einsum("pi,pi->p", lp, h_p) + np.einsum("pi,pi->p", lc, h_c)
+        total = quad - 2.0 * lin + sq_dist[parent, child]
+        used = count[parent, child].astype(float)
+        return np.where(
+            used > 0, np.clip(total, 0.0, None) / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0
+        )
+
+
+def _correlation_frames(x: np.ndarray) -> np.ndarray:
+    """``(k,)`` :func:`calibration.slip_stats.correlation_frames` of each column of ``x``
+    (``(n, k)``, no gaps), in one batch of FFTs."""
+    n = x.shape[0]
+    xc = x - x.mean(axis=0)
+    fx = np.fft.rfft(xc, 2 * n, axis=0)
+    num = np.fft.irfft(fx * np.conj(fx), axis=0)[:n]
+    cov = num / (n - np.arange(n))[:, None]
+    out = np.ones(x.shape[1])
+    for k in np.flatnonzero(cov[0] > 0):
+        rho = cov[:, k] / cov[0, k]
+        stop = np.flatnonzero(~(rho > 0))
+        m = int(stop[0]) if stop.size else n
+        out[k] = max(1.0, float(1.0 + 2.0 * rho[1:m].sum()))
+    return out
+
+
+class _SlipMonitor:
+    """The causal slip detector over the joints of the current tree (module docstring).
+
+    The last ``2 w + 3`` poses of every sensor are held once for all joints; each joint's row of
+    the ``(J, ...)`` arrays holds its fit, its history of the normalised window difference and its
+    noise model.
+    """
+
+    def __init__(self, owner: StreamingCalibrator, window: int) -> None:
+        self.owner = owner
+        self.w = window
+        self.rate = owner.rate_hz
+        self.history = max(4 * window, round(SLIP_HISTORY_S * self.rate))
+        self.warmup = max(2 * window, round(SLIP_WARMUP_S * self.rate))
+        self.model_every = max(1, round(SLIP_MODEL_S * self.rate))
+        n = len(owner.names)
+        self.R = np.zeros((0, n, 3, 3))  # held poses, from frame frame0 on
+        self.p = np.zeros((0, n, 3))
+        self.ok = np.zeros((0, n), dtype=bool)
+        self.frame0 = 0
+        self.keys: list[tuple[int, int]] = []
+        self.slipped: set[int] = set()  # sensors alerted on
+        self.alerts: list[SlipAlert] = []
+        self._taken = 0
+        self.ready = False
+        self._rows(0)
+        self._latest: tuple[np.ndarray, np.ndarray] | None = None
+
+    def _rows(self, j: int) -> None:
+        """Fresh per-joint arrays for ``j`` joints."""
+        self.par = np.zeros(j, dtype=np.int64)
+        self.chi = np.zeros(j, dtype=np.int64)
+        self.lp = np.zeros((j, 3))
+        self.lc = np.zeros((j, 3))
+        self.hist = np.full((j, self.history, 2, 3), np.nan)  # rings of the normalised d
+        self.n_hist = np.zeros(j, dtype=np.int64)
+        self.scale = np.zeros((j, 2, 3))
+        self.threshold = np.full((j, 2), np.inf)
+        self.model_at = np.full(j, -(2**62), dtype=np.int64)
+        self.quiet_until = np.full(j, -1, dtype=np.int64)  # no alert, no history, up to this frame
+        self.hist_fit = np.full((j, 6), np.nan)  # the joint as fitted when its history (re)started
+        self.sigma = np.zeros(j)  # white noise of one residual component lately, metres
+
+    def arrays(self) -> list[np.ndarray]:
+        """Every array held (for :attr:`StreamingCalibrator.nbytes`)."""
+        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "hist", "n_hist", "scale", "threshold")
+        return [getattr(self, k) for k in (*names, "model_at", "quiet_until", "hist_fit", "sigma")]
+
+    def take_new(self) -> list[SlipAlert]:
+        out = self.alerts[self._taken :]
+        self._taken = len(self.alerts)
+        return out
+
+    def set_joints(self, cal: Calibration) -> None:
+        """Follow the tree's joints (a joint new to the tree starts afresh)."""
+        names = self.owner.names
+        keys = [(names.index(j.parent), names.index(j.child)) for j in cal.joints]
+        if keys != self.keys:  # the tree changed: rows move, new joints start afresh
+            old = {k: i for i, k in enumerate(self.keys)}
+            kept = {
+                name: getattr(self, name) for name in ("hist", "n_hist", "scale", "threshold", "model_at")
+            }
+            kept |= {name: getattr(self, name) for name in ("quiet_until", "hist_fit", "sigma")}
+            self._rows(len(keys))
+            for i, key in enumerate(keys):
+                if key in old:
+                    for name, arr in kept.items():
+                        getattr(self, name)[i] = arr[old[key]]
+        self.keys = keys
+        self.par = np.array([k[0] for k in keys], dtype=np.int64)
+        self.chi = np.array([k[1] for k in keys], dtype=np.int64)
+        self.lp = np.array([j.fit.joint_in_parent for j in cal.joints]).reshape(-1, 3)
+        self.lc = np.array([j.fit.joint_in_child for j in cal.joints]).reshape(-1, 3)
+        for i, key in enumerate(keys):
+            if self.slipped & set(key):
+                self.quiet_until[i] = _FOREVER
+        # a statistic computed with a joint since moved by more than the residual's white noise is
+        # not this joint's noise (early in a session the fit still moves by centimetres)
+        shift = np.max(
+            np.abs(np.concatenate([self.lp, self.lc], axis=1) - self.hist_fit), axis=1, initial=0.0
+        )
+        restart = ~(shift <= np.maximum(SETTLED_NOISE_FACTOR * self.sigma, SETTLED_FLOOR_M))
+        self.n_hist[restart] = 0
+        self.threshold[restart] = np.inf
+        self.model_at[restart] = -(2**62)
+        self.hist_fit[restart] = np.concatenate([self.lp, self.lc], axis=1)[restart]
+        self.ready = True
+
+    def update(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, start: int) -> None:
+        """Examine frames ``start .. start + len(R)`` (already validated, invalid poses zeroed)."""
+        w = self.w
+        if self.ok.shape[0] and self.frame0 + self.ok.shape[0] != start:  # a gap in the stream
+            self.R, self.p, self.ok = self.R[:0], self.p[:0], self.ok[:0]
+        if not self.ok.shape[0]:
+            self.frame0 = start
+        Rs, ps, oks = np.concatenate([self.R, R]), np.concatenate([self.p, p]), np.concatenate([self.ok, ok])
+        first, m, e0 = start - self.frame0, oks.shape[0], self.frame0
+        keep = 2 * w + 3
+        self.R, self.p, self.ok = Rs[-keep:], ps[-keep:], oks[-keep:]
+        self.frame0 += m - self.ok.shape[0]
+        ends = np.arange(max(first, 2 * w + 2), m)  # windows ending at each new frame, 3 frames before
+        if not self.keys or not ends.size:
+            return
+        par, chi = self.par, self.chi
+        # O'Brien eq. 8 for every joint with the joint as fitted now, for the held and the new
+        # frames; then in the parent's and the child's frame
+        Rp, Rc = Rs[:, par], Rs[:, chi]  # (m, J, 3, 3)
+        r = np.einsum("mjab,jb->mja", Rp, self.lp) + ps[:, par] - np.einsum("mjab,jb->mja", Rc, self.lc)
+        r -= ps[:, chi]
+        okj = oks[:, par] & oks[:, chi]  # (m, J)
+        r = np.where(okj[:, :, None], r, 0.0)
+        e = np.stack([np.einsum("mjab,mja->mjb", Rp, r), np.einsum("mjab,mja->mjb", Rc, r)], axis=2)
+        cs = np.concatenate([np.zeros((1, *e.shape[1:])), np.cumsum(e, axis=0)])
+        cn = np.concatenate([np.zeros((1, okj.shape[1])), np.cumsum(okj, axis=0)])
+        # white noise of the residual from its third differences (calibration.pair_noise), over
+        # the *earlier* window only: a jump in the later one does not inflate it
+        d3 = np.diff(r, n=3, axis=0)
+        ok4 = okj[3:] & okj[2:-1] & okj[1:-2] & okj[:-3]
+        q = np.where(ok4, np.einsum("fja,fja->fj", d3, d3), 0.0)
+        cq = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(q, axis=0)])
+        cq_n = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(ok4, axis=0)])
+        hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
+        na, nb = cn[hi] - cn[mid], cn[mid] - cn[lo]  # (c, J)
+        n_q = cq_n[mid - 3] - cq_n[lo - 3]  # third differences over the earlier window's frames
+        n_qa = cq_n[hi - 3] - cq_n[mid]  # ... and over the later window's
+        gain = 3.0 * THIRD_DIFFERENCE_GAIN  # per component
+        with np.errstate(invalid="ignore", divide="ignore"):
+            var = (cq[mid - 3] - cq[lo - 3]) / n_q / gain
+            var_a = (cq[hi - 3] - cq[mid]) / n_qa / gain
+            d = (cs[hi] - cs[mid]) / na[..., None, None] - (cs[mid] - cs[lo]) / nb[..., None, None]
+            # each window's mean with its own noise: a magnetic tracker's noise jumps with the
+            # distance to its transmitter (a step adds only 6 step^2 to the later window's sum)
+            se = np.sqrt(var_a / na + var / nb)
+            dn = np.where(se[..., None, None] > 0, d / se[..., None, None], 0.0)  # (c, J, 2, 3)
+        dn[~((na >= w / 2) & (nb >= w / 2) & (n_q >= w / 2) & (n_qa >= w / 2))] = np.nan
+        last = var[-1]  # the newest earlier window's white noise
+        self.sigma = np.where(np.isfinite(last), np.sqrt(np.where(np.isfinite(last), last, 0.0)), self.sigma)
+        frames = e0 + ends
+        self._latest = (dn, frames)
+        self._examine(dn, frames, e, okj, Rs, e0)
+
+    def _examine(
+        self, dn: np.ndarray, frames: np.ndarray, e: np.ndarray, okj: np.ndarray, Rs: np.ndarray, e0: int
+    ) -> None:
+        """Test the new normalised ``d`` of every joint (``(c, J, 2, 3)`` at ``frames``), then add the
+        quiet ones to the histories."""
+        # every SLIP_MODEL_S, and as soon as a joint without a model has its warm-up's history
+        fresh = (self.n_hist >= self.warmup) & ~np.isfinite(self.threshold).all(axis=1)
+        for j in np.flatnonzero((frames[0] - self.model_at >= self.model_every) | fresh):
+            if self._model(j):
+                self.model_at[j] = frames[0]
+        ready = (self.n_hist >= self.warmup) & np.isfinite(self.threshold).all(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.linalg.norm(
+                np.where(self.scale > 0, dn / np.where(self.scale > 0, self.scale, 1.0), 0.0), axis=3
+            )
+            ratio = np.nan_to_num(z / self.threshold, nan=0.0, posinf=0.0)  # (c, J, 2)
+        over = (ratio.max(axis=2) > 1.0) & ready
+        for j in np.flatnonzero(over.any(axis=0)):
+            for at in np.flatnonzero(over[:, j]):
+                frame = int(frames[at])
+                if frame <= self.quiet_until[j]:
+                    continue
+                pair = [self.par[j], self.chi[j]]
+                if self._steady(j, frame, e[:, j], okj[:, j], e0, Rs[:, pair]):
+                    self._alert(j, z[at, j], frame, e[:, j], okj[:, j], e0)
+                else:  # the joint's misfit following the motion: look again a little later
+                    self.quiet_until[j] = max(self.quiet_until[j], frame + self.w // 4)
+                break
+        use = np.isfinite(dn).all(axis=(2, 3)) & (frames[:, None] > self.quiet_until[None, :])
+        for j in range(len(self.keys)):
+            idx = np.flatnonzero(use[:, j])
+            if idx.size:
+                slots = (self.n_hist[j] + np.arange(idx.size)) % self.history
+                self.hist[j, slots] = dn[idx, j]
+                self.n_hist[j] += idx.size
+
+    def _model(self, j: int) -> bool:
+        """Refresh joint ``j``'s noise model from its history (:mod:`calibration.slip`'s); False
+        while the history is shorter than the warm-up."""
+        n_hist = int(self.n_hist[j])
+        if n_hist < self.warmup:
+            return False
+        filled = min(n_hist, self.history)
+        # the ring in time order, so that the correlation time sees neighbours as neighbours
+        start = n_hist % self.history if n_hist > self.history else 0
+        hist = self.hist[j, (start + np.arange(filled)) % self.history]  # (filled, 2, 3)
+        tau = _correlation_frames(hist.reshape(filled, 6)).reshape(2, 3).max(axis=1)
+        use = np.ones(filled, dtype=bool)
+        for i in range(2):
+            scale = robust_scale(hist[:, i], use)
+            z = whitened_norm(hist[:, i], scale)
+            tests_per_hour = len(_FRAME_NAMES) * 3600.0 * self.rate / tau[i]
+            self.scale[j, i] = scale
+            self.threshold[j, i] = tail_threshold(z, tests_per_hour, self.owner.false_alarms_per_hour, tau[i])
+        return True
+
+    def _steady(self, j: int, frame: int, e: np.ndarray, ok: np.ndarray, e0: int, Rs: np.ndarray) -> bool:
+        """Whether a jump up to ``frame`` is a step of the residual's mean that the joint's own fit
+        error does not explain.
+
+        A joint fitted from the frames so far is off by some ``dx``, and its residual then carries
+        ``R_i^T A_f dx`` (O'Brien eq. 12's ``A``), which a fast movement turns into a jump of the
+        window means. Over the last ``2 w`` frames, each sensor frame's residual is regressed on a
+        step at its least-squares change point, a constant and those six columns; the jump stands
+        when the fitted step, over its white-noise standard error, still crosses the threshold.
+        ``e`` is ``(m, 2, 3)`` from frame ``e0``, ``Rs`` the two sensors' ``(m, 2, 3, 3)``.
+        """
+        end = frame - e0 + 1
+        lo = max(0, end - 2 * self.w)
+        ok_w = ok[lo:end]
+        R = Rs[lo:end][ok_w]  # (m, 2, 3, 3)
+        m = R.shape[0]
+        if m < 12 or not self.sigma[j] > 0:
+            return True  # nothing to regress on: the window test alone decides
+        for i in range(2):
+            e_i = e[lo:end, i][ok_w]
+            cp = change_point(e_i, np.ones(m, dtype=bool), 0, m)
+            X = np.zeros((m, 3, 12))
+            X[cp:, :, 0:3] = np.eye(3)
+            X[:, :, 3:6] = np.eye(3)
+            X[:, :, 6:9] = np.einsum("fab,fac->fbc", R[:, i], R[:, 0])  # R_i^T R_p
+            X[:, :, 9:12] = -np.einsum("fab,fac->fbc", R[:, i], R[:, 1])  # -R_i^T R_c
+            X = X.reshape(3 * m, 12)
+            gram_inv = np.linalg.pinv(X.T @ X)
+            theta = gram_inv @ (X.T @ e_i.reshape(3 * m))
+            se = self.sigma[j] * np.sqrt(np.clip(np.diagonal(gram_inv)[:3], 0.0, None))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = np.where(se > 0, theta[:3] / se, 0.0)
+            if whitened_norm(t[None], self.scale[j, i])[0] > self.threshold[j, i]:
+                return True
+        return False
+
+    def _moved_side(self, j: int, z: np.ndarray, frame: int) -> int:
+        """0 (parent) or 1 (child): which sensor of the jumping joint ``j`` moved.
+
+        A moved sensor's other joints jump with it, the other sensor's do not: each side's evidence
+        is the largest ``z / threshold`` of its other joints at the jump (from ``w / 4`` frames
+        before it to the newest frame). A side without other joints (a leaf) is the moved one when
+        the other side's joints stay below half their threshold. Where that does not decide (two
+        sensors only, or both sides jumping alike), the side whose frame holds the jump more
+        significantly (:mod:`calibration.slip`'s rule, weak over a short window).
+        """
+        assert self._latest is not None
+        dn, frames = self._latest
+        near = frames >= frame - self.w // 4
+        # joints still in their warm-up have no model: their normalised d against this joint's
+        # threshold (the normalised d's scale is about 1 where the noise is white)
+        modelled = np.isfinite(self.threshold).all(axis=1) & (self.scale > 0).all(axis=(1, 2))
+        scale = np.where(modelled[:, None, None], self.scale, 1.0)
+        threshold = np.where(modelled[:, None], self.threshold, np.max(self.threshold[j]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            zz = np.linalg.norm(dn[near] / scale, axis=3)  # (c, J, 2)
+            ratio = np.nan_to_num(zz / threshold, nan=0.0, posinf=0.0).max(axis=(0, 2), initial=0.0)  # (J,)
+        evidence: list[float | None] = []
+        for sensor in (self.par[j], self.chi[j]):
+            others = [k for k, key in enumerate(self.keys) if k != j and sensor in key]
+            evidence.append(float(ratio[others].max()) if others else None)
+        a, b = evidence
+        if a is None and b is not None and b < 0.5:
+            return 0
+        if b is None and a is not None and a < 0.5:
+            return 1
+        if a is not None and b is not None and max(a, b) >= 0.5 and a != b:
+            return 0 if a > b else 1
+        return int(np.argmax(np.nan_to_num(z / self.threshold[j], nan=0.0, posinf=0.0)))
+
+    def _alert(self, j: int, z: np.ndarray, frame: int, e: np.ndarray, ok: np.ndarray, e0: int) -> None:
+        names = self.owner.names
+        w = self.w
+        i = self._moved_side(j, z, frame)
+        moved = int(self.par[j] if i == 0 else self.chi[j])
+        # the change of mean within the last 2 w frames up to the crossing, in the sensor's frame
+        end = frame - e0 + 1
+        lo = max(0, end - 2 * w)
+        e_i, ok_i = e[lo:end, i], ok[lo:end]
+        cp = change_point(e_i, ok_i, 0, e_i.shape[0])
+        before, after = ok_i.copy(), ok_i.copy()
+        before[cp:], after[:cp] = False, False
+        size = float("nan")
+        if before.any() and after.any():
+            size = float(np.linalg.norm(e_i[after].mean(axis=0) - e_i[before].mean(axis=0)))
+        slip_frame = e0 + lo + cp
+        # one slip moves every joint of its sensor, and from then on those joints' fits mix the
+        # sensor's two placements (misfit that follows the motion): the sensor's joints, and the
+        # joint that jumped, raise no more alerts (until the sensor is re-fixed and a new
+        # calibration started); the other joints of the jumping joint's sensors stay quiet, and keep
+        # the jump out of their noise models, for 2 w frames
+        self.slipped.add(moved)
+        for k, key in enumerate(self.keys):
+            if k == j or moved in key:
+                self.quiet_until[k] = _FOREVER
+            elif set(key) & {int(self.par[j]), int(self.chi[j])}:
+                self.quiet_until[k] = max(self.quiet_until[k], frame + 2 * w)
+        self.alerts.append(
+            SlipAlert(
+                sensor=names[moved],
+                joint=f"{names[self.par[j]]}-{names[self.chi[j]]}",
+                frame=int(slip_frame),
+                time_s=self.owner.start_time_s + slip_frame / self.rate,
+                raised_frame=frame,
+                size_m=size,
+                z=float(z[i]),
+                threshold=float(self.threshold[j, i]),
+                false_alarms_per_hour=self.owner.false_alarms_per_hour,
+            )
+        )

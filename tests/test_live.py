@@ -1,0 +1,173 @@
+"""The live loop end to end: a simulated capture emitted at capture rate (simbench.sim.live),
+``simbench replay`` and ``simbench calibrate --follow`` (simbench.cli.live)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from calibration import calibrate
+from simbench.cli import main
+from simbench.cli.live import follow_csv, parse_speed
+from simbench.errors import InputError
+from simbench.io.dataset import write_dataset
+from simbench.io.poses import PoseRecording, write_pose_csv
+from simbench.io.read import read_poses
+from simbench.sim.live import live_blocks, with_slip
+from simbench.sim.plan import SessionConfig, load_session_model
+from simbench.sim.session import run_session
+from simbench.sim.synthetic import random_tree, simulate_motion
+
+SLIP_SENSOR, SLIP_S = "upper_arm_r", 16.61
+
+
+def _session(slip: bool):
+    sensors = "polhemus-liberty"
+    if slip:
+        sensors = with_slip(sensors, SLIP_SENSOR, SLIP_S, (0.0, 0.02, 0.0))
+    config = SessionConfig(model="humanoid", motion="exercise", duration_s=30.0, seed=0, sensors=sensors)
+    return run_session(config, load_session_model(config))
+
+
+def _alerts(text: str) -> list[tuple[float, str, float, float]]:
+    """``(raised s, sensor, slip s, size cm)`` of every ALERT line."""
+    pattern = r"ALERT at ([\d.]+) s: sensor (\S+) may have slipped at ([\d.]+) s, size ([\d.]+) cm"
+    return [(float(a), s, float(b), float(c)) for a, s, b, c in re.findall(pattern, text)]
+
+
+def test_replay_raises_the_slip_alert_within_half_a_second_and_no_other(tmp_path, capsys):
+    # a 2 cm slip of the right upper arm's sensor at 16.61 s of a 30 s humanoid exercise session,
+    # Polhemus Liberty noise and latency
+    path = tmp_path / "slip.h5"
+    ds = _session(slip=True)
+    write_dataset(path, ds)
+    t0 = float(ds.time_s[0])
+    assert main(["replay", str(path), "--rate", "max", "--refresh", "100"]) == 0
+    out = capsys.readouterr().out
+    alerts = _alerts(out)
+    assert len(alerts) == 1, out
+    raised, sensor, at, size_cm = alerts[0]
+    assert sensor == SLIP_SENSOR
+    assert 0.0 <= raised - t0 - SLIP_S <= 0.5  # raised within 0.5 s of the slip
+    assert abs(at - t0 - SLIP_S) < 0.05  # and placed within 50 ms of it
+    assert 1.5 < size_cm < 2.5  # a 2 cm slip, measured over a few tenths of a second
+    assert "simbench final" in out and "slip alerts: 1" in out
+    # the same session without the slip: no alert at all
+    clean = tmp_path / "clean.h5"
+    write_dataset(clean, _session(slip=False))
+    assert main(["replay", str(clean), "--rate", "max", "--refresh", "100"]) == 0
+    out = capsys.readouterr().out
+    assert _alerts(out) == [] and "slip alerts: 0" in out
+
+
+def test_live_blocks_pace_frames_at_the_capture_rate():
+    n = 240
+    t = np.arange(n) / 120.0
+    rec = PoseRecording(
+        names=("a", "b"),
+        time_s=t,
+        R_w_s=np.tile(np.eye(3), (n, 2, 1, 1)),
+        p_w_s=np.zeros((n, 2, 3)),
+        valid=np.ones((n, 2), dtype=bool),
+    )
+    now = [0.0]
+    waits = []
+
+    def sleep(s):
+        waits.append(s)
+        now[0] += s
+
+    blocks = list(live_blocks(rec, block_frames=7, speed=10.0, clock=lambda: now[0], sleep=sleep))
+    assert [b.start for b in blocks] == list(range(0, n, 7))
+    assert np.array_equal(np.concatenate([b.time_s for b in blocks]), t)
+    # the last block is due when its last frame would have been captured, at ten times real time
+    assert now[0] == pytest.approx(t[-1] / 10.0, rel=1e-12)
+    assert all(w > 0 for w in waits)
+    assert sum(1 for _ in live_blocks(rec, block_frames=50, speed=None, sleep=sleep)) == 5
+    with pytest.raises(InputError, match="block_frames"):
+        next(live_blocks(rec, block_frames=0))
+    assert parse_speed("10x") == 10.0 and parse_speed("max") is None and parse_speed("1x") == 1.0
+    with pytest.raises(InputError, match="1x, 10x or max"):
+        parse_speed("fast")
+
+
+WRITER = textwrap.dedent(
+    """
+    import sys, time
+    src, dst = sys.argv[1], sys.argv[2]
+    lines = open(src).read().splitlines(keepends=True)
+    with open(dst, "w") as fh:
+        fh.write(lines[0]); fh.flush()
+        body = "".join(lines[1:])
+        step = 9000  # characters a write: rows are cut in the middle, as a logger's buffer does
+        for k in range(0, len(body), step):
+            fh.write(body[k : k + step]); fh.flush()
+            time.sleep(0.02)
+    """
+)
+
+
+def test_follow_reads_a_file_another_process_is_appending(tmp_path):
+    skeleton = random_tree(5, np.random.default_rng(2))
+    cap = simulate_motion(
+        skeleton, n_frames=1200, rate_hz=120.0, rng=np.random.default_rng(3), position_noise_m=0.002
+    )
+    rec = PoseRecording(
+        names=skeleton.names,
+        time_s=np.arange(1200) / 120.0,
+        R_w_s=cap.R_w_s,
+        p_w_s=cap.p_w_s,
+        valid=np.ones((1200, 5), dtype=bool),
+    )
+    whole = tmp_path / "whole.csv"
+    write_pose_csv(whole, rec)
+    growing = tmp_path / "growing.csv"
+    writer = subprocess.Popen([sys.executable, "-c", WRITER, str(whole), str(growing)])
+    lines: list[str] = []
+    try:
+        # bounded: the writer needs about 1 s; the follower stops after 8 s whatever happens
+        cal = follow_csv(growing, timeout_s=8.0, refresh_s=2.0, out=lines.append)
+    finally:
+        writer.wait(timeout=30)
+    assert writer.returncode == 0
+    assert cal is not None and cal.n_frames == 1200
+    assert any(line.startswith("simbench live") for line in lines)  # tables while it grew
+    assert lines[-1].startswith("simbench final")
+    # the same answer as the batch calibration of the finished file
+    batch = calibrate(*(getattr(read_poses(whole), k) for k in ("R_w_s", "p_w_s", "names")))
+    live = cal.calibration()
+    assert live.parent_of == batch.parent_of
+    for b, s in zip(batch.joints, live.joints, strict=True):
+        # both read the same decimal text into the same quaternions and rotations
+        assert_allclose(s.fit.joint_in_parent, b.fit.joint_in_parent, atol=1e-9)
+        assert_allclose(s.fit.joint_in_child, b.fit.joint_in_child, atol=1e-9)
+
+
+def test_calibrate_follow_on_the_command_line(tmp_path, capsys):
+    skeleton = random_tree(3, np.random.default_rng(4))
+    cap = simulate_motion(skeleton, n_frames=300, rate_hz=100.0, rng=np.random.default_rng(5))
+    rec = PoseRecording(
+        names=skeleton.names,
+        time_s=np.arange(300) / 100.0,
+        R_w_s=cap.R_w_s,
+        p_w_s=1e3 * cap.p_w_s,  # the file in mm
+        valid=np.ones((300, 3), dtype=bool),
+    )
+    path = tmp_path / "poses.csv"
+    write_pose_csv(path, rec)
+    code = main(["calibrate", str(path), "--follow", "--timeout", "0.5", "--units", "mm", "--rate-hz", "100"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "simbench final" in out and "frames: 300" in out
+    assert main(["calibrate", str(path), "--follow", "--json", str(tmp_path / "x.json")]) == 2
+    assert "--follow calibrates a pose CSV live; it does not take --json" in capsys.readouterr().err
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,sensor,x\n")
+    assert main(["calibrate", str(bad), "--follow", "--timeout", "0.2"]) == 2
+    assert "header must be time,sensor,x,y,z,qw,qx,qy,qz" in capsys.readouterr().err
