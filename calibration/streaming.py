@@ -58,7 +58,9 @@ matrix, ``s_k^2 = n (1 - sigma_k(M))`` with ``M`` the mean relative rotation
 three principal axes (parent sensor frame): ``c_k = sum_l w_l - 2 w_k`` with ``w_k = s_k^2 / n``.
 A joint is "moved enough" when its second-largest rms rotation reaches
 :data:`MIN_ROTATION_DEG` (two axes turned: all six directions determined); otherwise the advice
-names that axis ("move more about axis X"; for a hinge, an axis across the hinge's).
+names that axis ("move more about axis X"). A joint the fit finds single-axis (a hinge) cannot
+turn across its axis, so for it the largest rms rotation decides and the advice names the hinge's
+axis (its centre along that axis stays unmeasured, as in the batch fit).
 """
 
 from __future__ import annotations
@@ -174,8 +176,12 @@ class Coverage:
         axes_in_parent: ``(3, 3)`` the principal axes as rows, unit vectors in the parent
             sensor's frame, in the order of ``rotation_rms_deg``.
         condition: ``s_max / s_min`` of the fit's ``A`` (``inf`` if a direction is exactly free).
-        moved_enough: the second-largest rms rotation is at least :data:`MIN_ROTATION_DEG`.
-        advice: ``"moved enough"`` or ``"move more about axis [x, y, z] (parent frame)"``.
+        moved_enough: the second-largest rms rotation is at least :data:`MIN_ROTATION_DEG`; for
+            a joint the fit finds single-axis (a hinge, which cannot turn across its axis), the
+            largest.
+        advice: ``"moved enough"`` or ``"move more about axis [x, y, z] (parent frame)"``; for a
+            single-axis joint, ``"single-axis joint, axis [x, y, z] (parent frame): moved enough
+            (...)"`` or ``"single-axis joint: move more about its axis [x, y, z] (parent frame)"``.
     """
 
     joint: str
@@ -586,12 +592,22 @@ def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
     order = np.argsort(-c, kind="stable")
     rms = np.degrees(np.sqrt(c[order]))
     axes = axes[order]
-    enough = bool(rms[1] >= MIN_ROTATION_DEG)
-    if enough:
-        advice = "moved enough"
+
+    def named(axis: np.ndarray) -> str:
+        a = axis * (1.0 if axis[np.argmax(np.abs(axis))] >= 0 else -1.0)
+        return f"{np.round(a, 2).tolist()} ({joint.parent} frame)"
+
+    if joint.fit.single_axis:  # a hinge cannot turn across its axis: ask only for what it can do
+        enough = bool(rms[0] >= MIN_ROTATION_DEG)
+        advice = (
+            f"single-axis joint, axis {named(axes[0])}: moved enough "
+            "(its centre along the axis is not measured)"
+            if enough
+            else f"single-axis joint: move more about its axis {named(axes[0])}"
+        )
     else:
-        a = axes[1] * (1.0 if axes[1][np.argmax(np.abs(axes[1]))] >= 0 else -1.0)
-        advice = f"move more about axis {np.round(a, 2).tolist()} ({joint.parent} frame)"
+        enough = bool(rms[1] >= MIN_ROTATION_DEG)
+        advice = "moved enough" if enough else f"move more about axis {named(axes[1])}"
     return Coverage(
         joint=joint.name,
         rotation_rms_deg=rms,

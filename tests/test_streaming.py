@@ -209,9 +209,17 @@ def test_guidance_from_the_joints_conditioning():
     # a sinusoid of 30 degrees has 21.2 degrees rms; the small-angle reading is within 10 %
     assert hinge_cov.rotation_rms_deg[0] == pytest.approx(30.0 / np.sqrt(2), rel=0.1)
     assert abs(hinge_cov.axes_in_parent[0][0]) > 0.99  # turned about x
-    assert hinge_cov.rotation_rms_deg[1] < 1.0 and not hinge_cov.moved_enough
-    assert hinge_cov.advice.startswith("move more about axis")
-    assert abs(hinge_cov.axes_in_parent[1][0]) < 0.05  # the axis to turn about is across x
+    assert hinge_cov.rotation_rms_deg[1] < 1.0
+    assert abs(hinge_cov.axes_in_parent[1][0]) < 0.05  # the next axis is across x
+    # found single-axis: it cannot turn across its axis, so its own axis decides
+    assert hinge_cov.moved_enough and hinge_cov.advice.startswith("single-axis joint, axis [1.0, ")
+    short = StreamingCalibrator(["p", "c"], rate_hz=RATE, parent_of={"c": "p"}, slip=False)
+    R, p = _two_sensors(hinge * (np.radians(3.0) / amp))  # 3 degrees about x: not enough
+    short.push(R, p)
+    small_hinge = short.state().coverage[0]
+    assert short.state().calibration.joints[0].fit.single_axis  # 2.1 degrees rms, still a hinge
+    assert not small_hinge.moved_enough
+    assert small_hinge.advice.startswith("single-axis joint: move more about its axis [1.0, ")
     assert verdicts["ball"].moved_enough and verdicts["ball"].advice == "moved enough"
     assert verdicts["ball"].rotation_rms_deg[1] > MIN_ROTATION_DEG
     assert not verdicts["small"].moved_enough  # 2 degrees in two axes is not enough
