@@ -33,21 +33,12 @@ import numpy as np
 
 from calibration import calibrate
 from calibration.streaming import StreamingCalibrator
+from simbench.experiments.decisions import SKIN_SENSORS
 from simbench.sim.live import live_session, with_slip
 from simbench.sim.plan import SessionConfig
 from simbench.sim.synthetic import random_tree, simulate_motion
 
 RESULTS = Path(__file__).resolve().parent / "results"
-SKIN_SENSORS = (
-    "thigh_l",
-    "thigh_r",
-    "shank_l",
-    "shank_r",
-    "upper_arm_l",
-    "upper_arm_r",
-    "forearm_l",
-    "forearm_r",
-)
 
 
 def _capture(n_frames: int, rate_hz: float):

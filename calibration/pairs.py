@@ -109,7 +109,13 @@ def pair_statistics(
         for k in np.flatnonzero(np.diff(cuts) > 0):
             lo, hi = cuts[k], cuts[k + 1]
             sums[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
-    blocks = [acc.result() for acc in sums]
+    return statistics_of_blocks([acc.result() for acc in sums], n_frames)
+
+
+def statistics_of_blocks(blocks: list[tuple[np.ndarray, ...]], n_frames: int) -> PairStatistics:
+    """The pair statistics of consecutive blocks of frames, from each block's
+    :meth:`calibration.pair_sums.PairSums.result` ``(gram, cross, self_cross, sq_dist, count)``
+    (shared with :mod:`calibration.streaming`); ``n_frames`` frames in all."""
     gram, cross, self_cross, sq_dist, count = (np.stack(x) for x in zip(*blocks, strict=True))
     return PairStatistics(
         gram=gram.sum(axis=0),

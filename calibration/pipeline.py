@@ -289,7 +289,9 @@ def calibrate(
     t3 = time.perf_counter()
 
     pairs = tree.joints
-    joints = [_joint(names, sol, k, rms, per_frame, n_frames, single_axis_ratio) for k in range(len(pairs))]
+    joints = [
+        solved_joint(names, sol, k, rms, per_frame, n_frames, single_axis_ratio) for k in range(len(pairs))
+    ]
     refine_s = 0.0
     refit = robust is not None or correct_rotation_noise
     noise: dict[str, float] = {}
@@ -454,7 +456,7 @@ def _solve_joints(  # positional: one private caller, whose call then fits on a 
     return sol, rms, per_frame
 
 
-def _joint(
+def solved_joint(
     names: tuple[str, ...],
     sol: PairSolutions,
     k: int,
@@ -464,7 +466,8 @@ def _joint(
     single_axis_ratio: float,
 ) -> Joint:
     """Joint ``k`` of the solved batch, with its spectrum read, its own copies of the small arrays
-    and a view of its per-frame residuals."""
+    and a view of its per-frame residuals (``per_frame`` ``(frames, joints)`` or ``None``);
+    ``rms`` ``(joints,)`` metres. Shared with :mod:`calibration.streaming`."""
     spec = pair_fit_spectrum(sol, k, single_axis_ratio)
     fit = JointFit(
         joint_in_parent=sol.joint_in_parent[k].copy(),

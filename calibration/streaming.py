@@ -80,11 +80,11 @@ from calibration.hierarchy import (
     spanning_tree,
 )
 from calibration.hinge import N_BLOCKS
-from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, JointFit
+from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.pair_sums import PairSums
-from calibration.pairs import PairSolutions, PairStatistics, pair_fit_spectrum, solve_pairs
-from calibration.pipeline import Calibration, Joint, fit_warnings
+from calibration.pairs import PairSolutions, PairStatistics, solve_pairs, statistics_of_blocks
+from calibration.pipeline import Calibration, Joint, fit_warnings, solved_joint
 from calibration.skeleton import segment_lengths, sensor_placements
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.slip_stats import (
@@ -396,19 +396,7 @@ class StreamingCalibrator:
         self._drain()
         n = len(self.names)
         blocks = [b.result() for b in self._blocks] or [PairSums(n).result()]
-        gram, cross, self_cross, sq_dist, count = (np.stack(x) for x in zip(*blocks, strict=True))
-        return PairStatistics(
-            gram=gram.sum(axis=0),
-            cross=cross.sum(axis=0),
-            self_cross=self_cross.sum(axis=0),
-            sq_dist=sq_dist.sum(axis=0),
-            count=count.sum(axis=0),
-            n_frames=self.n_frames,
-            block_gram=gram,
-            block_cross=cross,
-            block_self_cross=self_cross,
-            block_count=count,
-        )
+        return statistics_of_blocks(blocks, self.n_frames)
 
     def calibration(self) -> Calibration:
         """The calibration of every frame pushed, as :func:`calibration.pipeline.calibrate` gives it
@@ -498,7 +486,10 @@ class StreamingCalibrator:
             raise CalibrationError(
                 f"joints with fewer than {MIN_FRAMES} frames where both sensors are valid: {too_few}"
             )
-        joints = tuple(_joint(names, sol, k, self.n_frames, self.single_axis_ratio) for k in range(len(par)))
+        joints = tuple(
+            solved_joint(names, sol, k, sol.rms_residual, None, self.n_frames, self.single_axis_ratio)
+            for k in range(len(par))
+        )
         missing = stats.n_frames - per_sensor.astype(np.int64)
         loops = tuple(
             (names[a], names[b], r)
@@ -555,29 +546,6 @@ def _merged(blocks: list[PairSums]) -> PairSums:
         out.weighted_sq += other.weighted_sq
         out.count += other.count
     return out
-
-
-def _joint(
-    names: tuple[str, ...], sol: PairSolutions, k: int, n_frames: int, single_axis_ratio: float
-) -> Joint:
-    """Joint ``k`` of the solved tree, as :func:`calibration.pipeline.calibrate` builds it (no
-    per-frame residuals)."""
-    spec = pair_fit_spectrum(sol, k, single_axis_ratio)
-    fit = JointFit(
-        joint_in_parent=sol.joint_in_parent[k].copy(),
-        joint_in_child=sol.joint_in_child[k].copy(),
-        rms_residual=float(sol.rms_residual[k]),
-        frame_residual=None,
-        singular_values=sol.singular_values[k].copy(),
-        rank=spec.rank,
-        single_axis=spec.single_axis,
-        axis_in_parent=spec.axis_in_parent,
-        axis_in_child=spec.axis_in_child,
-        n_frames=int(sol.n_frames[k]),
-        n_dropped=n_frames - int(sol.n_frames[k]),
-        weakest_t=float(sol.t_statistic[k, 5]),
-    )
-    return Joint(names[sol.parent[k]], names[sol.child[k]], fit)
 
 
 def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
