@@ -145,23 +145,7 @@ def _browser() -> str | None:
     _browser() is None, reason="no Chromium on this machine (scripts/install-browser.sh installs one)"
 )
 def test_html_opens_in_headless_chromium(quick_report, tmp_path):
-    done = subprocess.run(
-        [
-            _browser(),
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-background-networking",
-            "--no-first-run",
-            f"--user-data-dir={tmp_path / 'profile'}",
-            "--dump-dom",
-            (quick_report / "index.html").as_uri(),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = _chromium(tmp_path, "--dump-dom", (quick_report / "index.html").as_uri())
     assert done.returncode == 0, done.stderr[-2000:]
     assert "simbench validation report" in done.stdout and done.stdout.count("<img") == 6
 
