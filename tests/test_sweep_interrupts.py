@@ -52,7 +52,10 @@ CASES = [
 
 @pytest.fixture(scope="module")
 def study_path(tmp_path_factory) -> Path:
-    path = study_file(tmp_path_factory.mktemp("study"), duration=5.0, values="[0.0, 4.0, 8.0]")
+    # 30 s sessions: a trial takes about 0.3 s here, so that the last one is still running when
+    # the others are written (with 5 s sessions all three came back in the same 5 ms on a quiet
+    # machine and the interrupt found nothing in flight)
+    path = study_file(tmp_path_factory.mktemp("study"), duration=30.0, values="[0.0, 4.0, 8.0]")
     path.write_text(path.read_text().replace("seeds_per_cell = 2", "seeds_per_cell = 1"))
     return path
 
