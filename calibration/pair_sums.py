@@ -68,6 +68,18 @@ class PairSums:
         self.weighted_sq += w.T @ np.einsum("fia,fia->fi", pc, pc)
         self.count += w.T @ w
 
+    def merge(self, other: PairSums) -> PairSums:
+        """Add the sums of ``other`` (frames of a neighbouring block) to these; returns ``self``."""
+        self.full += other.full
+        self.n_full += other.n_full
+        self.gram += other.gram
+        self.cross += other.cross
+        self.weighted_self += other.weighted_self
+        self.dot += other.dot
+        self.weighted_sq += other.weighted_sq
+        self.count += other.count
+        return self
+
     def result(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(gram, cross, self_cross, sq_dist, count)``, laid out as
         :class:`calibration.pairs.PairStatistics` holds them."""

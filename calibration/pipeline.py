@@ -251,7 +251,7 @@ def calibrate(
     """
     t0 = time.perf_counter()
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
-    names = _checked_names(names, n)
+    names = checked_names(names, n)
     _check_options(names, n_frames, single_axis_ratio=single_axis_ratio, root=root)
     if hierarchy_method not in HIERARCHY_METHODS:
         raise CalibrationInputError(
@@ -354,8 +354,9 @@ def calibrate(
     )
 
 
-def _checked_names(names: Sequence[str], n: int) -> tuple[str, ...]:
-    """``names`` as a tuple of ``n`` unique strings, or an input error."""
+def checked_names(names: Sequence[str], n: int) -> tuple[str, ...]:
+    """``names`` as a tuple of ``n`` unique strings, or an input error (shared with
+    :mod:`calibration.streaming`)."""
     names = tuple(str(x) for x in names)
     if len(names) != n:
         raise CalibrationInputError(f"Expected {n} sensor names, got {len(names)}")

@@ -91,9 +91,14 @@ def correlation_frames(x: np.ndarray, use: np.ndarray | None = None) -> float:
         return 1.0
     with np.errstate(invalid="ignore", divide="ignore"):
         cov = np.where(pairs > 0, num / np.maximum(pairs, 1.0), np.nan)
-    rho = cov / cov[0]
+    return initial_positive_time(cov / cov[0])
+
+
+def initial_positive_time(rho: np.ndarray) -> float:
+    """``1 + 2 sum_k rho_k`` of an autocorrelation ``rho`` (``(lags,)``, ``rho[0] = 1``) up to its
+    first lag that is not positive (NaN counts as not positive); at least 1."""
     stop = np.flatnonzero(~(rho > 0))
-    k = int(stop[0]) if stop.size else n
+    k = int(stop[0]) if stop.size else rho.size
     return max(1.0, float(1.0 + 2.0 * rho[1:k].sum()))
 
 

@@ -84,11 +84,12 @@ from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.pair_sums import PairSums
 from calibration.pairs import PairSolutions, PairStatistics, solve_pairs, statistics_of_blocks
-from calibration.pipeline import Calibration, Joint, fit_warnings, solved_joint
+from calibration.pipeline import Calibration, Joint, checked_names, fit_warnings, solved_joint
 from calibration.skeleton import segment_lengths, sensor_placements
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.slip_stats import (
     change_point,
+    initial_positive_time,
     robust_scale,
     tail_threshold,
     whitened_norm,
@@ -257,7 +258,12 @@ class StreamingCalibrator:
         false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
         start_time_s: float = 0.0,
     ) -> None:
-        self.names = _checked_names(names)
+        names = tuple(str(x) for x in names)
+        if len(names) < 2:
+            raise CalibrationInputError(
+                f"calibration needs at least 2 sensors, got {len(names)} ({list(names)})"
+            )
+        self.names = checked_names(names, len(names))
         n = len(self.names)
         if not (np.isfinite(rate_hz) and rate_hz > 0):
             raise CalibrationInputError(f"rate_hz must be a positive finite number, got {rate_hz}")
@@ -380,7 +386,8 @@ class StreamingCalibrator:
         while lo < R.shape[0]:
             k = frame // self._block_len
             if k >= N_BLOCKS:  # one block more than allowed: merge neighbours, L doubles
-                self._blocks = [_merged(self._blocks[i : i + 2]) for i in range(0, len(self._blocks), 2)]
+                pairs = zip(self._blocks[::2], self._blocks[1::2], strict=True)  # N_BLOCKS full blocks
+                self._blocks = [a.merge(b) for a, b in pairs]
                 self._block_len *= 2
                 continue
             while len(self._blocks) <= k:
@@ -523,31 +530,6 @@ class StreamingCalibrator:
         self._monitor.set_joints(cal)
 
 
-def _checked_names(names: Sequence[str]) -> tuple[str, ...]:
-    out = tuple(str(x) for x in names)
-    if len(out) < 2:
-        raise CalibrationInputError(f"calibration needs at least 2 sensors, got {len(out)} ({list(out)})")
-    if len(set(out)) != len(out):
-        dup = sorted({x for x in out if out.count(x) > 1})
-        raise CalibrationInputError(f"sensor names must be unique, repeated: {dup}")
-    return out
-
-
-def _merged(blocks: list[PairSums]) -> PairSums:
-    """One :class:`PairSums` holding the sums of one or two consecutive blocks."""
-    out = blocks[0]
-    for other in blocks[1:]:
-        out.full += other.full
-        out.n_full += other.n_full
-        out.gram += other.gram
-        out.cross += other.cross
-        out.weighted_self += other.weighted_self
-        out.dot += other.dot
-        out.weighted_sq += other.weighted_sq
-        out.count += other.count
-    return out
-
-
 def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
     """The rotation a joint has seen about its principal axes, and what to do (module docstring)."""
     n = float(sol.n_frames[k])
@@ -649,10 +631,7 @@ def _correlation_frames(x: np.ndarray) -> np.ndarray:
     cov = num / (n - np.arange(n))[:, None]
     out = np.ones(x.shape[1])
     for k in np.flatnonzero(cov[0] > 0):
-        rho = cov[:, k] / cov[0, k]
-        stop = np.flatnonzero(~(rho > 0))
-        m = int(stop[0]) if stop.size else n
-        out[k] = max(1.0, float(1.0 + 2.0 * rho[1:m].sum()))
+        out[k] = initial_positive_time(cov[:, k] / cov[0, k])
     return out
 
 
