@@ -13,11 +13,12 @@ import pytest
 from numpy.testing import assert_allclose
 
 from calibration import calibrate
+from calibration.streaming import StreamingCalibrator
 from simbench.cli import main
-from simbench.cli.live import follow_csv, parse_speed
+from simbench.cli.live import CsvFollower, follow_csv, parse_speed
 from simbench.errors import InputError
 from simbench.io.dataset import write_dataset
-from simbench.io.poses import PoseRecording, write_pose_csv
+from simbench.io.poses import CSV_COLUMNS, PoseRecording, write_pose_csv
 from simbench.io.read import read_poses
 from simbench.sim.live import live_blocks, with_slip
 from simbench.sim.plan import SessionConfig, load_session_model
@@ -171,3 +172,46 @@ def test_calibrate_follow_on_the_command_line(tmp_path, capsys):
     bad.write_text("t,sensor,x\n")
     assert main(["calibrate", str(bad), "--follow", "--timeout", "0.2"]) == 2
     assert "header must be time,sensor,x,y,z,qw,qx,qy,qz" in capsys.readouterr().err
+
+
+def _follow_all(path):
+    follower = CsvFollower(path, 1.0)
+    try:
+        return [*follower.frames(), *follower.flush()]
+    finally:
+        follower.close()
+
+
+def test_follow_refuses_what_the_batch_reader_refuses_and_names_the_line(tmp_path):
+    good = "0,{s},1,2,3,1,0,0,0"
+    path = tmp_path / "p.csv"
+    # extra columns are ignored, in any order; a row of NaN is a missing pose
+    path.write_text(
+        "sensor,extra,time,x,y,z,qw,qx,qy,qz\n"
+        "a,9,0,1,2,3,1,0,0,0\nb,9,0,4,5,6,1,0,0,0\n"
+        "a,9,0.01,1,2,3,1,0,0,0\nb,9,0.01,nan,nan,nan,nan,nan,nan,nan\n"
+    )
+    frames = _follow_all(path)
+    assert [f[0] for f in frames] == [0.0, 0.01]
+    assert_allclose(frames[0][2], [[1, 2, 3], [4, 5, 6]])
+    assert frames[1][3].tolist() == [True, False]  # valid
+    cal = StreamingCalibrator(["a", "b"], rate_hz=100.0, slip=False)
+    cal.push(*frames[0][1:])
+    cal.push(*frames[1][1:])  # the NaN pose reaches the calibrator as missing
+    assert cal.statistics().count[0, 1] == 1  # frames where both poses are valid
+    header = ",".join(CSV_COLUMNS)
+    cases = {
+        "time is not finite": [good.format(s="a"), "inf,b,1,2,3,1,0,0,0"],
+        "time 0.01 s is earlier than the row before \\(0.02 s\\)": [
+            "0.02,a,1,2,3,1,0,0,0",
+            "0.01,b,1,2,3,1,0,0,0",
+        ],
+        "empty sensor name": [good.format(s="a"), "0, ,1,2,3,1,0,0,0"],
+        "zero quaternion": [good.format(s="a"), "0,b,1,2,3,0,0,0,0"],
+        "sensor 'a' appears twice at time 0.0 \\(also on line 2\\)": [good.format(s="a"), good.format(s="a")],
+        "expected 9 values, got 8": [good.format(s="a"), "0,b,1,2,3,1,0,0"],
+    }
+    for message, rows in cases.items():
+        path.write_text("\n".join([header, *rows]) + "\n")
+        with pytest.raises(InputError, match=rf"p\.csv: line 3: {message}"):
+            _follow_all(path)
