@@ -26,7 +26,7 @@ from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
 from calibration.orientation import Skeleton
 from simbench.errors import InputError
-from simbench.io.dataset import Dataset, read_dataset
+from simbench.io.dataset import Dataset
 from simbench.io.export import export_dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
@@ -244,12 +244,25 @@ def export(
     markers: str = "measured",
     orientations: str = "measured",
     trc_units: str = "mm",
+    units: str = "m",
+    clusters: str | os.PathLike[str] | None = None,
+    wide: str | os.PathLike[str] | None = None,
 ) -> dict[str, Path]:
-    """Write a dataset (or a dataset file) into the formats other tools read: markers to TRC and
+    """Write a dataset (or a recording file) into the formats other tools read: markers to TRC and
     C3D, sensor orientations to OpenSense's ``.sto``, raw IMU readings to CSV, the skeleton (of
     ``calibration``, a calibration JSON, or of the truth) to MJCF and ``.osim``. Arguments and checks:
-    :func:`simbench.io.export.export_dataset`; returns ``{kind: path}`` of the files written."""
-    ds = data if isinstance(data, Dataset) else read_dataset(data)
+    :func:`simbench.io.export.export_dataset`; returns ``{kind: path}`` of the files written.
+
+    A file is opened with :func:`read` (``units``, ``clusters``, ``wide`` as there): a simbench
+    dataset, or a real recording of poses (pose CSV, wide export, C3D marker clusters), whose
+    orientations and calibrated skeleton can be exported (it has no truth, markers or IMU data).
+    """
+    ds = data if isinstance(data, Dataset) else read(data, units=units, clusters=clusters, wide=wide)
+    if isinstance(ds, ImuRecording):
+        raise InputError(
+            f"{data}: an inertial recording without poses (a BROAD trial): export takes a simbench dataset "
+            "or a recording of poses"
+        )
     return export_dataset(
         ds,
         trc=trc,

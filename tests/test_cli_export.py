@@ -16,6 +16,7 @@ from simbench.io.c3d import read_c3d_markers
 from simbench.io.dataset import read_dataset
 from simbench.io.imu_csv import read_imu_csv
 from simbench.io.opensense import read_opensense_sto
+from simbench.io.poses import write_pose_csv
 from simbench.io.trc import read_trc
 
 
@@ -102,3 +103,39 @@ def test_nothing_to_export(files, capsys):
         "nothing to export: give one or more of --trc, --c3d, --sto, --imu-csv, --mjcf"
         in capsys.readouterr().err
     )
+
+
+def test_a_real_recording_of_poses_exports_its_orientations_and_calibrated_skeleton(files, tmp_path, capsys):
+    """A pose CSV in mm (as a tracker logger writes it; no truth, markers or IMU data): its
+    orientations to .sto and the skeleton of its calibration JSON to MJCF; what it lacks is named."""
+    ds = read_dataset(files / "plain.h5")
+    rec = ds.poses()
+    csv = tmp_path / "poses.csv"
+    write_pose_csv(csv, rec, units="mm")
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(csv), "--units", "mm", "--json", str(cal), "--no-slip"]) == 0
+    sto, xml = tmp_path / "o.sto", tmp_path / "s.xml"
+    argv = [
+        "export",
+        str(csv),
+        "--units",
+        "mm",
+        "--sto",
+        str(sto),
+        "--mjcf",
+        str(xml),
+        "--calibration",
+        str(cal),
+    ]
+    assert main(argv) == 0
+    back = read_opensense_sto(sto)
+    assert back.names == ds.sensors
+    q = np.where(back.q_w_s[..., :1] < 0, -back.q_w_s, back.q_w_s)  # one sign of each quaternion
+    q_ds = np.where(ds.measured.q_w_s[..., :1] < 0, -ds.measured.q_w_s, ds.measured.q_w_s)
+    assert_allclose(q, q_ds, atol=1e-9)
+    assert mujoco.MjModel.from_xml_path(str(xml)).njnt == len(ds.sensors)  # a free root and a joint per child
+    capsys.readouterr()
+    assert main(["export", str(csv), "--units", "mm", "--mjcf", str(xml)]) == 2
+    assert "no truth to build a skeleton from; give a calibration JSON" in capsys.readouterr().err
+    assert main(["export", str(csv), "--units", "mm", "--trc", str(tmp_path / "m.trc")]) == 2
+    assert "no markers" in capsys.readouterr().err

@@ -15,13 +15,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     exp = sub.add_parser(
         "export",
         help="a dataset into TRC, C3D, OpenSense .sto, IMU CSV, MJCF and .osim files",
-        description="Write a simbench dataset (.h5) into the files other tools read: markers (TRC, "
+        description="Write a simbench dataset (.h5), or a real recording of poses, into the files other "
+        "tools read: markers (TRC, "
         "C3D), sensor orientations in OpenSense's .sto layout, raw accelerometer, gyroscope and "
         "magnetometer readings (CSV), the skeleton of a calibration or of the truth (MJCF, OpenSim .osim). "
         "Every "
         "output is checked before the first file is written; each is written atomically.",
     )
-    exp.add_argument("dataset", metavar="DATASET.h5", help="a simbench dataset (simbench simulate -o)")
+    exp.add_argument(
+        "dataset",
+        metavar="RECORDING",
+        help="a simbench dataset (simbench simulate -o), or a real recording of poses: a pose CSV, a wide "
+        "export (--wide) or a C3D file of marker clusters (--clusters), whose orientations (--sto) and "
+        "calibrated skeleton (--mjcf, --osim with --calibration) can be exported",
+    )
+    exp.add_argument(
+        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of a pose CSV (default m)"
+    )
+    exp.add_argument("--clusters", metavar="SPEC.toml", help="a C3D file's marker clusters (default: found)")
+    exp.add_argument("--wide", metavar="SPEC.toml", help="read the recording as a wide tracker export")
     exp.add_argument("--trc", metavar="OUT.trc", help="markers as TRC text (needs simulate --markers)")
     exp.add_argument("--c3d", metavar="OUT.c3d", help="markers as C3D, in mm (needs simulate --markers)")
     exp.add_argument("--sto", metavar="OUT.sto", help="sensor orientations in OpenSense's .sto layout")
@@ -72,6 +84,9 @@ def cmd_export(args: argparse.Namespace) -> int:
         markers=args.markers,
         orientations=args.orientations,
         trc_units=args.trc_units,
+        units=args.units,
+        clusters=args.clusters,
+        wide=args.wide,
     )
     for kind, path in written.items():
         print(f"wrote {path} ({kind})")
