@@ -48,7 +48,7 @@ from calibration.methods import JOINT_METHODS, JointEstimate, estimate_inertial
 from calibration.skeleton import joint_name, segment_lengths
 from calibration.uncertainty import holds_truth, joint_covariance
 from simbench.errors import load_toml
-from simbench.experiments.pool import worker_pool
+from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.io.atomic import atomic_write_text
 from simbench.io.dataset import Dataset
 from simbench.sim.programs import HUMANOID_MOTION
@@ -356,10 +356,8 @@ def run_study(
 
 def _trial(job: tuple[dict, dict, float, int]) -> dict:
     """One condition's session for one seed, every method on it (BLAS on one thread)."""
-    from threadpoolctl import threadpool_limits  # optional (simbench[studies])
-
     condition, cfg, duration_s, seed = job
-    with tempfile.TemporaryDirectory() as tmp, threadpool_limits(limits=1):
+    with tempfile.TemporaryDirectory() as tmp, one_blas_thread():
         ds = simulate(condition, cfg, duration_s, seed, Path(tmp))
         return {"seed": seed, "frames": int(ds.time_s.size), **evaluate_session(ds)}
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from simbench.experiments.pool import one_blas_thread
 from simbench.sim.synthetic import SyntheticCapture, linkage, simulate_motion
 
 
@@ -27,14 +28,7 @@ def linkage_noisy() -> SyntheticCapture:
     )
 
 
-@pytest.fixture
-def one_blas_thread():
-    """BLAS on one thread: small matrices' threads only contend with each other (and with other
-    test processes). Modules of many small fits use it for every test (``pytestmark``)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        yield
-        return
-    with threadpool_limits(limits=1):
-        yield
+def pytest_configure(config):
+    """BLAS on one thread for the whole run: the tests' problems are small, where BLAS's threads
+    only contend with each other (and with the pools' workers and other test processes)."""
+    config._simbench_blas = one_blas_thread()

@@ -19,8 +19,6 @@ from calibration.methods import estimate_obrien, estimate_obrien_eiv
 from calibration.rotations import rotvec_to_matrix
 from calibration.uncertainty import holds_truth, joint_covariance
 
-pytestmark = pytest.mark.usefixtures("one_blas_thread")
-
 RATE_HZ = 120.0
 FRAMES = 2400
 IN_PARENT = np.array([0.09, -0.08, -0.06])

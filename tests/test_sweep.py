@@ -192,7 +192,7 @@ def test_bad_base_session_is_rejected_when_loading(tmp_path, patch, message):
         st.load_study(path)
 
 
-@pytest.mark.parametrize("missing", ["pyarrow.parquet", "threadpoolctl"])
+@pytest.mark.parametrize("missing", ["pyarrow.parquet"])
 def test_missing_optional_package_names_the_extra(tmp_path, monkeypatch, missing):
     study = st.load_study(study_file(tmp_path))
     monkeypatch.setitem(sys.modules, missing, None)  # importing it now raises ImportError

@@ -45,8 +45,6 @@ from calibration.uncertainty import (
     to_json,
 )
 
-pytestmark = pytest.mark.usefixtures("one_blas_thread")
-
 RATE_HZ = 120.0
 RUNS = 300
 BAND = (0.91, 0.98)  # see the module docstring

@@ -6,6 +6,10 @@ model and its arrays. On Linux :func:`die_with_parent`, run in each worker as th
 initializer, asks the kernel to send the worker SIGKILL when its parent dies
 (``prctl(PR_SET_PDEATHSIG)``); elsewhere it does nothing.
 
+Each worker runs BLAS on one thread (:func:`one_blas_thread`): the work sent to a pool is many
+small problems side by side, where BLAS's own threads only contend with the other workers (a
+``7,200 x 6`` SVD takes 15 ms on two threads against 0.7 ms on one, on two cores).
+
 Interrupts are the parent's to handle: a worker ignores SIGINT (a terminal's Ctrl-C reaches every
 process of the group; an idle worker would print a ``KeyboardInterrupt`` traceback, a busy one would
 hand its trial back as failed) and takes SIGTERM as a plain exit (not the ``Terminated`` exception a
@@ -23,13 +27,22 @@ import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
 
+from threadpoolctl import threadpool_limits
+
 #: ``PR_SET_PDEATHSIG`` of ``<linux/prctl.h>``.
 PR_SET_PDEATHSIG = 1
 
 
+def one_blas_thread() -> threadpool_limits:
+    """Limit BLAS (and OpenMP) in this process to one thread until the returned limiter's
+    ``restore_original_limits()`` (or the end of its ``with`` block)."""
+    return threadpool_limits(limits=1)
+
+
 def die_with_parent(parent_pid: int) -> None:
     """In a worker: be killed when the parent dies (Linux); exit now if it already has; leave
-    Ctrl-C to the parent and exit on SIGTERM."""
+    Ctrl-C to the parent and exit on SIGTERM; BLAS on one thread (:func:`one_blas_thread`)."""
+    one_blas_thread()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if sys.platform.startswith("linux"):

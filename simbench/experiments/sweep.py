@@ -9,8 +9,8 @@ depend on the number of workers or the order they finish in. They run through an
 atomically as each finishes) and are gathered into ``OUT/results.parquet``; an interrupted study
 resumes where it stopped: finished trials are read back and never run or written twice.
 
-Parquet (pyarrow), Dask (distributed) and the per-trial BLAS limit (threadpoolctl) are the optional
-extra ``simbench[studies]``; without them a study stops with an :class:`InputError` saying so.
+Parquet (pyarrow) and Dask (distributed) are the optional extra ``simbench[studies]``; without them a
+study stops with an :class:`InputError` saying so. Each trial runs BLAS on one thread.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 
 from simbench.errors import InputError, optional_module
 from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
-from simbench.experiments.pool import worker_pool
+from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.experiments.study import Study, Trial, check_study, study_fingerprint, trial_config, trials
 from simbench.io.atomic import atomic_path, atomic_write_text
 from simbench.sim.session import load_session_model, run_session
@@ -49,8 +49,7 @@ def run_trial(study: Study, trial: Trial) -> dict[str, Any]:
     A trial uses one core (BLAS limited to one thread): parallelism comes from running trials
     side by side, which scales; threads inside one small trial do not.
     """
-    threadpoolctl = _optional("threadpoolctl")
-    with threadpoolctl.threadpool_limits(limits=1):
+    with one_blas_thread():
         return _run_trial(study, trial)
 
 
@@ -203,8 +202,7 @@ def run_study(
         InputError: the optional packages of ``simbench[studies]`` are missing, a cell cannot
             run, or ``out`` holds another study's trials (all before any trial).
     """
-    for name in ("pyarrow.parquet", "threadpoolctl"):
-        _optional(name)
+    _optional("pyarrow.parquet")
     check_study(study)
     _claim(out, study, force)
     every = trials(study)

@@ -54,12 +54,13 @@ from simbench.experiments.obrien import (
     paper_tables,
     rigid_pair_scale,
 )
-from simbench.experiments.pool import worker_pool
+from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
 from simbench.io.imu import read_broad
 from simbench.orient import DEFAULT_METHOD, estimate, skeleton_of
 from simbench.score import score_orientation
+from simbench.sim.physics_cache import physics_cache
 from simbench.sim.sensor_config import parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
@@ -312,7 +313,10 @@ def run_validation(
     say = progress or (lambda _: None)
     keep: dict[str, Any] = {}
     t0 = time.perf_counter()
-    with worker_pool(workers) if workers > 1 else _Here() as pool:
+    # the cache shares the physics of sessions that differ only in their sensors (each effect
+    # switched off in turn), in this process and the workers
+    # BLAS on one thread here too: this process works beside the pool's workers
+    with physics_cache(), one_blas_thread(), worker_pool(workers) if workers > 1 else _Here() as pool:
         # the experiments that need nothing from the others go to the pool first: they run while
         # this process waits on the trials, instead of one after another with a core idle
         say(STEPS[3])

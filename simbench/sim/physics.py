@@ -17,6 +17,7 @@ from mujoco import rollout
 from calibration.rotations import matrix_to_quat, rotvec_to_matrix
 from simbench.errors import InputError
 from simbench.sim.models import CaptureModel
+from simbench.sim.physics_cache import cache_folder, load_run, physics_key, store_run
 from simbench.sim.plan import SessionPlan
 from simbench.sim.programs import joint_targets, root_pose
 
@@ -152,11 +153,18 @@ def run_physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[s
 
     The model's timestep is set to ``plan.timestep`` for the run and restored afterwards.
 
+    Inside :func:`simbench.sim.physics_cache.physics_cache` a run already made (the same model,
+    program and steps, whatever the sensors) is read back instead of computed again.
+
     Returns:
         ``(sensordata, warnings)``: ``(n_samples, nsensordata)`` MuJoCo's sensor data at the
         samples (addresses in ``cm.adr``, ``cm.clock_adr``), and ``{warning name: count}`` of
         MuJoCo's warnings.
     """
+    folder = cache_folder()
+    key = physics_key(cm, plan, plan.timestep, (SETTLE_S, CHUNK_STEPS)) if folder is not None else ""
+    if folder is not None and (kept := load_run(folder, key)) is not None:
+        return kept
     m = cm.model
     model_dt = float(m.opt.timestep)
     m.opt.timestep = plan.timestep
@@ -172,6 +180,8 @@ def run_physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[s
         m.opt.timestep = model_dt
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(d.warning) if w.number > 0}
     check_diverged(cm, plan, d, sensordata, warnings)
+    if folder is not None:
+        store_run(folder, key, sensordata, warnings)
     return sensordata, warnings
 
 

@@ -1,0 +1,94 @@
+"""The physics cache: sessions that differ only in their sensors share one run, byte for byte."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+
+from numpy.testing import assert_array_equal
+
+from simbench.sim import physics
+from simbench.sim.physics_cache import ENV, physics_cache, physics_key
+from simbench.sim.plan import plan_session
+from simbench.sim.session import SessionConfig, load_session_model, run_session
+
+CONFIG = SessionConfig(model="linkage", motion="exercise", duration_s=2.0, seed=5, sensors="polhemus-liberty")
+
+
+def _datasets_equal(a, b) -> None:
+    """Equal to the bit (NaN where the other has NaN: a tracker's missing samples)."""
+    assert_array_equal(a.time_s, b.time_s)
+    for field in ("p_w_s", "q_w_s", "valid", "acc", "gyro", "mag"):
+        assert_array_equal(getattr(a.measured, field), getattr(b.measured, field), err_msg=field, strict=True)
+    assert_array_equal(a.truth.joint_w, b.truth.joint_w, strict=True)
+    assert_array_equal(a.truth.actual.q_w_s, b.truth.actual.q_w_s, strict=True)
+
+
+def _counting_rollout(monkeypatch) -> list[int]:
+    calls = []
+    real = physics.rollout.rollout
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(physics.rollout, "rollout", counted)
+    return calls
+
+
+def test_a_cached_run_equals_a_fresh_one_and_sensors_share_it(tmp_path, monkeypatch):
+    fresh = run_session(CONFIG)
+    other_sensors = replace(CONFIG, sensors="ascension-flock")
+    fresh_other = run_session(other_sensors)
+    calls = _counting_rollout(monkeypatch)
+    with physics_cache(tmp_path) as folder:
+        assert os.environ[ENV] == str(folder)
+        first = run_session(CONFIG)
+        n_first = len(calls)
+        again = run_session(CONFIG)
+        other = run_session(other_sensors)
+    assert ENV not in os.environ
+    assert n_first > 0
+    assert len(calls) == n_first, "the second and third sessions must read the stored run"
+    assert len(list(tmp_path.glob("*.npz"))) == 1
+    _datasets_equal(first, fresh)
+    _datasets_equal(again, fresh)
+    _datasets_equal(other, fresh_other)
+
+
+def test_what_changes_the_physics_changes_the_key():
+    cm = load_session_model(CONFIG)
+    plan = plan_session(CONFIG, cm)
+    key = physics_key(cm, plan, plan.timestep)
+    assert key == physics_key(cm, plan_session(CONFIG, load_session_model(CONFIG)), plan.timestep)
+    other_seed = replace(CONFIG, seed=6)
+    assert key != physics_key(cm, plan_session(other_seed, cm), plan.timestep)
+    longer = replace(CONFIG, duration_s=3.0)
+    assert key != physics_key(cm, plan_session(longer, cm), plan.timestep)
+    assert key != physics_key(cm, plan, plan.timestep / 2)
+    assert key != physics_key(cm, plan, plan.timestep, (1.0, 12_000))
+    played = replace(CONFIG, sensors="ascension-flock-paper")  # joint play: another model
+    cm_played = load_session_model(played)
+    assert cm_played.joint_play_m > 0
+    assert key != physics_key(cm_played, plan_session(played, cm_played), plan.timestep)
+
+
+def test_an_unreadable_stored_run_is_computed_again(tmp_path):
+    fresh = run_session(CONFIG)
+    with physics_cache(tmp_path):
+        run_session(CONFIG)
+        (stored,) = tmp_path.glob("*.npz")
+        stored.write_bytes(b"not a run")
+        again = run_session(CONFIG)
+    _datasets_equal(again, fresh)
+    assert stored.stat().st_size > 100  # written again
+
+
+def test_a_temporary_cache_is_removed_and_the_outer_one_restored(tmp_path):
+    with physics_cache(tmp_path / "outer"):
+        with physics_cache() as inner:
+            assert os.environ[ENV] == str(inner)
+            run_session(CONFIG)
+        assert not inner.exists()
+        assert os.environ[ENV] == str(tmp_path / "outer")
+    assert ENV not in os.environ
