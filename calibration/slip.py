@@ -77,7 +77,7 @@ Frames where a pose is missing are left out of the window means.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import pairwise
 
 import numpy as np
@@ -165,7 +165,12 @@ def _check_options(n: int, window: int, rate_hz: float, false_alarms_per_hour: f
 
 @dataclass(frozen=True)
 class _Pair:
-    """The two sensors' poses and the residual series of the joint as fitted."""
+    """The two sensors' poses and the residual series of the joint as fitted.
+
+    The search asks for the same refits many times (each candidate is tested with the events
+    found so far as cuts, and those cuts again at the next step): each piece's refit and each
+    set of cuts' window differences are computed once (``_pieces``, ``_diffs``).
+    """
 
     poses: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     ok: np.ndarray
@@ -173,10 +178,19 @@ class _Pair:
     window: int
     rate_hz: float
     rate: float
+    _pieces: dict[tuple[int, int], np.ndarray | None] = field(default_factory=dict, repr=False, compare=False)
+    _diffs: dict[tuple[int, ...], list[np.ndarray]] = field(default_factory=dict, repr=False, compare=False)
 
     def diffs(self, cuts: list[int]) -> list[np.ndarray]:
-        """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``."""
-        return [window_difference(e, self.ok, self.window) for e in self.frames(self.piecewise(cuts))]
+        """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``
+        (the caller must not change them)."""
+        key = tuple(sorted(cuts))
+        if key not in self._diffs:
+            ds = [window_difference(e, self.ok, self.window) for e in self.frames(self.piecewise(list(key)))]
+            for d in ds:
+                d.flags.writeable = False
+            self._diffs[key] = ds
+        return self._diffs[key]
 
     def frames(self, r: np.ndarray) -> list[np.ndarray]:
         """``e = R_w_s^T r`` in the parent's and the child's frame, ``(frames, 3)`` each."""
@@ -191,15 +205,26 @@ class _Pair:
         """
         r = self.r.copy()
         for a, b in pairwise([0, *sorted(cuts), self.ok.size]):
-            if b - a < self.window:
-                continue
-            sl = [x[a:b] for x in self.poses]
-            try:
-                fit = fit_joint(*sl, valid=self.ok[a:b])
-            except CalibrationError:
-                continue
-            r[a:b] = joint_residual_vectors(*sl, fit.joint_in_parent, fit.joint_in_child)
+            piece = self._piece(a, b)
+            if piece is not None:
+                r[a:b] = piece
         return r
+
+    def _piece(self, a: int, b: int) -> np.ndarray | None:
+        """``(b - a, 3)`` residuals of the joint refitted on frames ``a:b``; ``None`` when the
+        piece is shorter than the window or cannot be fitted."""
+        if (a, b) not in self._pieces:
+            out = None
+            if b - a >= self.window:
+                sl = [x[a:b] for x in self.poses]
+                try:
+                    fit = fit_joint(*sl, valid=self.ok[a:b])
+                except CalibrationError:
+                    pass
+                else:
+                    out = joint_residual_vectors(*sl, fit.joint_in_parent, fit.joint_in_child)
+            self._pieces[(a, b)] = out
+        return self._pieces[(a, b)]
 
 
 def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, float, float]:
