@@ -165,6 +165,21 @@ def linkage_set(config: SessionConfig, scale: float, keep: dict[str, Any] | None
     }
 
 
+def linkage_rows(config: SessionConfig, scale: float) -> dict[str, Any]:
+    """One linkage set's Table 1 rows only (``{"rows": ...}``), as :func:`linkage_set` computes
+    them: what :func:`linkage_causes` compares (no tree comparison, no slip alarms)."""
+    ds = run_session(config, load_session_model(config))
+    rec = ds.poses()
+    cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
+    return {"rows": _length_rows(LINKAGE_ROWS, truth_lengths(ds), estimated_lengths(cal), scale)}
+
+
+def _linkage_configs(n_sets: int, duration_s: float, sensors: str | SensorConfig) -> list[SessionConfig]:
+    """Table 1's sets: seeds ``1..n_sets``, the sixth with the sensors moved."""
+    config = SessionConfig(model="linkage", motion="exercise", duration_s=duration_s, sensors=sensors)
+    return [replace(config, seed=s, placement=SET6_PLACEMENT if s == 6 else ()) for s in range(1, n_sets + 1)]
+
+
 def linkage_experiment(
     n_sets: int,
     duration_s: float,
@@ -191,10 +206,7 @@ def linkage_experiment(
         With six or more sets the sixth is taken with the sensors moved (:data:`SET6_PLACEMENT`),
         as the paper's Set 6.
     """
-    config = SessionConfig(model="linkage", motion="exercise", duration_s=duration_s, sensors=sensors)
-    configs = [
-        replace(config, seed=s, placement=SET6_PLACEMENT if s == 6 else ()) for s in range(1, n_sets + 1)
-    ]
+    configs = _linkage_configs(n_sets, duration_s, sensors)
     local = 1 if keep is not None else 0  # the kept set runs here, while the others run on ``run``
     others = run(linkage_set, configs[local:], [scale] * (len(configs) - local))
     done = [linkage_set(configs[0], scale, keep)] if local else []
@@ -238,12 +250,8 @@ def linkage_causes(
     out = {}
     for cause, config in _variants(_config(sensors), LINKAGE_CAUSES).items():
         scale = rigid_pair_scale(duration_s=pair_s, tracker=config.tracker)["scale"]
-        out[cause] = _summary(
-            [
-                s["rows"]
-                for s in linkage_experiment(n_sets, duration_s, scale, sensors=config, run=run)["sets"]
-            ]
-        )
+        configs = _linkage_configs(n_sets, duration_s, config)
+        out[cause] = _summary([s["rows"] for s in run(linkage_rows, configs, [scale] * len(configs))])
     return out
 
 
@@ -265,6 +273,33 @@ def human_trials(exercise: int, walks: int, female_walks: int) -> list[tuple[str
     return male + female
 
 
+def _human_config(
+    subject: str, motion: str, k: int, duration_s: float, sensors: str | SensorConfig
+) -> SessionConfig:
+    """The session of a human trial (seeds: :func:`human_trial`)."""
+    seed = (100 if subject == "male" else 200) + k + (10 if motion == "walk" and subject == "female" else 0)
+    return SessionConfig(
+        model=SUBJECTS[subject], motion=motion, duration_s=duration_s, seed=seed, sensors=sensors
+    )
+
+
+def human_rows(
+    subject: str,
+    motion: str,
+    k: int,
+    duration_s: float,
+    scale: float,
+    sensors: str | SensorConfig = HUMAN_PRESET,
+) -> dict[str, Any]:
+    """One human trial's length rows only (``{"rows": ...}``, the true hierarchy), as
+    :func:`human_trial` computes them: what :func:`human_causes` compares."""
+    config = _human_config(subject, motion, k, duration_s, sensors)
+    ds = run_session(config, load_session_model(config))
+    rec = ds.poses()
+    given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
+    return {"rows": _length_rows(HUMANOID_ROWS, truth_lengths(ds), estimated_lengths(given), scale)}
+
+
 def human_trial(
     subject: str,
     motion: str,
@@ -279,10 +314,8 @@ def human_trial(
 
     Seeds: 100 + k for the male subject's trials, 200 + k for the female's (walks 10 more).
     """
-    seed = (100 if subject == "male" else 200) + k + (10 if motion == "walk" and subject == "female" else 0)
-    config = SessionConfig(
-        model=SUBJECTS[subject], motion=motion, duration_s=duration_s, seed=seed, sensors=sensors
-    )
+    config = _human_config(subject, motion, k, duration_s, sensors)
+    seed = config.seed
     ds = run_session(config, load_session_model(config))
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, root="pelvis")
@@ -362,7 +395,7 @@ def human_causes(
     for config in variants.values():
         scale = rigid_pair_scale(duration_s=pair_s, tracker=config.tracker)["scale"]
         tasks += [(*t, duration_s, scale, config) for t in trials]
-    results = iter(run(human_trial, *zip(*tasks, strict=True)))
+    results = iter(run(human_rows, *zip(*tasks, strict=True)))
     out = {} if done is None else {"none": _summary(done)}
     return out | {cause: _summary([next(results)["rows"] for _ in trials]) for cause in variants}
 
