@@ -5,12 +5,15 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 
+import pytest
 from numpy.testing import assert_array_equal
 
 from simbench.sim import physics
 from simbench.sim.physics_cache import ENV, physics_cache, physics_key
 from simbench.sim.plan import plan_session
 from simbench.sim.session import SessionConfig, load_session_model, run_session
+
+pytestmark = pytest.mark.usefixtures("fresh_physics")
 
 CONFIG = SessionConfig(model="linkage", motion="exercise", duration_s=2.0, seed=5, sensors="polhemus-liberty")
 
@@ -84,11 +87,16 @@ def test_an_unreadable_stored_run_is_computed_again(tmp_path):
     assert stored.stat().st_size > 100  # written again
 
 
-def test_a_temporary_cache_is_removed_and_the_outer_one_restored(tmp_path):
-    with physics_cache(tmp_path / "outer"):
-        with physics_cache() as inner:
-            assert os.environ[ENV] == str(inner)
+def test_a_temporary_cache_is_removed_and_an_active_one_shared(tmp_path):
+    with physics_cache() as alone:
+        assert os.environ[ENV] == str(alone) and alone.is_dir()
+        run_session(CONFIG)
+        assert len(list(alone.glob("*.npz"))) == 1
+    assert not alone.exists() and ENV not in os.environ
+    outer = tmp_path / "outer"
+    with physics_cache(outer):
+        with physics_cache() as inner:  # a cache already active is shared, not replaced
+            assert inner == outer and os.environ[ENV] == str(outer)
             run_session(CONFIG)
-        assert not inner.exists()
-        assert os.environ[ENV] == str(tmp_path / "outer")
-    assert ENV not in os.environ
+        assert os.environ[ENV] == str(outer)
+    assert ENV not in os.environ and len(list(outer.glob("*.npz"))) == 1

@@ -123,7 +123,7 @@ def test_report_html_renders_the_markdown(quick_report):
     assert "`" not in html and "|---" not in html  # inline code and tables were rendered
 
 
-def test_validation_is_deterministic():
+def test_validation_is_deterministic(fresh_physics):
     """The validation's experiments, small, twice: the process pool (two workers) and this process
     give the same figures, and so do two runs of the slip and orientation cases."""
     plan = dataclasses.replace(Plan.of(quick=True), linkage_s=8.0, humanoid_s=6.0, orientation_s=3.0)

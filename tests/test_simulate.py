@@ -48,7 +48,7 @@ def test_static_settles(capture_models, model):
     assert ds.meta["mujoco_warnings"] == {}
 
 
-def test_same_seed_same_dataset_other_seed_differs(capture_models):
+def test_same_seed_same_dataset_other_seed_differs(capture_models, fresh_physics):
     cm = capture_models["linkage"]
     a = run_session(SessionConfig(motion="walk", duration_s=1.0, seed=5), cm)
     b = run_session(SessionConfig(motion="walk", duration_s=1.0, seed=5), cm)

@@ -24,7 +24,11 @@ from simbench.experiments import sweep as sw
 from simbench.io.atomic import atomic_open
 from tests.test_sweep import _alive, _children, rows, study_file, sweep_command
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+# fresh physics: the interrupt must find the last trial running (a stored run would end it at once)
+pytestmark = [
+    pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc"),
+    pytest.mark.usefixtures("fresh_physics"),
+]
 
 #: 3 trials: with 2 workers, once 2 are written one worker runs the third and the other is idle.
 TRIALS = 3

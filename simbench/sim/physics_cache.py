@@ -129,13 +129,16 @@ def physics_cache(folder: str | os.PathLike[str] | None = None) -> Iterator[Path
     worker processes started inside it).
 
     Args:
-        folder: where runs are kept (kept afterwards); ``None``: a temporary folder, removed at
-            the end.
+        folder: where runs are kept (kept afterwards); ``None``: the cache already active, if
+            any (a caller's, or the test run's), else a temporary folder removed at the end.
 
     Yields:
         The folder.
     """
     previous = os.environ.get(ENV)
+    if folder is None and previous:
+        yield Path(previous)
+        return
     with contextlib.ExitStack() as stack:
         if folder is None:
             folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="simbench-physics-"))
