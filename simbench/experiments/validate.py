@@ -106,7 +106,7 @@ class Plan:
                 exercise_trials=1,
                 walk_trials=1,
                 female_walk_trials=1,
-                humanoid_s=20.0,
+                humanoid_s=10.0,
                 orientation_s=8.0,
                 cause_tables=("table_1", "table_2"),
                 failure_walks=1,
