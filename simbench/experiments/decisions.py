@@ -20,6 +20,7 @@ report states the sample beside each figure.
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -193,9 +194,25 @@ def _detection_rows(slips: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     return rows
 
 
-def run_decisions(quick: bool, clean: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
+def slip_trials(quick: bool, run: Callable = map) -> list[dict[str, Any]]:
+    """The injected slips of the plan (:func:`slip_trial`), each motion, size and seed; ``run``:
+    ``map`` or an executor's ``map`` (they are independent)."""
+    plan = DecisionPlan.of(quick)
+    jobs = [
+        (motion, cm, 1000 + seed, plan.slip_s)
+        for motion in plan.slip_motions
+        for cm in DETECTION_TARGET
+        for seed in range(plan.slip_seeds)
+    ]
+    return list(run(slip_trial, *zip(*jobs, strict=True)))
+
+
+def run_decisions(
+    quick: bool, clean: dict[str, list[dict[str, Any]]], slips: list[dict[str, Any]] | None = None
+) -> dict[str, Any]:
     """Every decision check; ``clean`` holds :func:`clean_alarms` of the validation's sessions by
-    case (e.g. ``"linkage exercise, ascension-flock"``)."""
+    case (e.g. ``"linkage exercise, ascension-flock"``); ``slips``: :func:`slip_trials` of the
+    same ``quick``, if already run (else they are run here)."""
     plan = DecisionPlan.of(quick)
     alarms = {}
     for case, runs in clean.items():
@@ -207,12 +224,8 @@ def run_decisions(quick: bool, clean: dict[str, list[dict[str, Any]]]) -> dict[s
             "alarms": count,
             "per_hour": count / hours,
         }
-    slips = [
-        slip_trial(motion, cm, 1000 + seed, plan.slip_s)
-        for motion in plan.slip_motions
-        for cm in DETECTION_TARGET
-        for seed in range(plan.slip_seeds)
-    ]
+    if slips is None:
+        slips = slip_trials(quick)
     hinge = {}
     for case, (amp, must) in HINGE_CASES.items():
         runs = [hinge_trial(amp, seed) for seed in range(plan.hinge_seeds)]

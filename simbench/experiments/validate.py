@@ -29,7 +29,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,7 +40,7 @@ from calibration import calibrate, detect_slip, fit_joint
 from calibration.errors import CalibrationError
 from calibration.methods import JOINT_METHODS, estimate_obrien_eiv
 from calibration.uncertainty import holds_truth, joint_covariance
-from simbench.experiments.decisions import run_decisions
+from simbench.experiments.decisions import run_decisions, slip_trials
 from simbench.experiments.metrics import joint_method_metrics, true_joints
 from simbench.experiments.obrien import (
     HUMAN_PRESET,
@@ -316,7 +316,15 @@ def run_validation(
     # the cache shares the physics of sessions that differ only in their sensors (each effect
     # switched off in turn), in this process and the workers
     # BLAS on one thread here too: this process works beside the pool's workers
-    with physics_cache(), one_blas_thread(), worker_pool(workers) if workers > 1 else _Here() as pool:
+    # ``helper``: threads of this process that gather the jobs they hand to the pool (and run the
+    # decisions' small checks) while this thread waits on its own; entered before the pool, so
+    # that an interrupt stops the pool first and the threads waiting on it end
+    with (
+        physics_cache(),
+        one_blas_thread(),
+        ThreadPoolExecutor(2) if workers > 1 else _Here() as helper,
+        worker_pool(workers) if workers > 1 else _Here() as pool,
+    ):
         # the experiments that need nothing from the others go to the pool first: they run while
         # this process waits on the trials, instead of one after another with a core idle
         say(STEPS[3])
@@ -326,7 +334,9 @@ def run_validation(
         say(STEPS[8])
         realism_run = pool.submit(run_realism, quick=quick)
         say(STEPS[9])
-        methods_run = pool.submit(_joint_methods, plan)
+        # sessions that need nothing from the others, a job each, queued behind those
+        methods_run = helper.submit(_joint_methods, plan, pool.map)
+        slips_run = helper.submit(slip_trials, quick, pool.map)
         say(STEPS[0])
         pair_s = 20.0 if quick else PAIR_S
         scale = rigid_pair_scale(duration_s=pair_s)
@@ -346,7 +356,9 @@ def run_validation(
             ),
         }
         say(STEPS[5])
-        decisions_run = pool.submit(run_decisions, quick, _clean_sessions(linkage, humanoid))
+        decisions_run = helper.submit(
+            lambda: run_decisions(quick, _clean_sessions(linkage, humanoid), slips_run.result())
+        )
         say(STEPS[6])
         causes = {
             "table_1": linkage_causes(plan.linkage_sets, plan.linkage_s, run=pool.map, pair_s=pair_s),
@@ -422,23 +434,28 @@ def coverage_study(path: Path = COVERAGE_STUDY) -> dict[str, Any] | None:
     }
 
 
-def _joint_methods(plan: Plan) -> dict[str, Any]:
+def _methods_session(model: str, preset: str, seed: int, duration_s: float) -> dict[str, Any]:
+    """One session of the methods comparison: every method's metrics and the regions' hits."""
+    config = SessionConfig(model=model, motion="exercise", duration_s=duration_s, seed=seed, sensors=preset)
+    ds = run_session(config, load_session_model(config))
+    hits = {"batch-means": [0, 0], "iid": [0, 0], "eiv": [0, 0]}
+    _coverage(ds, hits)
+    return {"rows": {m: joint_method_metrics(ds, m) for m in JOINT_METHODS}, "hits": hits}
+
+
+def _joint_methods(plan: Plan, run: Callable = map) -> dict[str, Any]:
     """Every joint-centre method of :mod:`calibration.methods` on the same seeded sessions (the
     true hierarchy), and how often O'Brien's 95 % regions hold the true centre: batch means
     (:mod:`calibration.uncertainty`, the default) against i.i.d. (``studies/methods.py`` runs
-    more seeds and conditions)."""
+    more seeds and conditions). ``run``: ``map`` or an executor's ``map`` (one session a job)."""
     out: dict[str, Any] = {"seeds": plan.methods_seeds, "duration_s": plan.methods_s, "conditions": {}}
-    for label, model, preset in METHODS_CONDITIONS:
-        rows: dict[str, list[dict[str, float]]] = {m: [] for m in JOINT_METHODS}
-        hits = {"batch-means": [0, 0], "iid": [0, 0], "eiv": [0, 0]}
-        for seed in range(41, 41 + plan.methods_seeds):
-            config = SessionConfig(
-                model=model, motion="exercise", duration_s=plan.methods_s, seed=seed, sensors=preset
-            )
-            ds = run_session(config, load_session_model(config))
-            for m in JOINT_METHODS:
-                rows[m].append(joint_method_metrics(ds, m))
-            _coverage(ds, hits)
+    seeds = range(41, 41 + plan.methods_seeds)
+    jobs = [(m, preset, seed, plan.methods_s) for _, m, preset in METHODS_CONDITIONS for seed in seeds]
+    sessions = iter(run(_methods_session, *zip(*jobs, strict=True)))
+    for label, _, preset in METHODS_CONDITIONS:
+        done = [next(sessions) for _ in seeds]
+        rows = {m: [d["rows"][m] for d in done] for m in JOINT_METHODS}
+        hits = {k: [sum(d["hits"][k][i] for d in done) for i in (0, 1)] for k in done[0]["hits"]}
         out["conditions"][label] = {
             "preset": preset,
             "methods": {
