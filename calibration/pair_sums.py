@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
+
 _ROW = np.dtype((np.void, 24))  # one row of a 3x3 float64 matrix, moved as a unit
 
 
@@ -103,4 +105,93 @@ class PairSums:
             weighted_self.reshape(n, n, 3).transpose(1, 0, 2),
             sq_i + sq_i.T - 2.0 * dot,
             np.rint(count).astype(np.int64),
+        )
+
+
+def third_difference(x: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``out[f] = x[f+3] - 3 x[f+2] + 3 x[f+1] - x[f]`` along the first axis (``len(x) - 3`` rows),
+    as :func:`numpy.diff` with ``n=3`` gives it, without its intermediate arrays."""
+    np.subtract(x[1:-2], x[2:-1], out=out)
+    out *= 3.0
+    out += x[3:]
+    out -= x[:-3]
+    return out
+
+
+class ThirdDifferenceSums:
+    """Sums over frames of the third-differenced poses: the misfit hierarchy's noise
+    (:mod:`calibration.pair_noise`) as a quadratic form in each pair's joint.
+
+    The residual's third difference is linear in the joint, ``D3 e = D3 A x - D3 b``, so
+    ``sum |D3 e|^2`` needs only the pair statistics of the third-differenced poses
+    (:class:`PairSums`) and each sensor's own ``sum D3R_i^T D3R_i`` weighted by the pair's
+    validity; a third difference counts where both sensors are valid in all four of its frames.
+    Frames are added in order, in chunks of any size (three carry over to the next chunk), so the
+    batch calibration fills it in its one pass over the data and the streaming one as frames come.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.sums = PairSums(n)
+        self.self_gram = np.zeros((n, n, 9))  # [i, j] sum w_i w_j D3R_i^T D3R_i (chunks with gaps)
+        self.carry: tuple[np.ndarray, ...] | None = None  # the last 3 frames added
+
+    def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
+        """Add the next ``c`` frames (``R`` ``(c, n, 3, 3)``, ``p`` ``(c, n, 3)``, ``ok`` ``(c, n)``,
+        invalid poses zeroed)."""
+        chunk = (R, p, ok)
+        if self.carry is not None:
+            # the third differences that straddle the previous chunk: its last 3 frames, our first 3
+            self._add(*(np.concatenate([a, b[:3]]) for a, b in zip(self.carry, chunk, strict=True)))
+        if R.shape[0] >= 3 or self.carry is None:
+            self.carry = tuple(b[-3:].copy() for b in chunk)
+        else:
+            self.carry = tuple(np.concatenate([a, b])[-3:] for a, b in zip(self.carry, chunk, strict=True))
+        self._add(R, p, ok)
+
+    def _add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
+        c = R.shape[0] - 3
+        if c < 1:
+            return
+        d3R = third_difference(R, np.empty((c, *R.shape[1:])))
+        d3p = third_difference(p, np.empty((c, *p.shape[1:])))
+        ok4 = ok[3:] & ok[2:-1] & ok[1:-2] & ok[:-3]
+        if not ok4.all():
+            d3R[~ok4] = 0.0
+            d3p[~ok4] = 0.0
+            w = ok4.astype(float)
+            own = np.einsum("fsai,fsaj->fsij", d3R, d3R).reshape(c, self.n * 9)  # invalid rows are zero
+            self.self_gram += (w.T @ own).reshape(self.n, self.n, 9).transpose(1, 0, 2)
+        # with every pose valid the own products are the diagonal blocks of PairSums.full
+        self.sums.add(d3R, d3p, ok4, np.empty((c, 3, 4 * self.n)))
+
+    def noise_variance(
+        self, parent: np.ndarray, child: np.ndarray, joint_in_parent: np.ndarray, joint_in_child: np.ndarray
+    ) -> np.ndarray:
+        """``(P,)`` the noise variance of each pair's residual for the given joints (as
+        :func:`calibration.pair_noise.pair_noise_variance` computes it from the frames), in the
+        positions' unit squared; 0 for a pair with no four consecutive valid frames."""
+        n = self.n
+        gram, cross, self_cross, sq_dist, count = self.sums.result()
+        self_gram = self.self_gram
+        if self.sums.n_full:
+            diag = self.sums.full[: 3 * n, : 3 * n].reshape(n, 3, n, 3)[np.arange(n), :, np.arange(n)]
+            self_gram = self_gram + diag.reshape(n, 1, 9)  # (n, 3, 3) per sensor, every pair
+        parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
+        lp, lc = np.asarray(joint_in_parent, dtype=float), np.asarray(joint_in_child, dtype=float)
+        g = gram[parent, child]  # (P, 3, 3) sum D3R_p^T D3R_c
+        sp = self_gram[parent, child].reshape(-1, 3, 3)
+        sc = self_gram[child, parent].reshape(-1, 3, 3)
+        quad = (
+            np.einsum("pi,pij,pj->p", lp, sp, lp)
+            + np.einsum("pi,pij,pj->p", lc, sc, lc)
+            - 2.0 * np.einsum("pi,pij,pj->p", lp, g, lc)
+        )
+        h_p = cross[parent, child] - self_cross[parent, child]
+        h_c = cross[child, parent] - self_cross[child, parent]
+        lin = np.einsum("pi,pi->p", lp, h_p) + np.einsum("pi,pi->p", lc, h_c)
+        total = quad - 2.0 * lin + sq_dist[parent, child]
+        used = count[parent, child].astype(float)
+        return np.where(
+            used > 0, np.clip(total, 0.0, None) / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0
         )
