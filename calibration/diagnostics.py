@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.pairs import PairStatistics
 from calibration.poses import CHUNK_FRAMES, iter_chunks
 from calibration.rotations import matrix_to_rotvec
 
@@ -127,6 +128,35 @@ def block_jackknife(
             axis=-1,
         )  # (c, J, 16)
         blocks[block[starts]] += np.add.reduceat(sums, starts, axis=0)
+    return jackknife_standard_error(blocks, rank)
+
+
+def jackknife_block_sums(stats: PairStatistics, parent: np.ndarray, child: np.ndarray) -> np.ndarray:
+    """``(K, J, 16)`` the per-block sums :func:`block_jackknife` makes in its pass over the data
+    (frames, ``R_p^T R_c``, ``R_p^T b``, ``R_c^T b`` per block and joint), read off pair statistics
+    that kept the blocks of :func:`calibration.pairs.jackknife_edges`
+    (``pair_statistics(..., jackknife_blocks=K)``): no pass over the data. ``b = p_c - p_p`` does
+    not change with the statistics' per-frame centring."""
+    gram, cross, self_cross = stats.jackknife_gram, stats.jackknife_cross, stats.jackknife_self_cross
+    count = stats.jackknife_count
+    if gram is None or cross is None or self_cross is None or count is None:
+        raise ValueError("these pair statistics kept no jackknife blocks")
+    parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
+    return np.concatenate(
+        [
+            count[:, parent, child].astype(float)[..., None],
+            gram[:, parent, child].reshape(count.shape[0], parent.size, 9),
+            cross[:, parent, child] - self_cross[:, parent, child],
+            self_cross[:, child, parent] - cross[:, child, parent],
+        ],
+        axis=-1,
+    )
+
+
+def jackknife_standard_error(blocks: np.ndarray, rank: np.ndarray) -> np.ndarray:
+    """:func:`block_jackknife`'s standard errors from its ``(K, J, 16)`` per-block sums (frames,
+    ``R_p^T R_c``, ``R_p^T b``, ``R_c^T b``) and each joint's ``rank``."""
+    n_blocks, n_j = blocks.shape[:2]
     ata = np.zeros((n_blocks, n_j, 6, 6))
     eye = np.eye(3)
     ata[..., :3, :3] = ata[..., 3:, 3:] = blocks[..., :1, None] * eye
@@ -263,6 +293,7 @@ def motion_warnings(
     *,
     valid: Any = None,
     chunk_frames: int = CHUNK_FRAMES,
+    block_sums: np.ndarray | None = None,
 ) -> list[str]:
     """Warnings for joints whose centre the motion hardly determines (module docstring).
 
@@ -275,6 +306,9 @@ def motion_warnings(
             fit that kept fewer than 5 directions is always reported (its centre is not located).
         separation: ``(J,)`` typical distance between each joint's sensors, metres.
         valid, chunk_frames: as for :func:`rotation_ranges`.
+        block_sums: ``(JACKKNIFE_BLOCKS, J, 16)`` the jackknife's per-block sums of the joints
+            when they are at hand (:func:`jackknife_block_sums`); else the jackknife makes its own
+            pass over the data.
     """
     par = np.array([p for p, _ in pairs], dtype=np.int64)
     chi = np.array([c for _, c in pairs], dtype=np.int64)
@@ -282,9 +316,11 @@ def motion_warnings(
     unc = np.full(len(fits), np.inf)  # fewer than 5 directions kept: the centre is not located
     checked = np.flatnonzero(rank >= 5)
     if checked.size:
-        unc[checked] = block_jackknife(
-            R_w_s, p_w_s, par[checked], chi[checked], rank[checked], valid=valid, chunk_frames=chunk_frames
-        )
+        if block_sums is not None:
+            unc[checked] = jackknife_standard_error(block_sums[:, checked], rank[checked])
+        else:
+            args = (par[checked], chi[checked], rank[checked])
+            unc[checked] = block_jackknife(R_w_s, p_w_s, *args, valid=valid, chunk_frames=chunk_frames)
     flagged = [k for k in range(len(fits)) if unc[k] > UNCERTAIN_FRACTION * float(separation[k])]
     if not flagged:
         return []

@@ -24,6 +24,8 @@ noise-free joint stays below about 1e-8 m.
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,7 +41,7 @@ from calibration.hinge import (
     testable_directions,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
-from calibration.pair_sums import PairSums
+from calibration.pair_sums import PairSums, ThirdDifferenceSums
 from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
@@ -60,6 +62,11 @@ class PairStatistics:
         block_gram, block_cross, block_self_cross, block_count: ``(B, ...)`` the same sums over
             each of the ``B`` blocks of :func:`calibration.hinge.block_edges` (for the
             batch-means variance of the single-axis test).
+        jackknife_gram, jackknife_cross, jackknife_self_cross, jackknife_count: ``(K, ...)`` the
+            same sums over each of the ``K`` blocks of :func:`jackknife_edges` (for
+            :func:`calibration.diagnostics.block_jackknife`), when asked for; else ``None``.
+        third_differences: the sums of the third-differenced poses (the misfit hierarchy's
+            noise, :class:`calibration.pair_sums.ThirdDifferenceSums`), when asked for.
     """
 
     gram: np.ndarray
@@ -72,6 +79,11 @@ class PairStatistics:
     block_cross: np.ndarray
     block_self_cross: np.ndarray
     block_count: np.ndarray
+    jackknife_gram: np.ndarray | None = None
+    jackknife_cross: np.ndarray | None = None
+    jackknife_self_cross: np.ndarray | None = None
+    jackknife_count: np.ndarray | None = None
+    third_differences: ThirdDifferenceSums | None = None
 
     @property
     def n_sensors(self) -> int:
@@ -80,7 +92,13 @@ class PairStatistics:
 
 
 def pair_statistics(
-    R_w_s: Any, p_w_s: Any, *, valid: Any = None, chunk_frames: int = CHUNK_FRAMES
+    R_w_s: Any,
+    p_w_s: Any,
+    *,
+    valid: Any = None,
+    chunk_frames: int = CHUNK_FRAMES,
+    jackknife_blocks: int = 0,
+    third_differences: bool = False,
 ) -> PairStatistics:
     """Accumulate the normal equations of every sensor pair in one pass over the data.
 
@@ -96,20 +114,62 @@ def pair_statistics(
         p_w_s: ``(frames, sensors, 3)`` positions in world, metres.
         valid: optional ``(frames, sensors)`` bool mask; non-finite poses are always invalid.
         chunk_frames: frames per chunk (memory is ``O(chunk_frames * sensors)``).
+        jackknife_blocks: also keep the sums over this many blocks of :func:`jackknife_edges`
+            (0: not).
+        third_differences: also sum the third-differenced poses (the misfit hierarchy's noise),
+            in the same pass.
 
     Returns:
         The statistics of all pairs.
     """
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
     edges = block_edges(n_frames)
-    sums = [PairSums(n) for _ in range(len(edges) - 1)]
+    jack = jackknife_edges(n_frames, jackknife_blocks) if jackknife_blocks else edges
+    # one PairSums per piece of the two block divisions together; each block sums its pieces
+    cuts_all = np.union1d(edges, jack)
+    sums = [PairSums(n) for _ in range(max(len(cuts_all) - 1, 1))]
+    d3 = ThirdDifferenceSums(n) if third_differences else None
     buf = np.empty((min(chunk_frames, max(n_frames, 1)), 3, 4 * n))
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
-        cuts = np.clip(edges, frames.start, frames.stop) - frames.start
+        cuts = np.clip(cuts_all, frames.start, frames.stop) - frames.start
         for k in np.flatnonzero(np.diff(cuts) > 0):
             lo, hi = cuts[k], cuts[k + 1]
             sums[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
-    return statistics_of_blocks([acc.result() for acc in sums], n_frames)
+        if d3 is not None:
+            d3.add(R, p, ok)
+    pieces = [acc.result() for acc in sums]
+    stats = statistics_of_blocks(_blocks_of_pieces(pieces, cuts_all, edges), n_frames)
+    extra: dict[str, Any] = {"third_differences": d3}
+    if jackknife_blocks:
+        blocks = _blocks_of_pieces(pieces, cuts_all, jack)
+        gram, cross, self_cross, _, count = (np.stack(x) for x in zip(*blocks, strict=True))
+        extra.update(
+            jackknife_gram=gram, jackknife_cross=cross, jackknife_self_cross=self_cross, jackknife_count=count
+        )
+    return dataclasses.replace(stats, **extra)
+
+
+def jackknife_edges(n_frames: int, n_blocks: int) -> np.ndarray:
+    """``(n_blocks + 1,)`` frame indices cutting ``n_frames`` frames into the contiguous blocks of
+    :func:`calibration.diagnostics.block_jackknife`: frame ``f`` is in block ``f * n_blocks // n_frames``."""
+    k = np.arange(n_blocks + 1, dtype=np.int64)
+    return -(-k * int(n_frames) // n_blocks)
+
+
+def _blocks_of_pieces(
+    pieces: list[tuple[np.ndarray, ...]], cuts: np.ndarray, edges: np.ndarray
+) -> list[tuple[np.ndarray, ...]]:
+    """The sums of the blocks ``edges`` cut, from those of the pieces ``cuts`` cut (every edge
+    is a cut): each block's pieces added in order; an empty block (fewer frames than blocks) is zero."""
+    first = np.searchsorted(cuts, edges)  # the piece each block starts with
+    out = []
+    for lo, hi in itertools.pairwise(first):
+        block = [x.copy() if hi > lo else np.zeros_like(x) for x in pieces[min(lo, len(pieces) - 1)]]
+        for piece in pieces[lo + 1 : hi]:
+            for acc, x in zip(block, piece, strict=True):
+                acc += x
+        out.append(tuple(block))
+    return out
 
 
 def statistics_of_blocks(blocks: list[tuple[np.ndarray, ...]], n_frames: int) -> PairStatistics:
@@ -269,9 +329,18 @@ def _block_scores(
 
 
 def pair_residual_matrix(
-    stats: PairStatistics, *, single_axis_ratio: float = SINGLE_AXIS_RATIO
+    stats: PairStatistics,
+    *,
+    single_axis_ratio: float = SINGLE_AXIS_RATIO,
+    solutions: PairSolutions | None = None,
 ) -> np.ndarray:
     """The rms joint-fit residual of every pair of sensors (O'Brien section 3.3's edge weights).
+
+    Args:
+        stats: from :func:`pair_statistics`.
+        single_axis_ratio: the hard floor of :mod:`calibration.joint`.
+        solutions: the pairs ``numpy.triu_indices(N, k=1)`` already solved (:func:`solve_pairs`
+            with this ``single_axis_ratio``), when at hand.
 
     Returns:
         ``(N, N)`` symmetric, metres; ``inf`` on the diagonal and for pairs with fewer than 3
@@ -279,7 +348,9 @@ def pair_residual_matrix(
     """
     n = stats.n_sensors
     i, j = np.triu_indices(n, k=1)
-    sol = solve_pairs(stats, i, j, single_axis_ratio=single_axis_ratio)
+    sol = solutions
+    if sol is None:
+        sol = solve_pairs(stats, i, j, single_axis_ratio=single_axis_ratio)
     out = np.full((n, n), np.inf)
     out[i, j] = sol.rms_residual
     out[j, i] = sol.rms_residual

@@ -52,7 +52,12 @@ from typing import Any
 
 import numpy as np
 
-from calibration.diagnostics import motion_warnings, outlier_warnings
+from calibration.diagnostics import (
+    JACKKNIFE_BLOCKS,
+    jackknife_block_sums,
+    motion_warnings,
+    outlier_warnings,
+)
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import (
@@ -263,10 +268,14 @@ def calibrate(
         raise CalibrationInputError(
             "robust and correct_rotation_noise cannot be combined: the correction is for least squares"
         )
-    stats, missing = _pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
+    noise_needed = parent_of is None and robust is None and hierarchy_method == "misfit"
+    stats, missing = _pair_statistics(
+        R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=noise_needed
+    )
     t1 = time.perf_counter()
 
-    residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio)
+    every_pair = solve_pairs(stats, *np.triu_indices(n, k=1), single_axis_ratio=single_axis_ratio)
+    residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio, solutions=every_pair)
     if parent_of is not None:
         tree = hierarchy_from_parents(parent_of, names, root=root)
     elif robust is not None:
@@ -278,7 +287,7 @@ def calibrate(
     else:
         weights = residual
         if hierarchy_method == "misfit":
-            noise = _pair_noise_matrix(R_w_s, p_w_s, valid, stats, single_axis_ratio, chunk_frames)
+            noise = _pair_noise_matrix(R_w_s, p_w_s, valid, stats, every_pair, chunk_frames)
             weights = misfit_weights(residual, noise)
         tree = spanning_tree(weights, root=None if root is None else names.index(root), names=names)
     t2 = time.perf_counter()
@@ -381,14 +390,23 @@ def _check_options(
 
 
 def _pair_statistics(
-    R_w_s: Any, p_w_s: Any, *, valid: Any, chunk_frames: int
+    R_w_s: Any, p_w_s: Any, *, valid: Any, chunk_frames: int, third_differences: bool
 ) -> tuple[PairStatistics, np.ndarray]:
-    """The statistics of every pair and the ``(N,)`` frames each sensor's pose is missing in.
+    """The statistics of every pair (with the jackknife's blocks, and the third differences when
+    asked for: all in one pass over the data) and the ``(N,)`` frames each sensor's pose is
+    missing in.
 
     Raises:
         CalibrationError: no pair of sensors shares :data:`MIN_FRAMES` valid frames.
     """
-    stats = pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
+    stats = pair_statistics(
+        R_w_s,
+        p_w_s,
+        valid=valid,
+        chunk_frames=chunk_frames,
+        jackknife_blocks=JACKKNIFE_BLOCKS,
+        third_differences=third_differences,
+    )
     per_sensor = np.diagonal(stats.count)
     missing = stats.n_frames - per_sensor.astype(np.int64)
     if np.max(stats.count - np.diag(per_sensor)) < MIN_FRAMES:
@@ -400,16 +418,19 @@ def _pair_statistics(
 
 
 def _pair_noise_matrix(  # positional: one private caller
-    R_w_s: Any, p_w_s: Any, valid: Any, stats: PairStatistics, single_axis_ratio: float, chunk_frames: int
+    R_w_s: Any, p_w_s: Any, valid: Any, stats: PairStatistics, every_pair: PairSolutions, chunk_frames: int
 ) -> np.ndarray:
     """``(N, N)`` noise variance of every pair's residual (:mod:`calibration.pair_noise`), square
-    metres: each pair's joint solved from the statistics, then one more pass over the data."""
+    metres, at each pair's joint solved from the statistics (``every_pair``: the pairs of
+    ``numpy.triu_indices(N, k=1)``): a quadratic form in the joint from the statistics' third
+    differences when they were kept, else one more pass over the data."""
     n = stats.n_sensors
-    i, j = np.triu_indices(n, k=1)
-    sol = solve_pairs(stats, i, j, single_axis_ratio=single_axis_ratio)
-    nu = pair_noise_variance(
-        R_w_s, p_w_s, i, j, sol.joint_in_parent, sol.joint_in_child, valid=valid, chunk_frames=chunk_frames
-    )
+    i, j = every_pair.parent, every_pair.child
+    lp, lc = every_pair.joint_in_parent, every_pair.joint_in_child
+    if stats.third_differences is not None:
+        nu = stats.third_differences.noise_variance(i, j, lp, lc)
+    else:
+        nu = pair_noise_variance(R_w_s, p_w_s, i, j, lp, lc, valid=valid, chunk_frames=chunk_frames)
     out = np.zeros((n, n))
     out[i, j] = nu
     out[j, i] = nu
@@ -688,7 +709,17 @@ def _diagnostic_warnings(  # positional: one private caller
     sq = np.array([stats.sq_dist[p, c] for p, c in pairs], dtype=float)
     separation = np.sqrt(sq / np.maximum(count, 1.0))
     fits = [j.fit for j in joints]
+    par, chi = (np.array([x[k] for x in pairs], dtype=np.int64) for k in (0, 1))
+    block_sums = None if stats.jackknife_count is None else jackknife_block_sums(stats, par, chi)
     warnings = motion_warnings(
-        R_w_s, p_w_s, names, pairs, fits, separation, valid=valid, chunk_frames=chunk_frames
+        R_w_s,
+        p_w_s,
+        names,
+        pairs,
+        fits,
+        separation,
+        valid=valid,
+        chunk_frames=chunk_frames,
+        block_sums=block_sums,
     )
     return warnings + outlier_warnings(names, pairs, np.array([f.rms_residual for f in fits]), separation)
