@@ -6,6 +6,8 @@ layout of the sums and the centring of positions are described in :mod:`calibrat
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
@@ -28,6 +30,25 @@ def _rows_by_world_axis(R: np.ndarray, out: np.ndarray) -> None:
     np.copyto(dst, src.transpose(0, 2, 1))
 
 
+@functools.cache
+def _mean_of_sensors(n: int) -> np.ndarray:
+    """``(3 n, 3)``: a frame's flattened positions times it is their mean over the sensors."""
+    out = np.kron(np.ones((n, 1)) / n, np.eye(3))
+    out.flags.writeable = False
+    return out
+
+
+def lay_out(R: np.ndarray, p: np.ndarray, XP: np.ndarray) -> np.ndarray:
+    """``[X | P]`` of ``c`` frames with every pose valid, into ``XP`` ``(c, 3, 4 n)`` (returned):
+    for each frame and world axis ``a``, row ``a`` of every sensor's rotation, then every sensor's
+    position component ``a`` less the sensors' mean (the centring of :mod:`calibration.pairs`)."""
+    c, n = R.shape[:2]
+    _rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
+    centre = p.reshape(c, 3 * n) @ _mean_of_sensors(n)  # (c, 3) mean sensor position
+    np.subtract(p.transpose(0, 2, 1), centre[:, :, None], out=XP[:, :, 3 * n :])
+    return XP
+
+
 class PairSums:
     """Running sums of the pair statistics over some frames (one block of
     :func:`calibration.pairs.pair_statistics`)."""
@@ -43,20 +64,15 @@ class PairSums:
         self.dot = np.zeros((n, n))
         self.weighted_sq = np.zeros((n, n))
         self.count = np.zeros((n, n))
-        self.mean_of_sensors = np.kron(np.ones((n, 1)) / n, np.eye(3))  # (3n, 3)
 
     def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, XP: np.ndarray) -> None:
         """Add ``c`` frames (``R`` ``(c, n, 3, 3)``, ``p`` ``(c, n, 3)``, ``ok`` ``(c, n)``);
         ``XP`` is a ``(c, 3, 4 n)`` scratch buffer."""
         n, c = self.n, R.shape[0]
-        _rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
         if ok.all():
-            centre = p.reshape(c, 3 * n) @ self.mean_of_sensors  # (c, 3) mean sensor position
-            np.subtract(p.transpose(0, 2, 1), centre[:, :, None], out=XP[:, :, 3 * n :])
-            flat = XP.reshape(3 * c, 4 * n)
-            self.full += flat.T @ flat
-            self.n_full += c
+            self.add_laid_out(lay_out(R, p, XP))
             return
+        _rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
         w = ok.astype(float)
         centre = p.sum(axis=1) / np.maximum(w.sum(axis=1), 1.0)[:, None]
         pc = (p - centre[:, None, :]) * w[:, :, None]
@@ -69,6 +85,12 @@ class PairSums:
         self.dot += P.T @ P
         self.weighted_sq += w.T @ np.einsum("fia,fia->fi", pc, pc)
         self.count += w.T @ w
+
+    def add_laid_out(self, XP: np.ndarray) -> None:
+        """Add ``c`` frames with every pose valid, laid out by :func:`lay_out` (``(c, 3, 4 n)``)."""
+        flat = XP.reshape(-1, 4 * self.n)
+        self.full += flat.T @ flat
+        self.n_full += XP.shape[0]
 
     def merge(self, other: PairSums) -> PairSums:
         """Add the sums of ``other`` (frames of a neighbouring block) to these; returns ``self``."""
@@ -136,9 +158,11 @@ class ThirdDifferenceSums:
         self.self_gram = np.zeros((n, n, 9))  # [i, j] sum w_i w_j D3R_i^T D3R_i (chunks with gaps)
         self.carry: tuple[np.ndarray, ...] | None = None  # the last 3 frames added
 
-    def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
+    def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, laid_out: np.ndarray | None = None) -> None:
         """Add the next ``c`` frames (``R`` ``(c, n, 3, 3)``, ``p`` ``(c, n, 3)``, ``ok`` ``(c, n)``,
-        invalid poses zeroed)."""
+        invalid poses zeroed). ``laid_out``: the frames' ``[X | P]`` (:func:`lay_out`) when every
+        pose is valid and the caller has it; their third differences are then taken of it (the
+        layout is linear and the centring a shift per frame, which third differences keep)."""
         chunk = (R, p, ok)
         if self.carry is not None:
             # the third differences that straddle the previous chunk: its last 3 frames, our first 3
@@ -147,7 +171,10 @@ class ThirdDifferenceSums:
             self.carry = tuple(b[-3:].copy() for b in chunk)
         else:
             self.carry = tuple(np.concatenate([a, b])[-3:] for a, b in zip(self.carry, chunk, strict=True))
-        self._add(R, p, ok)
+        if laid_out is None:
+            self._add(R, p, ok)
+        elif laid_out.shape[0] > 3:
+            self.sums.add_laid_out(third_difference(laid_out, np.empty_like(laid_out[3:])))
 
     def _add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
         c = R.shape[0] - 3

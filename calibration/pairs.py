@@ -41,7 +41,7 @@ from calibration.hinge import (
     testable_directions,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
-from calibration.pair_sums import PairSums, ThirdDifferenceSums
+from calibration.pair_sums import PairSums, ThirdDifferenceSums, lay_out
 from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
@@ -132,16 +132,23 @@ def pair_statistics(
     buf = np.empty((min(chunk_frames, max(n_frames, 1)), 3, 4 * n))
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         cuts = np.clip(cuts_all, frames.start, frames.stop) - frames.start
-        for k in np.flatnonzero(np.diff(cuts) > 0):
-            lo, hi = cuts[k], cuts[k + 1]
+        pieces = [(k, cuts[k], cuts[k + 1]) for k in np.flatnonzero(np.diff(cuts) > 0)]
+        if ok.all():  # laid out once for all pieces and the third differences
+            XP = lay_out(R, p, buf[: R.shape[0]])
+            for k, lo, hi in pieces:
+                sums[k].add_laid_out(XP[lo:hi])
+            if d3 is not None:
+                d3.add(R, p, ok, laid_out=XP)
+            continue
+        for k, lo, hi in pieces:
             sums[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
         if d3 is not None:
             d3.add(R, p, ok)
-    pieces = [acc.result() for acc in sums]
-    stats = statistics_of_blocks(_blocks_of_pieces(pieces, cuts_all, edges), n_frames)
+    results = [acc.result() for acc in sums]
+    stats = statistics_of_blocks(_blocks_of_pieces(results, cuts_all, edges), n_frames)
     extra: dict[str, Any] = {"third_differences": d3}
     if jackknife_blocks:
-        blocks = _blocks_of_pieces(pieces, cuts_all, jack)
+        blocks = _blocks_of_pieces(results, cuts_all, jack)
         gram, cross, self_cross, _, count = (np.stack(x) for x in zip(*blocks, strict=True))
         extra.update(
             jackknife_gram=gram, jackknife_cross=cross, jackknife_self_cross=self_cross, jackknife_count=count
