@@ -15,7 +15,7 @@ from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 _ROW = np.dtype((np.void, 24))  # one row of a 3x3 float64 matrix, moved as a unit
 
 
-def _rows_by_world_axis(R: np.ndarray, out: np.ndarray) -> None:
+def rows_by_world_axis(R: np.ndarray, out: np.ndarray) -> None:
     """Copy ``R[f, i, a, :]`` to ``out[f, a, i, :]`` (``(c, n, 3, 3) -> (c, 3, n, 3)``).
 
     Moving each 24-byte matrix row as one item is about twice as fast as numpy's element-wise
@@ -43,7 +43,7 @@ def lay_out(R: np.ndarray, p: np.ndarray, XP: np.ndarray) -> np.ndarray:
     for each frame and world axis ``a``, row ``a`` of every sensor's rotation, then every sensor's
     position component ``a`` less the sensors' mean (the centring of :mod:`calibration.pairs`)."""
     c, n = R.shape[:2]
-    _rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
+    rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
     centre = p.reshape(c, 3 * n) @ _mean_of_sensors(n)  # (c, 3) mean sensor position
     np.subtract(p.transpose(0, 2, 1), centre[:, :, None], out=XP[:, :, 3 * n :])
     return XP
@@ -72,7 +72,7 @@ class PairSums:
         if ok.all():
             self.add_laid_out(lay_out(R, p, XP))
             return
-        _rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
+        rows_by_world_axis(R, XP[:, :, : 3 * n].reshape(c, 3, n, 3))
         w = ok.astype(float)
         centre = p.sum(axis=1) / np.maximum(w.sum(axis=1), 1.0)[:, None]
         pc = (p - centre[:, None, :]) * w[:, :, None]

@@ -41,7 +41,7 @@ from calibration.hinge import (
     testable_directions,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
-from calibration.pair_sums import PairSums, ThirdDifferenceSums, lay_out
+from calibration.pair_sums import PairSums, ThirdDifferenceSums, lay_out, rows_by_world_axis
 from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
@@ -369,9 +369,12 @@ def residual_operators(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The two matrices that give the residual vectors of ``J`` joints from a chunk of poses.
 
-    With ``R`` the ``(c, N, 3, 3)`` rotations and ``p`` the ``(c, N, 3)`` positions of ``c``
-    frames, ``R.reshape(c, 9 N) @ rot + p.reshape(c, 3 N) @ pos`` is ``(c, 3 J)``: for each joint
-    ``k`` the residual ``R_p l_p + p_p - R_c l_c - p_c`` (O'Brien eq. 8) in columns ``3k..3k+2``.
+    With the ``c`` frames' rotations laid out by world axis, ``X[f, a, (s, b)] = R[f, s, a, b]``
+    (``(3 c, 3 N)``, as :func:`calibration.pair_sums.lay_out` lays them out) and the positions
+    likewise, ``P[f, a, s] = p[f, s, a]`` (``(3 c, N)``), ``X @ rot + P @ pos`` is ``(3 c, J)``: row
+    ``(f, a)`` holds component ``a`` of each joint's residual ``R_p l_p + p_p - R_c l_c - p_c``
+    (O'Brien eq. 8). Each column of ``rot`` has only the two centres of its joint, so this costs
+    a third of a product with the flattened ``(c, 9 N)`` rotations.
 
     Args:
         n: number of sensors ``N``.
@@ -379,20 +382,19 @@ def residual_operators(
         joint_in_parent, joint_in_child: ``(J, 3)`` joint centres in each sensor frame, metres.
 
     Returns:
-        ``rot`` ``(9 N, 3 J)`` (lengths) and ``pos`` ``(3 N, 3 J)`` (+1 / -1 selections).
+        ``rot`` ``(3 N, J)`` (lengths) and ``pos`` ``(N, J)`` (+1 / -1 selections).
     """
     lp = np.asarray(joint_in_parent, dtype=float).reshape(-1, 3)
     lc = np.asarray(joint_in_child, dtype=float).reshape(-1, 3)
-    n_joints = len(parent)
-    rot = np.zeros((n, 3, 3, n_joints, 3))  # [sensor, a, b, joint, a']: R[a, b] l[b] into row a
-    pos = np.zeros((n, 3, n_joints, 3))  # +1 / -1 selection of the two sensors' positions
-    for k in range(n_joints):
-        for a in range(3):
-            rot[parent[k], a, :, k, a] += lp[k]
-            rot[child[k], a, :, k, a] -= lc[k]
-            pos[parent[k], a, k, a] += 1.0
-            pos[child[k], a, k, a] -= 1.0
-    return rot.reshape(9 * n, 3 * n_joints), pos.reshape(3 * n, 3 * n_joints)
+    parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
+    joints = np.arange(parent.size)
+    rot = np.zeros((n, 3, parent.size))  # [sensor, b, joint]
+    pos = np.zeros((n, parent.size))
+    np.add.at(rot, (parent, slice(None), joints), lp)
+    np.add.at(rot, (child, slice(None), joints), -lc)
+    np.add.at(pos, (parent, joints), 1.0)
+    np.add.at(pos, (child, joints), -1.0)
+    return rot.reshape(3 * n, parent.size), pos
 
 
 def frame_residuals(
@@ -409,9 +411,10 @@ def frame_residuals(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Exact residual norms of given joints, computed from the data chunk by chunk.
 
-    The residual vectors of all joints are two matrix products per chunk: the flattened
-    rotations ``(chunk, 9 N)`` times a matrix holding each joint's ``+joint_in_parent`` and
-    ``-joint_in_child``, plus the positions ``(chunk, 3 N)`` times a +1/-1 selection.
+    The residual vectors of all joints are two matrix products per chunk: the rotations laid out
+    by world axis ``(3 chunk, 3 N)`` times a matrix holding each joint's ``+joint_in_parent`` and
+    ``-joint_in_child``, plus the positions ``(3 chunk, N)`` times a +1/-1 selection
+    (:func:`residual_operators`).
 
     Args:
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
@@ -432,16 +435,18 @@ def frame_residuals(
     child = np.asarray(child, dtype=np.int64)
     n_joints = parent.shape[0]
     rot, pos = residual_operators(n, parent, child, joint_in_parent, joint_in_child)
-    sum_xyz = np.kron(np.eye(n_joints), np.ones((3, 1)))  # (3J, J): adds each joint's x, y, z
     total = np.zeros(n_joints)
     used = np.zeros(n_joints)
     # joint-major, so that each joint's series is one contiguous row (calibrate hands out views)
     per_frame = np.full((n_joints, n_frames), np.nan) if keep_frames else None
+    X = np.empty((min(chunk_frames, max(n_frames, 1)), 3, n, 3))
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         c = R.shape[0]
-        r = R.reshape(c, 9 * n) @ rot
-        r += p.reshape(c, 3 * n) @ pos
-        sq = np.square(r, out=r) @ sum_xyz  # (c, J) squared norms
+        rows_by_world_axis(R, X[:c])
+        r = X[:c].reshape(3 * c, 3 * n) @ rot
+        r += p.transpose(0, 2, 1).reshape(3 * c, n) @ pos
+        r = r.reshape(c, 3, n_joints)
+        sq = np.einsum("faj,faj->fj", r, r)  # (c, J) squared norms
         both = ok[:, parent] & ok[:, child]
         if both.all():
             total += sq.sum(axis=0)
