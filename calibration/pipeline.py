@@ -39,7 +39,8 @@ All three hold each joint's pair of sensors in memory (``frames x 24`` floats) a
 inferred hierarchy, all the poses.
 
 Memory is bounded by the chunk size (plus ``frames x joints`` floats when per-frame residuals
-are kept), so the input may be an h5py dataset or a memory map larger than memory.
+are kept), so the input may be an h5py dataset or a memory map larger than memory; by default
+the per-frame residuals of such an input are kept only up to :data:`FRAME_RESIDUAL_BYTES`.
 """
 
 from __future__ import annotations
@@ -97,6 +98,17 @@ from calibration.uncertainty import (
     joint_covariance,
     segment_length_uncertainty,
 )
+
+#: By default, per-frame residuals of poses that are out of core (an h5py dataset, a memory map)
+#: are kept only up to this many bytes (8 million residuals: a million frames of 8 joints).
+FRAME_RESIDUAL_BYTES = 64 << 20
+
+
+def default_keep_frame_residuals(R_w_s: Any, n_frames: int, n_joints: int) -> bool:
+    """Whether ``calibrate`` keeps per-frame residuals when not told (``keep_frame_residuals``):
+    always for in-memory arrays, for out-of-core poses up to :data:`FRAME_RESIDUAL_BYTES`."""
+    in_memory = isinstance(R_w_s, np.ndarray) and not isinstance(R_w_s, np.memmap)
+    return in_memory or 8 * n_frames * n_joints <= FRAME_RESIDUAL_BYTES
 
 
 @dataclass(frozen=True)
@@ -212,7 +224,7 @@ def calibrate(
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
     loop_factor: float = LOOP_FACTOR,
     chunk_frames: int = CHUNK_FRAMES,
-    keep_frame_residuals: bool = True,
+    keep_frame_residuals: bool | None = None,
     robust: str | None = None,
     intervals: bool = False,
     correct_rotation_noise: bool = False,
@@ -238,8 +250,13 @@ def calibrate(
         chunk_frames: frames per chunk.
         keep_frame_residuals: compute each joint's per-frame residual exactly in a second pass
             over the data and keep it (``frames x joints`` floats). When False there is no
-            second pass and the rms residual comes from the normal equations (within about
-            1e-8 m of the exact value, see :mod:`calibration.pairs`).
+            second pass: the rms residual comes from the normal equations, or for a joint at
+            their rounding floor (noise-free data) from a pass over its two sensors; either way
+            within 1e-9 m of the exact value (:func:`calibration.pairs.rms_needs_data`). ``None``
+            (the default): kept, unless the poses are out of core (not in-memory arrays: an h5py
+            dataset, a memory map) and the residuals would take more than
+            :data:`FRAME_RESIDUAL_BYTES`, so that a large file is calibrated in memory that does
+            not grow with its length.
         robust: ``"tukey"`` or ``"huber"`` (:data:`calibration.robust.LOSSES`) to fit the joints by
             IRLS and infer the hierarchy from robust pair misfits (module docstring); ``None``
             (the default) for least squares.
@@ -258,6 +275,8 @@ def calibrate(
     t0 = time.perf_counter()
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
     names = checked_names(names, n)
+    if keep_frame_residuals is None:
+        keep_frame_residuals = default_keep_frame_residuals(R_w_s, n_frames, n - 1)
     _check_options(names, n_frames, single_axis_ratio=single_axis_ratio, root=root)
     if hierarchy_method not in HIERARCHY_METHODS:
         raise CalibrationInputError(

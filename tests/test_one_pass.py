@@ -117,3 +117,29 @@ def _tree_arrays_of(cal):
     lp = np.array([j.fit.joint_in_parent for j in cal.joints])
     lc = np.array([j.fit.joint_in_child for j in cal.joints])
     return par, chi, lp, lc
+
+
+def test_large_out_of_core_input_keeps_no_frame_residuals_by_default(tmp_path, monkeypatch):
+    """The default on an h5py dataset: per-frame residuals up to FRAME_RESIDUAL_BYTES, beyond it
+    none (memory that does not grow with the frames), with the same joints and rms."""
+    import h5py
+
+    from calibration import pipeline
+
+    _, cap = _capture(0.004, n=5, n_frames=1500)
+    path = tmp_path / "poses.h5"
+    with h5py.File(path, "w") as fh:
+        fh["R"], fh["p"] = cap.R_w_s, cap.p_w_s
+    memory = calibrate(cap.R_w_s, cap.p_w_s, cap.names)
+    with h5py.File(path, "r") as fh:
+        small = calibrate(fh["R"], fh["p"], cap.names)
+        monkeypatch.setattr(pipeline, "FRAME_RESIDUAL_BYTES", 8 * 1500 * 4 - 1)
+        large = calibrate(fh["R"], fh["p"], cap.names)
+        in_memory_still = calibrate(cap.R_w_s, cap.p_w_s, cap.names)
+    assert all(j.fit.frame_residual is not None for j in small.joints + in_memory_still.joints)
+    assert all(j.fit.frame_residual is None for j in large.joints)
+    assert large.parent_of == memory.parent_of
+    assert large.warnings == memory.warnings
+    for a, b in zip(memory.joints, large.joints, strict=True):
+        assert_allclose(b.fit.joint_in_parent, a.fit.joint_in_parent, rtol=0, atol=1e-12)
+        assert b.fit.rms_residual == pytest.approx(a.fit.rms_residual, rel=0, abs=1e-9)
