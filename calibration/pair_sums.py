@@ -130,6 +130,43 @@ class PairSums:
         )
 
 
+def block_results(sums: list[PairSums], first: np.ndarray) -> tuple[np.ndarray, ...]:
+    """:meth:`PairSums.result` of blocks of consecutive pieces, each ``(B, ...)``: block ``b`` is
+    ``sums[first[b]:first[b + 1]]`` merged (none: zero), all blocks computed at once."""
+    n = sums[0].n
+    first = np.asarray(first, dtype=np.int64)
+    empty = first[1:] == first[:-1]
+
+    def blocks(x: np.ndarray) -> np.ndarray:  # (K, ...) per piece -> (B, ...) per block
+        out = np.add.reduceat(np.concatenate([x, np.zeros_like(x[:1])]), first[:-1], axis=0)
+        out[empty] = 0.0
+        return out
+
+    full = blocks(np.stack([s.full for s in sums]))
+    n_full = blocks(np.array([float(s.n_full) for s in sums]))
+    gram, cross, weighted_self, dot, weighted_sq, count = (
+        blocks(np.stack([getattr(s, name) for s in sums]))
+        for name in ("gram", "cross", "weighted_self", "dot", "weighted_sq", "count")
+    )
+    fx = full[:, : 3 * n, 3 * n :]
+    gram += full[:, : 3 * n, : 3 * n]
+    cross += fx
+    own = np.einsum("kiai->kia", fx.reshape(-1, n, 3, n))  # (B, n, 3): sum R_i^T p_i
+    weighted_self += own.reshape(-1, 1, 3 * n)
+    fp = full[:, 3 * n :, 3 * n :]
+    dot += fp
+    weighted_sq += np.diagonal(fp, axis1=1, axis2=2)[:, None, :]
+    count += n_full[:, None, None]
+    sq_i = weighted_sq.transpose(0, 2, 1)  # [i, j] = sum w_i w_j |p_i|^2
+    return (
+        gram.reshape(-1, n, 3, n, 3).transpose(0, 1, 3, 2, 4),
+        cross.reshape(-1, n, 3, n).transpose(0, 1, 3, 2),
+        weighted_self.reshape(-1, n, n, 3).transpose(0, 2, 1, 3),
+        sq_i + weighted_sq - 2.0 * dot,
+        np.rint(count).astype(np.int64),
+    )
+
+
 def third_difference(x: np.ndarray, out: np.ndarray) -> np.ndarray:
     """``out[f] = x[f+3] - 3 x[f+2] + 3 x[f+1] - x[f]`` along the first axis (``len(x) - 3`` rows),
     as :func:`numpy.diff` with ``n=3`` gives it, without its intermediate arrays."""

@@ -25,7 +25,6 @@ noise-free joint stays below about 1e-8 m.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,7 +40,7 @@ from calibration.hinge import (
     testable_directions,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
-from calibration.pair_sums import PairSums, ThirdDifferenceSums, lay_out, rows_by_world_axis
+from calibration.pair_sums import PairSums, ThirdDifferenceSums, block_results, lay_out, rows_by_world_axis
 from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
@@ -144,12 +143,10 @@ def pair_statistics(
             sums[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
         if d3 is not None:
             d3.add(R, p, ok)
-    results = [acc.result() for acc in sums]
-    stats = statistics_of_blocks(_blocks_of_pieces(results, cuts_all, edges), n_frames)
+    stats = _statistics_of_stacked(block_results(sums, np.searchsorted(cuts_all, edges)), n_frames)
     extra: dict[str, Any] = {"third_differences": d3}
     if jackknife_blocks:
-        blocks = _blocks_of_pieces(results, cuts_all, jack)
-        gram, cross, self_cross, _, count = (np.stack(x) for x in zip(*blocks, strict=True))
+        gram, cross, self_cross, _, count = block_results(sums, np.searchsorted(cuts_all, jack))
         extra.update(
             jackknife_gram=gram, jackknife_cross=cross, jackknife_self_cross=self_cross, jackknife_count=count
         )
@@ -163,27 +160,17 @@ def jackknife_edges(n_frames: int, n_blocks: int) -> np.ndarray:
     return -(-k * int(n_frames) // n_blocks)
 
 
-def _blocks_of_pieces(
-    pieces: list[tuple[np.ndarray, ...]], cuts: np.ndarray, edges: np.ndarray
-) -> list[tuple[np.ndarray, ...]]:
-    """The sums of the blocks ``edges`` cut, from those of the pieces ``cuts`` cut (every edge
-    is a cut): each block's pieces added in order; an empty block (fewer frames than blocks) is zero."""
-    first = np.searchsorted(cuts, edges)  # the piece each block starts with
-    out = []
-    for lo, hi in itertools.pairwise(first):
-        block = [x.copy() if hi > lo else np.zeros_like(x) for x in pieces[min(lo, len(pieces) - 1)]]
-        for piece in pieces[lo + 1 : hi]:
-            for acc, x in zip(block, piece, strict=True):
-                acc += x
-        out.append(tuple(block))
-    return out
-
-
 def statistics_of_blocks(blocks: list[tuple[np.ndarray, ...]], n_frames: int) -> PairStatistics:
     """The pair statistics of consecutive blocks of frames, from each block's
     :meth:`calibration.pair_sums.PairSums.result` ``(gram, cross, self_cross, sq_dist, count)``
     (shared with :mod:`calibration.streaming`); ``n_frames`` frames in all."""
-    gram, cross, self_cross, sq_dist, count = (np.stack(x) for x in zip(*blocks, strict=True))
+    stacked = tuple(np.stack(x) for x in zip(*blocks, strict=True))
+    return _statistics_of_stacked(stacked, n_frames)
+
+
+def _statistics_of_stacked(blocks: tuple[np.ndarray, ...], n_frames: int) -> PairStatistics:
+    """:func:`statistics_of_blocks` from the blocks' sums stacked, each ``(B, ...)``."""
+    gram, cross, self_cross, sq_dist, count = blocks
     return PairStatistics(
         gram=gram.sum(axis=0),
         cross=cross.sum(axis=0),
