@@ -17,9 +17,10 @@ weights, so each pair uses exactly the frames where both of its sensors are vali
 difference of large numbers. Two guards keep it honest: positions are centred per frame on the
 mean of the valid sensors before any product (``b`` is unchanged by a common shift, and the
 sums then scale with the body's size, not with where it stands in the room), and the joints the
-calibration keeps get their residual recomputed exactly from the data
-(:func:`frame_residuals`). Measured against the per-pair SVD, the normal-equation residual of a
-noise-free joint stays below about 1e-8 m.
+calibration keeps get their residual recomputed exactly from the data (:func:`frame_residuals`)
+wherever the normal equations' rounding bound could exceed 1e-9 of the sensors' distance
+(:func:`rms_needs_data`: in practice only noise-free joints). Measured against the per-pair SVD,
+the normal-equation residual of a noise-free joint stays below about 1e-8 m.
 """
 
 from __future__ import annotations

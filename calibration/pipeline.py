@@ -3,14 +3,18 @@
 Steps (O'Brien et al. 2000):
 
 1. one pass over the data accumulates the normal equations of every sensor pair
-   (:func:`calibration.pairs.pair_statistics`);
+   (:func:`calibration.pairs.pair_statistics`), with what the misfit tree's noise
+   (:class:`calibration.pair_sums.ThirdDifferenceSums`) and the jackknife of the motion warnings
+   (:func:`calibration.diagnostics.jackknife_block_sums`) need: no other pass over the data
+   unless per-frame residuals are kept;
 2. every pair's joint fit and residual follow from those (section 3.1);
 3. the hierarchy is the minimum spanning tree of the pairs' misfits (residuals less their noise,
    :mod:`calibration.hierarchy`; ``hierarchy_method="mst"``: of the residuals, as in section 3.3),
    unless one is given;
 4. the tree's joints are solved with single-axis detection (3.2), and their residuals are
    recomputed exactly from the data in a second pass (unless per-frame residuals are not
-   wanted);
+   wanted: the rms then comes from the normal equations where their rounding allows,
+   :func:`calibration.pairs.rms_needs_data`);
 5. limb lengths and sensor offsets follow from the joint locations.
 
 Two options leave the default path untouched (neither runs unless asked for):

@@ -24,10 +24,11 @@ Memory does not grow with the session: the statistics are ``O(N_BLOCKS * sensors
 monitor keeps :data:`SLIP_HISTORY_S` seconds of its statistic per joint, and frames are held
 only until the next flush (:data:`FLUSH_S`).
 
-**Residuals.** The rms residuals come from the normal equations (the batch's
-``keep_frame_residuals=False``); the batch's default recomputes them from the data in a second
-pass, which a stream cannot make. Both agree to 1e-9 m unless the residual itself is at the
-rounding floor of the normal equations (about 1e-8 m on noise-free data, :mod:`calibration.pairs`).
+**Residuals.** The rms residuals come from the normal equations (as the batch's
+``keep_frame_residuals=False`` takes them for noisy joints); the batch's default recomputes them
+from the data in a second pass, which a stream cannot make. Both agree to 1e-9 m unless the
+residual itself is at the rounding floor of the normal equations (about 1e-8 m on noise-free data,
+:mod:`calibration.pairs`).
 
 **Slip alerts** (:class:`SlipAlert`) are the detector of :mod:`calibration.slip` made causal: per
 joint of the current tree, the residual (with the joint as fitted so far) in the parent's and in
