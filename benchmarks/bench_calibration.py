@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/bench_calibration.py            # the in-memory cases, ~1 min
     .venv/bin/python benchmarks/bench_calibration.py --large    # also 1,000,000 x 32 from HDF5
     .venv/bin/python benchmarks/bench_calibration.py --save     # write benchmarks/results/calibration.json
+    .venv/bin/python benchmarks/bench_calibration.py --blas-threads 1  # one BLAS thread (a busy machine)
 
 **In memory** (issue 19's table): 16 sensors x 5,400 frames (45 s at 120 Hz), 32 x 5,400 and
 4 x 50,000, hierarchy unknown. Each case times the default :func:`calibration.calibrate` against
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import subprocess
 import sys
@@ -230,12 +232,26 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=7, help="interleaved rounds per case (at least 5)")
     parser.add_argument("--save", action="store_true", help="write benchmarks/results/calibration.json")
     parser.add_argument("--only", type=int, nargs="*", help="indices of the in-memory cases to run (0-2)")
+    parser.add_argument(
+        "--blas-threads",
+        type=int,
+        help="limit BLAS to this many threads (threadpoolctl; the children of --large too); results "
+        "are saved to calibration_blas<N>.json",
+    )
     args = parser.parse_args()
     repeats = max(args.repeats, 5)
+    if args.blas_threads is not None:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(args.blas_threads)
+        os.environ["OPENBLAS_NUM_THREADS"] = os.environ["OMP_NUM_THREADS"] = str(args.blas_threads)
     out = {
         "python": platform.python_version(),
         "numpy": np.__version__,
         "machine": platform.machine(),
+        "cpus": os.cpu_count(),
+        "load_average_at_start": os.getloadavg(),
+        "blas_threads": args.blas_threads or "default",
         "timing": f"median of {repeats} interleaved rounds (calibrate, loop, ...) in one process",
         "cases": [],
     }
@@ -277,9 +293,12 @@ def main() -> None:
             f"  calibrate / read {big['calibrate_over_read']:.1f} x (target <= 2), "
             "stages: " + ", ".join(f"{k} {v:.2f} s" for k, v in big["calibrate_stages_s"].items())
         )
+    out["load_average_at_end"] = os.getloadavg()
     if args.save:
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "calibration.json").write_text(json.dumps(out, indent=2) + "\n")
+        suffix = "" if args.blas_threads is None else f"_blas{args.blas_threads}"
+        name = f"calibration{suffix}.json"
+        (RESULTS / name).write_text(json.dumps(out, indent=2) + "\n")
 
 
 if __name__ == "__main__":

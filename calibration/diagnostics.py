@@ -165,19 +165,32 @@ def jackknife_standard_error(blocks: np.ndarray, rank: np.ndarray) -> np.ndarray
     atb = np.concatenate([blocks[..., 10:13], -blocks[..., 13:16]], axis=-1)
     full_ata, full_atb = ata.sum(axis=0), atb.sum(axis=0)
     out = np.full(n_j, np.nan)
-    for k in range(n_j):
-        _, vecs = np.linalg.eigh(full_ata[k])
-        keep = vecs[:, ::-1][:, : int(rank[k])]  # the strongest directions of the full fit
-        m = keep.T @ (full_ata[k] - ata[:, k]) @ keep  # (blocks, r, r): each block left out
-        v = (full_atb[k] - atb[:, k]) @ keep  # (blocks, r)
+    rank = np.asarray(rank, dtype=np.int64)
+    _, vecs = np.linalg.eigh(full_ata)
+    for r in np.unique(rank):  # the joints of one rank together
+        js = np.flatnonzero(rank == r)
+        keep = vecs[js][:, :, ::-1][:, :, :r]  # (j, 6, r) the strongest directions of each full fit
+        left = full_ata[js] - ata[:, js]  # (blocks, j, 6, 6): each block left out
+        m = np.swapaxes(keep, -1, -2) @ left @ keep  # (blocks, j, r, r)
+        v = ((full_atb[js] - atb[:, js])[..., None, :] @ keep)[..., 0, :]  # (blocks, j, r)
         try:
-            x = np.linalg.solve(m, v[..., None])[..., 0] @ keep.T
-        except np.linalg.LinAlgError:  # a block whose removal leaves a direction unseen
-            x = np.array([keep @ np.linalg.lstsq(m[b], v[b], rcond=None)[0] for b in range(n_blocks)])
+            x = np.linalg.solve(m, v[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # one joint at a time, as the batch failed
+            x = np.stack([_left_out_fits(m[:, q], v[:, q]) for q in range(js.size)], axis=1)
+        x = (x[..., None, :] @ np.swapaxes(keep, -1, -2))[..., 0, :]  # (blocks, j, 6)
         dev = x - x.mean(axis=0)
-        var = (n_blocks - 1) / n_blocks * np.sum(dev**2, axis=0)  # jackknife variance per coordinate
-        out[k] = float(np.sqrt(max(var[:3].sum(), var[3:].sum())))
+        var = (n_blocks - 1) / n_blocks * np.sum(dev**2, axis=0)  # (j, 6) jackknife variance per coordinate
+        out[js] = np.sqrt(np.maximum(var[:, :3].sum(axis=1), var[:, 3:].sum(axis=1)))
     return out
+
+
+def _left_out_fits(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(blocks, r)`` one joint's fits with each block left out, from ``m`` ``(blocks, r, r)`` and
+    ``v`` ``(blocks, r)``; least squares where a block's removal leaves a direction unseen."""
+    try:
+        return np.linalg.solve(m, v[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.array([np.linalg.lstsq(m[b], v[b], rcond=None)[0] for b in range(m.shape[0])])
 
 
 def rotation_ranges(
