@@ -195,6 +195,7 @@ class ThirdDifferenceSums:
         self.sums = PairSums(n)
         self.self_gram = np.zeros((n, n, 9))  # [i, j] sum w_i w_j D3R_i^T D3R_i (chunks with gaps)
         self.carry: tuple[np.ndarray, ...] | None = None  # the last 3 frames added
+        self.carry_laid: np.ndarray | None = None  # and laid out, when the last chunk was
 
     def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, laid_out: np.ndarray | None = None) -> None:
         """Add the next ``c`` frames (``R`` ``(c, n, 3, 3)``, ``p`` ``(c, n, 3)``, ``ok`` ``(c, n)``,
@@ -202,16 +203,29 @@ class ThirdDifferenceSums:
         pose is valid and the caller has it; their third differences are then taken of it (the
         layout is linear and the centring a shift per frame, which third differences keep)."""
         chunk = (R, p, ok)
-        if self.carry is not None:
-            # the third differences that straddle the previous chunk: its last 3 frames, our first 3
+        c = R.shape[0]
+        # the third differences that straddle the previous chunk (its last 3 frames, our first 3)
+        # join ours in one product when both chunks were laid out; else they are added alone
+        carry_laid, self.carry_laid = self.carry_laid, None
+        joined = laid_out is not None and carry_laid is not None and c >= 3
+        if self.carry is not None and not joined:
             self._add(*(np.concatenate([a, b[:3]]) for a, b in zip(self.carry, chunk, strict=True)))
-        if R.shape[0] >= 3 or self.carry is None:
+        if c >= 3 or self.carry is None:
             self.carry = tuple(b[-3:].copy() for b in chunk)
         else:
             self.carry = tuple(np.concatenate([a, b])[-3:] for a, b in zip(self.carry, chunk, strict=True))
         if laid_out is None:
             self._add(R, p, ok)
-        elif laid_out.shape[0] > 3:
+            return
+        if c >= 3:
+            self.carry_laid = laid_out[-3:].copy()
+        if joined:
+            assert carry_laid is not None
+            d3 = np.empty_like(laid_out)
+            third_difference(np.concatenate([carry_laid, laid_out[:3]]), d3[:3])
+            third_difference(laid_out, d3[3:])
+            self.sums.add_laid_out(d3)
+        elif c > 3:
             self.sums.add_laid_out(third_difference(laid_out, np.empty_like(laid_out[3:])))
 
     def _add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:

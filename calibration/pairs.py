@@ -41,7 +41,7 @@ from calibration.hinge import (
     testable_directions,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
-from calibration.pair_sums import PairSums, ThirdDifferenceSums, block_results, lay_out, rows_by_world_axis
+from calibration.pair_sums import PairSums, ThirdDifferenceSums, block_results, lay_out
 from calibration.poses import CHUNK_FRAMES, check_poses, iter_chunks
 
 
@@ -427,10 +427,10 @@ def frame_residuals(
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Exact residual norms of given joints, computed from the data chunk by chunk.
 
-    The residual vectors of all joints are two matrix products per chunk: the rotations laid out
-    by world axis ``(3 chunk, 3 N)`` times a matrix holding each joint's ``+joint_in_parent`` and
-    ``-joint_in_child``, plus the positions ``(3 chunk, N)`` times a +1/-1 selection
-    (:func:`residual_operators`).
+    The residual vectors of all joints are one matrix product per chunk: the rotations laid out
+    by world axis ``(3 chunk, 3 N)`` and the positions ``(3 chunk, N)`` (side by side, as
+    :func:`calibration.pair_sums.lay_out` lays them out) times a matrix holding each joint's
+    ``+joint_in_parent`` and ``-joint_in_child`` over a +1/-1 selection (:func:`residual_operators`).
 
     Args:
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
@@ -455,13 +455,13 @@ def frame_residuals(
     used = np.zeros(n_joints)
     # joint-major, so that each joint's series is one contiguous row (calibrate hands out views)
     per_frame = np.full((n_joints, n_frames), np.nan) if keep_frames else None
-    X = np.empty((min(chunk_frames, max(n_frames, 1)), 3, n, 3))
+    # [X | P] as the pair statistics lay it out: the positions' per-frame centring cancels in
+    # p_p - p_c, so one product per chunk gives every joint's residual
+    operator = np.concatenate([rot, pos])  # (4N, J)
+    XP = np.empty((min(chunk_frames, max(n_frames, 1)), 3, 4 * n))
     for frames, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
         c = R.shape[0]
-        rows_by_world_axis(R, X[:c])
-        r = X[:c].reshape(3 * c, 3 * n) @ rot
-        r += p.transpose(0, 2, 1).reshape(3 * c, n) @ pos
-        r = r.reshape(c, 3, n_joints)
+        r = (lay_out(R, p, XP[:c]).reshape(3 * c, 4 * n) @ operator).reshape(c, 3, n_joints)
         sq = np.einsum("faj,faj->fj", r, r)  # (c, J) squared norms
         both = ok[:, parent] & ok[:, child]
         if both.all():
