@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.pairs import PairStatistics
 from calibration.poses import CHUNK_FRAMES, iter_chunks
 from calibration.rotations import matrix_to_rotvec
 
@@ -127,6 +128,35 @@ def block_jackknife(
             axis=-1,
         )  # (c, J, 16)
         blocks[block[starts]] += np.add.reduceat(sums, starts, axis=0)
+    return jackknife_standard_error(blocks, rank)
+
+
+def jackknife_block_sums(stats: PairStatistics, parent: np.ndarray, child: np.ndarray) -> np.ndarray:
+    """``(K, J, 16)`` the per-block sums :func:`block_jackknife` makes in its pass over the data
+    (frames, ``R_p^T R_c``, ``R_p^T b``, ``R_c^T b`` per block and joint), read off pair statistics
+    that kept the blocks of :func:`calibration.pairs.jackknife_edges`
+    (``pair_statistics(..., jackknife_blocks=K)``): no pass over the data. ``b = p_c - p_p`` does
+    not change with the statistics' per-frame centring."""
+    gram, cross, self_cross = stats.jackknife_gram, stats.jackknife_cross, stats.jackknife_self_cross
+    count = stats.jackknife_count
+    if gram is None or cross is None or self_cross is None or count is None:
+        raise ValueError("these pair statistics kept no jackknife blocks")
+    parent, child = np.asarray(parent, dtype=np.int64), np.asarray(child, dtype=np.int64)
+    return np.concatenate(
+        [
+            count[:, parent, child].astype(float)[..., None],
+            gram[:, parent, child].reshape(count.shape[0], parent.size, 9),
+            cross[:, parent, child] - self_cross[:, parent, child],
+            self_cross[:, child, parent] - cross[:, child, parent],
+        ],
+        axis=-1,
+    )
+
+
+def jackknife_standard_error(blocks: np.ndarray, rank: np.ndarray) -> np.ndarray:
+    """:func:`block_jackknife`'s standard errors from its ``(K, J, 16)`` per-block sums (frames,
+    ``R_p^T R_c``, ``R_p^T b``, ``R_c^T b``) and each joint's ``rank``."""
+    n_blocks, n_j = blocks.shape[:2]
     ata = np.zeros((n_blocks, n_j, 6, 6))
     eye = np.eye(3)
     ata[..., :3, :3] = ata[..., 3:, 3:] = blocks[..., :1, None] * eye
@@ -135,19 +165,32 @@ def block_jackknife(
     atb = np.concatenate([blocks[..., 10:13], -blocks[..., 13:16]], axis=-1)
     full_ata, full_atb = ata.sum(axis=0), atb.sum(axis=0)
     out = np.full(n_j, np.nan)
-    for k in range(n_j):
-        _, vecs = np.linalg.eigh(full_ata[k])
-        keep = vecs[:, ::-1][:, : int(rank[k])]  # the strongest directions of the full fit
-        m = keep.T @ (full_ata[k] - ata[:, k]) @ keep  # (blocks, r, r): each block left out
-        v = (full_atb[k] - atb[:, k]) @ keep  # (blocks, r)
+    rank = np.asarray(rank, dtype=np.int64)
+    _, vecs = np.linalg.eigh(full_ata)
+    for r in np.unique(rank):  # the joints of one rank together
+        js = np.flatnonzero(rank == r)
+        keep = vecs[js][:, :, ::-1][:, :, :r]  # (j, 6, r) the strongest directions of each full fit
+        left = full_ata[js] - ata[:, js]  # (blocks, j, 6, 6): each block left out
+        m = np.swapaxes(keep, -1, -2) @ left @ keep  # (blocks, j, r, r)
+        v = ((full_atb[js] - atb[:, js])[..., None, :] @ keep)[..., 0, :]  # (blocks, j, r)
         try:
-            x = np.linalg.solve(m, v[..., None])[..., 0] @ keep.T
-        except np.linalg.LinAlgError:  # a block whose removal leaves a direction unseen
-            x = np.array([keep @ np.linalg.lstsq(m[b], v[b], rcond=None)[0] for b in range(n_blocks)])
+            x = np.linalg.solve(m, v[..., None])[..., 0]
+        except np.linalg.LinAlgError:  # one joint at a time, as the batch failed
+            x = np.stack([_left_out_fits(m[:, q], v[:, q]) for q in range(js.size)], axis=1)
+        x = (x[..., None, :] @ np.swapaxes(keep, -1, -2))[..., 0, :]  # (blocks, j, 6)
         dev = x - x.mean(axis=0)
-        var = (n_blocks - 1) / n_blocks * np.sum(dev**2, axis=0)  # jackknife variance per coordinate
-        out[k] = float(np.sqrt(max(var[:3].sum(), var[3:].sum())))
+        var = (n_blocks - 1) / n_blocks * np.sum(dev**2, axis=0)  # (j, 6) jackknife variance per coordinate
+        out[js] = np.sqrt(np.maximum(var[:, :3].sum(axis=1), var[:, 3:].sum(axis=1)))
     return out
+
+
+def _left_out_fits(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``(blocks, r)`` one joint's fits with each block left out, from ``m`` ``(blocks, r, r)`` and
+    ``v`` ``(blocks, r)``; least squares where a block's removal leaves a direction unseen."""
+    try:
+        return np.linalg.solve(m, v[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.array([np.linalg.lstsq(m[b], v[b], rcond=None)[0] for b in range(m.shape[0])])
 
 
 def rotation_ranges(
@@ -263,6 +306,7 @@ def motion_warnings(
     *,
     valid: Any = None,
     chunk_frames: int = CHUNK_FRAMES,
+    block_sums: np.ndarray | None = None,
 ) -> list[str]:
     """Warnings for joints whose centre the motion hardly determines (module docstring).
 
@@ -275,6 +319,9 @@ def motion_warnings(
             fit that kept fewer than 5 directions is always reported (its centre is not located).
         separation: ``(J,)`` typical distance between each joint's sensors, metres.
         valid, chunk_frames: as for :func:`rotation_ranges`.
+        block_sums: ``(JACKKNIFE_BLOCKS, J, 16)`` the jackknife's per-block sums of the joints
+            when they are at hand (:func:`jackknife_block_sums`); else the jackknife makes its own
+            pass over the data.
     """
     par = np.array([p for p, _ in pairs], dtype=np.int64)
     chi = np.array([c for _, c in pairs], dtype=np.int64)
@@ -282,9 +329,11 @@ def motion_warnings(
     unc = np.full(len(fits), np.inf)  # fewer than 5 directions kept: the centre is not located
     checked = np.flatnonzero(rank >= 5)
     if checked.size:
-        unc[checked] = block_jackknife(
-            R_w_s, p_w_s, par[checked], chi[checked], rank[checked], valid=valid, chunk_frames=chunk_frames
-        )
+        if block_sums is not None:
+            unc[checked] = jackknife_standard_error(block_sums[:, checked], rank[checked])
+        else:
+            args = (par[checked], chi[checked], rank[checked])
+            unc[checked] = block_jackknife(R_w_s, p_w_s, *args, valid=valid, chunk_frames=chunk_frames)
     flagged = [k for k in range(len(fits)) if unc[k] > UNCERTAIN_FRACTION * float(separation[k])]
     if not flagged:
         return []

@@ -3,14 +3,18 @@
 Steps (O'Brien et al. 2000):
 
 1. one pass over the data accumulates the normal equations of every sensor pair
-   (:func:`calibration.pairs.pair_statistics`);
+   (:func:`calibration.pairs.pair_statistics`), with what the misfit tree's noise
+   (:class:`calibration.pair_sums.ThirdDifferenceSums`) and the jackknife of the motion warnings
+   (:func:`calibration.diagnostics.jackknife_block_sums`) need: no other pass over the data
+   unless per-frame residuals are kept;
 2. every pair's joint fit and residual follow from those (section 3.1);
 3. the hierarchy is the minimum spanning tree of the pairs' misfits (residuals less their noise,
    :mod:`calibration.hierarchy`; ``hierarchy_method="mst"``: of the residuals, as in section 3.3),
    unless one is given;
 4. the tree's joints are solved with single-axis detection (3.2), and their residuals are
    recomputed exactly from the data in a second pass (unless per-frame residuals are not
-   wanted);
+   wanted: the rms then comes from the normal equations where their rounding allows,
+   :func:`calibration.pairs.rms_needs_data`);
 5. limb lengths and sensor offsets follow from the joint locations.
 
 Two options leave the default path untouched (neither runs unless asked for):
@@ -39,7 +43,8 @@ All three hold each joint's pair of sensors in memory (``frames x 24`` floats) a
 inferred hierarchy, all the poses.
 
 Memory is bounded by the chunk size (plus ``frames x joints`` floats when per-frame residuals
-are kept), so the input may be an h5py dataset or a memory map larger than memory.
+are kept), so the input may be an h5py dataset or a memory map larger than memory; by default
+the per-frame residuals of such an input are kept only up to :data:`FRAME_RESIDUAL_BYTES`.
 """
 
 from __future__ import annotations
@@ -52,7 +57,12 @@ from typing import Any
 
 import numpy as np
 
-from calibration.diagnostics import motion_warnings, outlier_warnings
+from calibration.diagnostics import (
+    JACKKNIFE_BLOCKS,
+    jackknife_block_sums,
+    motion_warnings,
+    outlier_warnings,
+)
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import (
@@ -73,6 +83,7 @@ from calibration.pairs import (
     pair_fit_spectrum,
     pair_residual_matrix,
     pair_statistics,
+    rms_needs_data,
     solve_pairs,
 )
 from calibration.poses import CHUNK_FRAMES, check_poses
@@ -91,6 +102,17 @@ from calibration.uncertainty import (
     joint_covariance,
     segment_length_uncertainty,
 )
+
+#: By default, per-frame residuals of poses that are out of core (an h5py dataset, a memory map)
+#: are kept only up to this many bytes (8 million residuals: a million frames of 8 joints).
+FRAME_RESIDUAL_BYTES = 64 << 20
+
+
+def default_keep_frame_residuals(R_w_s: Any, n_frames: int, n_joints: int) -> bool:
+    """Whether ``calibrate`` keeps per-frame residuals when not told (``keep_frame_residuals``):
+    always for in-memory arrays, for out-of-core poses up to :data:`FRAME_RESIDUAL_BYTES`."""
+    in_memory = isinstance(R_w_s, np.ndarray) and not isinstance(R_w_s, np.memmap)
+    return in_memory or 8 * n_frames * n_joints <= FRAME_RESIDUAL_BYTES
 
 
 @dataclass(frozen=True)
@@ -206,7 +228,7 @@ def calibrate(
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
     loop_factor: float = LOOP_FACTOR,
     chunk_frames: int = CHUNK_FRAMES,
-    keep_frame_residuals: bool = True,
+    keep_frame_residuals: bool | None = None,
     robust: str | None = None,
     intervals: bool = False,
     correct_rotation_noise: bool = False,
@@ -232,8 +254,13 @@ def calibrate(
         chunk_frames: frames per chunk.
         keep_frame_residuals: compute each joint's per-frame residual exactly in a second pass
             over the data and keep it (``frames x joints`` floats). When False there is no
-            second pass and the rms residual comes from the normal equations (within about
-            1e-8 m of the exact value, see :mod:`calibration.pairs`).
+            second pass: the rms residual comes from the normal equations, or for a joint at
+            their rounding floor (noise-free data) from a pass over its two sensors; either way
+            within 1e-9 m of the exact value (:func:`calibration.pairs.rms_needs_data`). ``None``
+            (the default): kept, unless the poses are out of core (not in-memory arrays: an h5py
+            dataset, a memory map) and the residuals would take more than
+            :data:`FRAME_RESIDUAL_BYTES`, so that a large file is calibrated in memory that does
+            not grow with its length.
         robust: ``"tukey"`` or ``"huber"`` (:data:`calibration.robust.LOSSES`) to fit the joints by
             IRLS and infer the hierarchy from robust pair misfits (module docstring); ``None``
             (the default) for least squares.
@@ -252,6 +279,8 @@ def calibrate(
     t0 = time.perf_counter()
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
     names = checked_names(names, n)
+    if keep_frame_residuals is None:
+        keep_frame_residuals = default_keep_frame_residuals(R_w_s, n_frames, n - 1)
     _check_options(names, n_frames, single_axis_ratio=single_axis_ratio, root=root)
     if hierarchy_method not in HIERARCHY_METHODS:
         raise CalibrationInputError(
@@ -263,10 +292,14 @@ def calibrate(
         raise CalibrationInputError(
             "robust and correct_rotation_noise cannot be combined: the correction is for least squares"
         )
-    stats, missing = _pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
+    noise_needed = parent_of is None and robust is None and hierarchy_method == "misfit"
+    stats, missing = _pair_statistics(
+        R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=noise_needed
+    )
     t1 = time.perf_counter()
 
-    residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio)
+    every_pair = solve_pairs(stats, *np.triu_indices(n, k=1), single_axis_ratio=single_axis_ratio)
+    residual = pair_residual_matrix(stats, single_axis_ratio=single_axis_ratio, solutions=every_pair)
     if parent_of is not None:
         tree = hierarchy_from_parents(parent_of, names, root=root)
     elif robust is not None:
@@ -278,7 +311,7 @@ def calibrate(
     else:
         weights = residual
         if hierarchy_method == "misfit":
-            noise = _pair_noise_matrix(R_w_s, p_w_s, valid, stats, single_axis_ratio, chunk_frames)
+            noise = _pair_noise_matrix(R_w_s, p_w_s, valid, stats, every_pair, chunk_frames)
             weights = misfit_weights(residual, noise)
         tree = spanning_tree(weights, root=None if root is None else names.index(root), names=names)
     t2 = time.perf_counter()
@@ -381,14 +414,23 @@ def _check_options(
 
 
 def _pair_statistics(
-    R_w_s: Any, p_w_s: Any, *, valid: Any, chunk_frames: int
+    R_w_s: Any, p_w_s: Any, *, valid: Any, chunk_frames: int, third_differences: bool
 ) -> tuple[PairStatistics, np.ndarray]:
-    """The statistics of every pair and the ``(N,)`` frames each sensor's pose is missing in.
+    """The statistics of every pair (with the jackknife's blocks, and the third differences when
+    asked for: all in one pass over the data) and the ``(N,)`` frames each sensor's pose is
+    missing in.
 
     Raises:
         CalibrationError: no pair of sensors shares :data:`MIN_FRAMES` valid frames.
     """
-    stats = pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames)
+    stats = pair_statistics(
+        R_w_s,
+        p_w_s,
+        valid=valid,
+        chunk_frames=chunk_frames,
+        jackknife_blocks=JACKKNIFE_BLOCKS,
+        third_differences=third_differences,
+    )
     per_sensor = np.diagonal(stats.count)
     missing = stats.n_frames - per_sensor.astype(np.int64)
     if np.max(stats.count - np.diag(per_sensor)) < MIN_FRAMES:
@@ -400,16 +442,19 @@ def _pair_statistics(
 
 
 def _pair_noise_matrix(  # positional: one private caller
-    R_w_s: Any, p_w_s: Any, valid: Any, stats: PairStatistics, single_axis_ratio: float, chunk_frames: int
+    R_w_s: Any, p_w_s: Any, valid: Any, stats: PairStatistics, every_pair: PairSolutions, chunk_frames: int
 ) -> np.ndarray:
     """``(N, N)`` noise variance of every pair's residual (:mod:`calibration.pair_noise`), square
-    metres: each pair's joint solved from the statistics, then one more pass over the data."""
+    metres, at each pair's joint solved from the statistics (``every_pair``: the pairs of
+    ``numpy.triu_indices(N, k=1)``): a quadratic form in the joint from the statistics' third
+    differences when they were kept, else one more pass over the data."""
     n = stats.n_sensors
-    i, j = np.triu_indices(n, k=1)
-    sol = solve_pairs(stats, i, j, single_axis_ratio=single_axis_ratio)
-    nu = pair_noise_variance(
-        R_w_s, p_w_s, i, j, sol.joint_in_parent, sol.joint_in_child, valid=valid, chunk_frames=chunk_frames
-    )
+    i, j = every_pair.parent, every_pair.child
+    lp, lc = every_pair.joint_in_parent, every_pair.joint_in_child
+    if stats.third_differences is not None:
+        nu = stats.third_differences.noise_variance(i, j, lp, lc)
+    else:
+        nu = pair_noise_variance(R_w_s, p_w_s, i, j, lp, lc, valid=valid, chunk_frames=chunk_frames)
     out = np.zeros((n, n))
     out[i, j] = nu
     out[j, i] = nu
@@ -443,7 +488,24 @@ def _solve_joints(  # positional: one private caller, whose call then fits on a 
             f"joints with fewer than {MIN_FRAMES} frames where both sensors are valid: {too_few}"
         )
     if not keep_frame_residuals:
-        return sol, sol.rms_residual, None
+        # from the normal equations where their rounding is far below a nanometre; the others
+        # (noise-free joints at the normal equations' floor) exactly, in a pass over the data
+        rms = sol.rms_residual.copy()
+        exact = rms_needs_data(stats, sol)
+        if exact.any():
+            k = np.flatnonzero(exact)
+            rms[k], _ = frame_residuals(
+                R_w_s,
+                p_w_s,
+                par[k],
+                chi[k],
+                sol.joint_in_parent[k],
+                sol.joint_in_child[k],
+                valid=valid,
+                chunk_frames=chunk_frames,
+                keep_frames=False,
+            )
+        return sol, rms, None
     rms, per_frame = frame_residuals(
         R_w_s,
         p_w_s,
@@ -688,7 +750,17 @@ def _diagnostic_warnings(  # positional: one private caller
     sq = np.array([stats.sq_dist[p, c] for p, c in pairs], dtype=float)
     separation = np.sqrt(sq / np.maximum(count, 1.0))
     fits = [j.fit for j in joints]
+    par, chi = (np.array([x[k] for x in pairs], dtype=np.int64) for k in (0, 1))
+    block_sums = None if stats.jackknife_count is None else jackknife_block_sums(stats, par, chi)
     warnings = motion_warnings(
-        R_w_s, p_w_s, names, pairs, fits, separation, valid=valid, chunk_frames=chunk_frames
+        R_w_s,
+        p_w_s,
+        names,
+        pairs,
+        fits,
+        separation,
+        valid=valid,
+        chunk_frames=chunk_frames,
+        block_sums=block_sums,
     )
     return warnings + outlier_warnings(names, pairs, np.array([f.rms_residual for f in fits]), separation)

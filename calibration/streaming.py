@@ -24,10 +24,11 @@ Memory does not grow with the session: the statistics are ``O(N_BLOCKS * sensors
 monitor keeps :data:`SLIP_HISTORY_S` seconds of its statistic per joint, and frames are held
 only until the next flush (:data:`FLUSH_S`).
 
-**Residuals.** The rms residuals come from the normal equations (the batch's
-``keep_frame_residuals=False``); the batch's default recomputes them from the data in a second
-pass, which a stream cannot make. Both agree to 1e-9 m unless the residual itself is at the
-rounding floor of the normal equations (about 1e-8 m on noise-free data, :mod:`calibration.pairs`).
+**Residuals.** The rms residuals come from the normal equations (as the batch's
+``keep_frame_residuals=False`` takes them for noisy joints); the batch's default recomputes them
+from the data in a second pass, which a stream cannot make. Both agree to 1e-9 m unless the
+residual itself is at the rounding floor of the normal equations (about 1e-8 m on noise-free data,
+:mod:`calibration.pairs`).
 
 **Slip alerts** (:class:`SlipAlert`) are the detector of :mod:`calibration.slip` made causal: per
 joint of the current tree, the residual (with the joint as fitted so far) in the parent's and in
@@ -82,7 +83,7 @@ from calibration.hierarchy import (
 from calibration.hinge import N_BLOCKS
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
-from calibration.pair_sums import PairSums
+from calibration.pair_sums import PairSums, ThirdDifferenceSums
 from calibration.pairs import PairSolutions, PairStatistics, solve_pairs, statistics_of_blocks
 from calibration.pipeline import Calibration, Joint, checked_names, fit_warnings, solved_joint
 from calibration.skeleton import segment_lengths, sensor_placements
@@ -300,7 +301,7 @@ class StreamingCalibrator:
         self._n_summed = 0  # frames added to the statistics
         self._block_len = 1
         self._blocks: list[PairSums] = []
-        self._d3 = _ThirdDifferenceSums(n)
+        self._d3 = ThirdDifferenceSums(n)
         self._flush = max(1, round(FLUSH_S * rate_hz))
         self._pending: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._n_pending = 0
@@ -566,59 +567,6 @@ def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
         moved_enough=enough,
         advice=advice,
     )
-
-
-class _ThirdDifferenceSums:
-    """Sums over frames of the third-differenced poses: the misfit hierarchy's noise as a quadratic
-    form in each pair's joint (module docstring; :func:`calibration.pair_noise.pair_noise_variance`)."""
-
-    def __init__(self, n: int) -> None:
-        self.n = n
-        self.sums = PairSums(n)
-        self.self_gram = np.zeros((n, n, 9))  # [i, j] sum w_i w_j D3R_i^T D3R_i
-        self.carry: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-
-    def add(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> None:
-        if self.carry is not None:
-            R, p, ok = (np.concatenate([a, b]) for a, b in zip(self.carry, (R, p, ok), strict=True))
-        self.carry = (R[-3:], p[-3:], ok[-3:])
-        if R.shape[0] < 4:
-            return
-        d3R = np.diff(R, n=3, axis=0)
-        d3p = np.diff(p, n=3, axis=0)
-        ok4 = ok[3:] & ok[2:-1] & ok[1:-2] & ok[:-3]
-        c = d3R.shape[0]
-        if not ok4.all():
-            d3R = np.where(ok4[:, :, None, None], d3R, 0.0)
-            d3p = np.where(ok4[:, :, None], d3p, 0.0)
-        self.sums.add(d3R, d3p, ok4, np.empty((c, 3, 4 * self.n)))
-        w = ok4.astype(float)
-        own = np.einsum("fsai,fsaj->fsij", d3R, d3R).reshape(c, self.n * 9)  # invalid rows are zero
-        self.self_gram += (w.T @ own).reshape(self.n, self.n, 9).transpose(1, 0, 2)
-
-    def noise_variance(
-        self, parent: np.ndarray, child: np.ndarray, joint_in_parent: np.ndarray, joint_in_child: np.ndarray
-    ) -> np.ndarray:
-        """``(P,)`` the noise variance of each pair's residual for the given joints, m^2 (as
-        :func:`calibration.pair_noise.pair_noise_variance` computes it from the frames)."""
-        gram, cross, self_cross, sq_dist, count = self.sums.result()
-        lp, lc = np.asarray(joint_in_parent), np.asarray(joint_in_child)
-        g = gram[parent, child]  # (P, 3, 3) sum D3R_p^T D3R_c
-        sp = self.self_gram[parent, child].reshape(-1, 3, 3)
-        sc = self.self_gram[child, parent].reshape(-1, 3, 3)
-        quad = (
-            np.einsum("pi,pij,pj->p", lp, sp, lp)
-            + np.einsum("pi,pij,pj->p", lc, sc, lc)
-            - 2.0 * np.einsum("pi,pij,pj->p", lp, g, lc)
-        )
-        h_p = cross[parent, child] - self_cross[parent, child]
-        h_c = cross[child, parent] - self_cross[child, parent]
-        lin = np.einsum("pi,pi->p", lp, h_p) + np.einsum("pi,pi->p", lc, h_c)
-        total = quad - 2.0 * lin + sq_dist[parent, child]
-        used = count[parent, child].astype(float)
-        return np.where(
-            used > 0, np.clip(total, 0.0, None) / np.maximum(used, 1.0) / THIRD_DIFFERENCE_GAIN, 0.0
-        )
 
 
 def _correlation_frames(x: np.ndarray) -> np.ndarray:
