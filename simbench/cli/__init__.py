@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from calibration import CalibrationError
 from simbench.cli import baseline, calibrate, export, orient, replay, report, scale, simulate, sweep, validate
 from simbench.errors import InputError
+from simbench.experiments.pool import one_blas_thread
 from simbench.versions import __version__
 
 #: The subcommands in the order ``simbench --help`` lists them; each module adds its parser.
@@ -61,7 +62,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     previous = {sig: signal.signal(sig, _interrupted) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return int(args.func(args))
+        # BLAS on one thread: simbench's products are small (a chunk of frames, a 6 x 6 system),
+        # where BLAS's threads cost more than they give (1M x 32 poses from HDF5: 4.5 s on one
+        # thread, 7.2 s on two; benchmarks/results/calibration*.json)
+        with one_blas_thread():
+            return int(args.func(args))
     except Terminated:
         print("simbench: terminated", file=sys.stderr)
         return 143

@@ -295,9 +295,13 @@ def human_rows(
     :func:`human_trial` computes them: what :func:`human_causes` compares."""
     config = _human_config(subject, motion, k, duration_s, sensors)
     ds = run_session(config, load_session_model(config))
-    rec = ds.poses()
+    return {"rows": _rows_on_true_tree(ds, ds.poses(), scale)[1]}
+
+
+def _rows_on_true_tree(ds: Any, rec: Any, scale: float) -> tuple[Any, dict[str, dict[str, float]]]:
+    """The calibration with the true hierarchy, and the paper's eight length rows from it."""
     given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
-    return {"rows": _length_rows(HUMANOID_ROWS, truth_lengths(ds), estimated_lengths(given), scale)}
+    return given, _length_rows(HUMANOID_ROWS, truth_lengths(ds), estimated_lengths(given), scale)
 
 
 def human_trial(
@@ -320,10 +324,8 @@ def human_trial(
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, root="pelvis")
     mst = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, root="pelvis", hierarchy_method="mst")
-    truth = truth_lengths(ds)
     got = estimated_lengths(cal)
-    given = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
-    rows = _length_rows(HUMANOID_ROWS, truth, estimated_lengths(given), scale)
+    given, rows = _rows_on_true_tree(ds, rec, scale)
     tree = compare_trees(cal.parent_of, ds.truth.parent_of)
     tree_mst = compare_trees(mst.parent_of, ds.truth.parent_of)
     return {
