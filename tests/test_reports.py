@@ -19,6 +19,8 @@ from simbench.experiments.obrien import human_trial, human_trials, linkage_exper
 from simbench.experiments.pool import worker_pool
 from simbench.experiments.realism import DEFAULT_DATA_DIR
 from simbench.experiments.validate import Plan
+from simbench.io.imu import read_broad
+from simbench.orient import DEFAULT_METHOD, estimate
 
 
 @pytest.fixture(scope="module")
@@ -123,9 +125,10 @@ def test_report_html_renders_the_markdown(quick_report):
     assert "`" not in html and "|---" not in html  # inline code and tables were rendered
 
 
-def test_validation_is_deterministic(fresh_physics):
+def test_validation_is_deterministic(fresh_physics, monkeypatch, tmp_path):
     """The validation's experiments, small, twice: the process pool (two workers) and this process
-    give the same figures, and so do two runs of the slip and orientation cases."""
+    give the same figures, and so do two runs of the slip and orientation cases (the simulated
+    ones: the BROAD recordings' scores are the default estimator's, once more, below)."""
     plan = dataclasses.replace(Plan.of(quick=True), linkage_s=8.0, humanoid_s=6.0, orientation_s=3.0)
     trials = human_trials(1, 1, 0)[:3]
     args = (*zip(*trials, strict=True), *[[x] * len(trials) for x in (plan.humanoid_s, 1.0)])
@@ -133,8 +136,14 @@ def test_validation_is_deterministic(fresh_physics):
         pooled = linkage_experiment(1, plan.linkage_s, 1.0, run=pool.map), list(pool.map(human_trial, *args))
     here = linkage_experiment(1, plan.linkage_s, 1.0), list(map(human_trial, *args))
     assert json.dumps(pooled) == json.dumps(here)
+    broad = sorted(DEFAULT_DATA_DIR.glob("broad_*.hdf5"))
+    monkeypatch.setattr(validate, "DEFAULT_DATA_DIR", tmp_path)  # no recordings: simulation only
     for experiment in (validate._slip, validate._orientation):
         assert json.dumps(experiment(plan)) == json.dumps(experiment(plan)), experiment.__name__
+    if broad:
+        rec = read_broad(broad[0])
+        first, again = (estimate(rec, method=DEFAULT_METHOD).q_enu for _ in range(2))
+        np.testing.assert_array_equal(first, again)
 
 
 def _browser() -> str | None:
