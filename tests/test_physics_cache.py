@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
@@ -100,3 +102,28 @@ def test_a_temporary_cache_is_removed_and_an_active_one_shared(tmp_path):
             run_session(CONFIG)
         assert os.environ[ENV] == str(outer)
     assert ENV not in os.environ and len(list(outer.glob("*.npz"))) == 1
+
+
+def test_a_run_that_cannot_be_stored_is_used_all_the_same(tmp_path, monkeypatch):
+    """The cache only saves time: a full disk (here: every write fails) leaves no file, partial or
+    whole, and the session is the fresh one."""
+    fresh = run_session(CONFIG)
+
+    def full_disk(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", full_disk)
+    with physics_cache(tmp_path):
+        got = run_session(CONFIG)
+    _datasets_equal(got, fresh)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_no_temporary_folder_means_no_cache(monkeypatch):
+    def read_only(*args, **kwargs):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(tempfile, "TemporaryDirectory", read_only)
+    with physics_cache() as folder:
+        assert folder is None and ENV not in os.environ
+        run_session(CONFIG)

@@ -33,6 +33,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from simbench.errors import InputError
 from simbench.io.atomic import atomic_path
 from simbench.sim.models import CaptureModel
 from simbench.sim.plan import SessionPlan
@@ -119,16 +120,24 @@ def load_run(folder: Path, key: str) -> tuple[np.ndarray, dict[str, int]] | None
         return None
 
 
-def store_run(folder: Path, key: str, sensordata: np.ndarray, warnings: dict[str, int]) -> None:
-    """Keep a run under ``key`` (atomically; a folder that has gone is skipped)."""
+def store_run(folder: Path, key: str, sensordata: np.ndarray, warnings: dict[str, int]) -> bool:
+    """Keep a run under ``key`` (atomically); returns whether it was kept.
+
+    The cache only saves time: a folder that has gone, a full disk or any other failure to
+    write leaves no file (not even a partial one) and the session goes on with the run it has.
+    """
     if not folder.is_dir():
-        return
-    with atomic_path(folder / f"{key}.npz") as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, sensordata=sensordata, warnings=np.array(json.dumps(warnings)))
+        return False
+    try:
+        with atomic_path(folder / f"{key}.npz") as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, sensordata=sensordata, warnings=np.array(json.dumps(warnings)))
+    except (OSError, InputError):
+        return False
+    return True
 
 
 @contextlib.contextmanager
-def physics_cache(folder: str | os.PathLike[str] | None = None) -> Iterator[Path]:
+def physics_cache(folder: str | os.PathLike[str] | None = None) -> Iterator[Path | None]:
     """Share physics runs between the sessions simulated inside the ``with`` block (and the
     worker processes started inside it).
 
@@ -137,7 +146,7 @@ def physics_cache(folder: str | os.PathLike[str] | None = None) -> Iterator[Path
             any (a caller's, or the test run's), else a temporary folder removed at the end.
 
     Yields:
-        The folder.
+        The folder; ``None`` when no temporary folder can be made (no cache then).
     """
     previous = os.environ.get(ENV)
     if folder is None and previous:
@@ -145,7 +154,11 @@ def physics_cache(folder: str | os.PathLike[str] | None = None) -> Iterator[Path
         return
     with contextlib.ExitStack() as stack:
         if folder is None:
-            folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="simbench-physics-"))
+            try:
+                folder = stack.enter_context(tempfile.TemporaryDirectory(prefix="simbench-physics-"))
+            except OSError:  # no writable temporary folder: every session runs its own physics
+                yield None
+                return
         path = Path(folder)
         path.mkdir(parents=True, exist_ok=True)
         os.environ[ENV] = str(path)
