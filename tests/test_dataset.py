@@ -152,3 +152,67 @@ def test_simulate_bad_input_exits_2(tmp_path, capsys, args, message):
 def test_simulate_unwritable_output(tmp_path, capsys):
     code = main(["simulate", "--duration", "1", "-o", str(tmp_path / "missing" / "x.h5")])
     assert code == 2 and "does not exist" in capsys.readouterr().err
+
+
+def test_a_large_datasets_poses_are_read_a_chunk_at_a_time_and_equal_the_whole_read(tmp_path, capsys):
+    """``read_dataset_poses(in_memory=False)`` (what ``simbench calibrate`` takes for a dataset
+    larger than IN_MEMORY_BYTES): h5py datasets of a temporary file, equal to the bit to
+    ``Dataset.poses()``, notes and all, and the same calibration."""
+    from calibration import calibrate
+    from simbench.io.dataset import read_dataset_poses
+
+    ds = run_session(SessionConfig(model="linkage", duration_s=20.0, seed=4, sensors="polhemus-liberty"))
+    path = tmp_path / "d.h5"
+    write_dataset(path, ds)
+    whole = read_dataset(path).poses()
+    assert not whole.valid.all() and whole.notes  # dropouts: NaN poses and a note to carry over
+    assert isinstance(read_dataset_poses(path).R_w_s, np.ndarray)  # small: in memory
+    lazy = read_dataset_poses(path, in_memory=False)
+    assert isinstance(lazy.R_w_s, h5py.Dataset) and isinstance(lazy.p_w_s, h5py.Dataset)
+    np.testing.assert_array_equal(np.asarray(lazy.R_w_s), whole.R_w_s)
+    np.testing.assert_array_equal(np.asarray(lazy.p_w_s), whole.p_w_s)
+    np.testing.assert_array_equal(lazy.valid, whole.valid)
+    np.testing.assert_array_equal(lazy.time_s, whole.time_s)
+    assert (lazy.names, lazy.source, lazy.notes) == (whole.names, whole.source, whole.notes)
+    a = calibrate(whole.R_w_s, whole.p_w_s, whole.names, valid=whole.valid)
+    b = calibrate(lazy.R_w_s, lazy.p_w_s, lazy.names, valid=lazy.valid)
+    assert a.parent_of == b.parent_of
+    for ja, jb in zip(a.joints, b.joints, strict=True):
+        assert_allclose(jb.fit.joint_in_parent, ja.fit.joint_in_parent, rtol=0, atol=1e-12)
+    # a sample marked valid with a zero quaternion: the same refusal as the whole read
+    with h5py.File(path, "r+") as fh:
+        f, k = np.argwhere(fh["measured/valid"][()])[1500]
+        fh["measured/q_w_s"][f, k] = 0.0
+    with pytest.raises(InputError) as whole_error:
+        read_dataset(path)
+    with pytest.raises(InputError) as lazy_error:
+        read_dataset_poses(path, in_memory=False)
+    assert str(lazy_error.value) == str(whole_error.value)
+    assert "1 sample(s) marked valid without a finite position" in str(lazy_error.value)
+
+
+def test_simbench_calibrate_takes_the_chunked_path_for_a_large_dataset(tmp_path, capsys, monkeypatch):
+    """``simbench calibrate DATASET.h5`` above the in-memory size reads the poses a chunk at a time
+    and prints exactly what the whole read gives."""
+    import simbench.io.dataset as dataset_module
+
+    ds = run_session(SessionConfig(model="linkage", duration_s=10.0, seed=5, sensors="polhemus-liberty"))
+    path = tmp_path / "d.h5"
+    write_dataset(path, ds)
+    assert main(["calibrate", str(path)]) == 0
+    whole = capsys.readouterr().out
+    calls = []
+    real = dataset_module.read_dataset_poses
+
+    def spy(p, *, in_memory=None):
+        rec = real(p, in_memory=in_memory)
+        calls.append(type(rec.R_w_s))
+        return rec
+
+    monkeypatch.setattr(dataset_module, "IN_MEMORY_BYTES", 0)
+    monkeypatch.setattr("simbench.io.read.read_dataset_poses", spy)
+    assert main(["calibrate", str(path)]) == 0
+    chunked = capsys.readouterr().out
+    assert calls == [h5py.Dataset]
+    drop_time = [line for line in whole.splitlines() if "calibrated in" not in line]
+    assert drop_time == [line for line in chunked.splitlines() if "calibrated in" not in line]

@@ -315,7 +315,7 @@ def _arrange(path: Path, blocks: Blocks, scale: float, in_memory: bool | None) -
     n_frames, n = frame_times.size, len(names)
     if in_memory is None:
         in_memory = n_frames * n * 12 * 8 <= IN_MEMORY_BYTES
-    store: _Store = _ArrayStore(n_frames, n) if in_memory else _HDF5Store(n_frames, n)
+    store: _Store = _ArrayStore(n_frames, n) if in_memory else TemporaryPoses(n_frames, n)
     lookup = {name: k for k, name in enumerate(names)}
     state = np.zeros((n_frames, n), dtype=np.int8)  # ABSENT, VALID or NOT_FINITE: one byte a cell
     n_off, worst = 0, (0.0, 1.0, 0)  # quaternions off unit norm: count, (|1 - |q||, |q|, line)
@@ -443,9 +443,12 @@ class _ArrayStore(_Store):
         return self.R, self.p
 
 
-class _HDF5Store(_Store):
-    """Poses in an unlinked temporary HDF5 file (NaN where missing), written a slab of frames at
-    a time (read, filled, written back: rows of one frame may span two blocks)."""
+class TemporaryPoses(_Store):
+    """Poses in an unlinked temporary HDF5 file (NaN where missing): ``R`` ``(frames, sensors, 3,
+    3)`` and ``p`` ``(frames, sensors, 3)`` h5py datasets, chunked by :data:`CHUNK_FRAMES` frames;
+    :meth:`write` fills them a slab of frames at a time (read, filled, written back: rows of one
+    frame may span two blocks), or they are assigned slices directly. The file's space is freed
+    when the last of its datasets is gone."""
 
     def __init__(self, n_frames: int, n: int) -> None:
         fd, name = tempfile.mkstemp(prefix="simbench-poses-", suffix=".h5")

@@ -49,6 +49,7 @@ from calibration.rotations import matrix_to_quat, quat_to_matrix
 from calibration.skeleton import joint_arrays, segment_lengths
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_path
+from simbench.io.csv_blocks import CHUNK_FRAMES, IN_MEMORY_BYTES, TemporaryPoses
 from simbench.io.hdf5 import open_hdf5
 from simbench.io.imu import ImuRecording
 from simbench.io.marker_data import MarkerData, read_markers_group, write_markers_group
@@ -193,7 +194,7 @@ class Dataset:
             evaluate=None,
             rate_hz=rate,
             source=str(self.meta.get("source", "dataset")),
-            notes=tuple(notes),
+            notes=_pose_notes(self.position_unit_scale, int((~m.valid).sum())),
         )
 
     def to_pandas(self, *, layout: str = "long", source: str = "measured") -> Any:
@@ -214,16 +215,6 @@ class Dataset:
         R = quat_to_matrix(np.where(m.valid[..., None], m.q_w_s, [1.0, 0.0, 0.0, 0.0]))
         R = np.where(m.valid[..., None, None], R, np.nan)
         p = np.where(m.valid[..., None], m.p_w_s, np.nan)
-        notes = []
-        scale = self.position_unit_scale
-        if scale != 1.0:
-            notes.append(
-                f"positions are in the simulated tracker's units (metres / {scale:g}): lengths below are "
-                "in those units; `simbench scale` estimates the factor from two rigidly mounted sensors"
-            )
-        missing = int((~m.valid).sum())
-        if missing:
-            notes.append(f"{missing} sensor samples are missing (tracker dropouts or latency)")
         return PoseRecording(
             names=self.sensors,
             time_s=np.array(self.time_s),
@@ -231,7 +222,7 @@ class Dataset:
             p_w_s=p,
             valid=np.array(m.valid),
             source=str(self.meta.get("source", "dataset")),
-            notes=tuple(notes),
+            notes=_pose_notes(self.position_unit_scale, int((~m.valid).sum())),
         )
 
 
@@ -306,6 +297,131 @@ def _read_sensor_data(group: Any, path: Path) -> SensorData:
         raise InputError(f"{path}: {group.name}: {exc}") from None
 
 
+def _header(fh: h5py.File, path: Path) -> tuple[dict[str, Any], float, tuple[str, ...], np.ndarray]:
+    """``(meta, position_unit_scale, sensors, time_s)`` of an open dataset, checked.
+
+    Raises:
+        InputError: not a simbench dataset, a newer format, missing or malformed fields.
+    """
+    if fh.attrs.get("format") != FORMAT:
+        raise InputError(f"{path}: not a simbench dataset (format attribute {fh.attrs.get('format')!r})")
+    try:
+        version = int(fh.attrs.get("format_version", 0))
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{path}: format_version must be an integer, got {fh.attrs.get('format_version')!r}"
+        ) from None
+    if version > FORMAT_VERSION:
+        raise InputError(f"{path}: dataset format version {version} is newer than this simbench reads")
+    missing = [f"/{name}" for name in ("sensors", "time_s", "measured") if name not in fh]
+    missing += ["the meta attribute"] if "meta" not in fh.attrs else []
+    if missing:
+        raise InputError(f"{path}: not a complete simbench dataset: missing {', '.join(missing)}")
+    try:
+        meta = json.loads(fh.attrs["meta"])
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{path}: the meta attribute is not JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InputError(f"{path}: the meta attribute is not a JSON object, got {type(meta).__name__}")
+    try:
+        # format 1 files written before the typed field kept the factor in meta
+        scale = float(fh.attrs.get("position_unit_scale", meta.pop("position_unit_scale", 1.0)))
+    except (TypeError, ValueError):
+        raise InputError(f"{path}: position_unit_scale is not a number") from None
+    if not isinstance(fh["sensors"], h5py.Dataset):
+        raise InputError(f"{path}: /sensors must be a dataset of names")
+    sensors = tuple(s.decode() if isinstance(s, bytes) else str(s) for s in np.atleast_1d(fh["sensors"][()]))
+    time_s = fh["time_s"][()] if isinstance(fh["time_s"], h5py.Dataset) else None
+    if not (isinstance(time_s, np.ndarray) and time_s.ndim == 1 and np.issubdtype(time_s.dtype, np.number)):
+        kind = getattr(time_s, "dtype", type(time_s).__name__)
+        raise InputError(
+            f"{path}: /time_s must be a 1-D array of numbers (seconds), got {kind} of shape "
+            f"{getattr(time_s, 'shape', ())}"
+        )
+    _check_times(time_s, path)
+    return meta, scale, sensors, time_s
+
+
+def read_dataset_poses(path: str | os.PathLike[str], *, in_memory: bool | None = None) -> PoseRecording:
+    """The measured poses of a dataset, as :meth:`Dataset.poses` gives them, without reading the
+    rest (truth, inertial data) and, for a large file, a chunk of frames at a time.
+
+    Args:
+        path: a file written by :func:`write_dataset`.
+        in_memory: poses in arrays (True: ``read_dataset(path).poses()``), or in an unlinked
+            temporary HDF5 file (False: ``R_w_s`` and ``p_w_s`` are h5py datasets, as the pose CSV
+            reader gives for a large file); ``None`` chooses by size
+            (:data:`~simbench.io.csv_blocks.IN_MEMORY_BYTES` of rotations and positions).
+
+    Raises:
+        InputError: as :func:`read_dataset`, and for a sample marked valid without a finite
+            position and a non-zero quaternion.
+    """
+    path = Path(path)
+    if in_memory is None:
+        with open_hdf5(path) as fh:
+            valid = fh.get("measured/valid")
+            shape = valid.shape if isinstance(valid, h5py.Dataset) else ()
+        in_memory = len(shape) != 2 or shape[0] * shape[1] * 12 * 8 <= IN_MEMORY_BYTES
+    if in_memory:
+        return read_dataset(path).poses()
+    with open_hdf5(path) as fh:
+        _, scale, sensors, time_s = _header(fh, path)
+        g = fh["measured"]
+        n_frames, n = time_s.size, len(sensors)
+        for name, tail in (("valid", ()), ("q_w_s", (4,)), ("p_w_s", (3,))):
+            item = g.get(name) if isinstance(g, h5py.Group) else None
+            if not isinstance(item, h5py.Dataset) or item.shape != (n_frames, n, *tail):
+                got = getattr(item, "shape", type(item).__name__)
+                raise InputError(f"{path}: /measured/{name} must be {(n_frames, n, *tail)}, got {got}")
+        valid = _array(g, path, "valid", "bool")
+        store = TemporaryPoses(n_frames, n)
+        bad, first = 0, None
+        for start in range(0, n_frames, CHUNK_FRAMES):
+            frames = slice(start, min(start + CHUNK_FRAMES, n_frames))
+            q, p, v = g["q_w_s"][frames], g["p_w_s"][frames], valid[frames]
+            if not (np.issubdtype(q.dtype, np.number) and np.issubdtype(p.dtype, np.number)):
+                raise InputError(f"{path}: /measured/q_w_s and /measured/p_w_s must be arrays of numbers")
+            q_ok = np.isfinite(q).all(axis=-1) & (np.linalg.norm(np.nan_to_num(q), axis=-1) > 0)
+            wrong = v & ~(q_ok & np.isfinite(p).all(axis=-1))
+            if wrong.any():
+                bad += int(wrong.sum())
+                first = first or tuple(int(x) for x in np.argwhere(wrong)[0] + (start, 0))
+                continue
+            R = quat_to_matrix(np.where(v[..., None], q, [1.0, 0.0, 0.0, 0.0]))
+            store.R[frames] = np.where(v[..., None, None], R, np.nan)
+            store.p[frames] = np.where(v[..., None], p, np.nan)
+        if bad:
+            f, k = first
+            raise InputError(
+                f"{path}: /measured: {bad} sample(s) marked valid without a finite position and a "
+                f"non-zero quaternion (the first: sensor {sensors[k]!r} at t = {time_s[f]:g} s)"
+            )
+    R_w_s, p_w_s = store.arrays()
+    return PoseRecording(
+        names=sensors,
+        time_s=time_s,
+        R_w_s=R_w_s,
+        p_w_s=p_w_s,
+        valid=valid,
+        source=str(path),
+        notes=_pose_notes(scale, int((~valid).sum())),
+    )
+
+
+def _pose_notes(scale: float, missing: int) -> tuple[str, ...]:
+    """The notes of a dataset's poses: the tracker's unit, the missing samples."""
+    notes = []
+    if scale != 1.0:
+        notes.append(
+            f"positions are in the simulated tracker's units (metres / {scale:g}): lengths below are "
+            "in those units; `simbench scale` estimates the factor from two rigidly mounted sensors"
+        )
+    if missing:
+        notes.append(f"{missing} sensor samples are missing (tracker dropouts or latency)")
+    return tuple(notes)
+
+
 def read_dataset(path: str | os.PathLike[str]) -> Dataset:
     """Read a dataset written by :func:`write_dataset`.
 
@@ -314,46 +430,7 @@ def read_dataset(path: str | os.PathLike[str]) -> Dataset:
     """
     path = Path(path)
     with open_hdf5(path) as fh:
-        if fh.attrs.get("format") != FORMAT:
-            raise InputError(f"{path}: not a simbench dataset (format attribute {fh.attrs.get('format')!r})")
-        try:
-            version = int(fh.attrs.get("format_version", 0))
-        except (TypeError, ValueError):
-            raise InputError(
-                f"{path}: format_version must be an integer, got {fh.attrs.get('format_version')!r}"
-            ) from None
-        if version > FORMAT_VERSION:
-            raise InputError(f"{path}: dataset format version {version} is newer than this simbench reads")
-        missing = [f"/{name}" for name in ("sensors", "time_s", "measured") if name not in fh]
-        missing += ["the meta attribute"] if "meta" not in fh.attrs else []
-        if missing:
-            raise InputError(f"{path}: not a complete simbench dataset: missing {', '.join(missing)}")
-        try:
-            meta = json.loads(fh.attrs["meta"])
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{path}: the meta attribute is not JSON ({exc})") from None
-        if not isinstance(meta, dict):
-            raise InputError(f"{path}: the meta attribute is not a JSON object, got {type(meta).__name__}")
-        try:
-            # format 1 files written before the typed field kept the factor in meta
-            scale = float(fh.attrs.get("position_unit_scale", meta.pop("position_unit_scale", 1.0)))
-        except (TypeError, ValueError):
-            raise InputError(f"{path}: position_unit_scale is not a number") from None
-        if not isinstance(fh["sensors"], h5py.Dataset):
-            raise InputError(f"{path}: /sensors must be a dataset of names")
-        sensors = tuple(
-            s.decode() if isinstance(s, bytes) else str(s) for s in np.atleast_1d(fh["sensors"][()])
-        )
-        time_s = fh["time_s"][()] if isinstance(fh["time_s"], h5py.Dataset) else None
-        if not (
-            isinstance(time_s, np.ndarray) and time_s.ndim == 1 and np.issubdtype(time_s.dtype, np.number)
-        ):
-            kind = getattr(time_s, "dtype", type(time_s).__name__)
-            raise InputError(
-                f"{path}: /time_s must be a 1-D array of numbers (seconds), got {kind} of shape "
-                f"{getattr(time_s, 'shape', ())}"
-            )
-        _check_times(time_s, path)
+        meta, scale, sensors, time_s = _header(fh, path)
         measured = _read_sensor_data(fh["measured"], path)
         _check_poses(measured, time_s, sensors, path)
         truth = None

@@ -19,7 +19,7 @@ from calibration.poses import CHUNK_FRAMES
 from simbench.errors import InputError
 from simbench.io.c3d import c3d_poses, read_cluster_spec
 from simbench.io.dataset import FORMAT as DATASET_FORMAT
-from simbench.io.dataset import Dataset, dataset_from_poses, read_dataset
+from simbench.io.dataset import Dataset, dataset_from_poses, read_dataset, read_dataset_poses
 from simbench.io.hdf5 import open_hdf5
 from simbench.io.imu import ImuRecording, read_broad
 from simbench.io.poses import PoseRecording, read_pose_csv
@@ -112,7 +112,7 @@ def _read_poses(
     if suffix in (".h5", ".hdf5"):
         if units != "m":
             raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
-        return read_dataset(path).poses()
+        return read_dataset_poses(path)  # a large file: a chunk of frames at a time
     raise InputError(
         f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv), a simbench dataset (.h5) "
         "or optical markers (.c3d)"
