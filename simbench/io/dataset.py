@@ -382,8 +382,7 @@ def read_dataset_poses(path: str | os.PathLike[str], *, in_memory: bool | None =
             q, p, v = g["q_w_s"][frames], g["p_w_s"][frames], valid[frames]
             if not (np.issubdtype(q.dtype, np.number) and np.issubdtype(p.dtype, np.number)):
                 raise InputError(f"{path}: /measured/q_w_s and /measured/p_w_s must be arrays of numbers")
-            q_ok = np.isfinite(q).all(axis=-1) & (np.linalg.norm(np.nan_to_num(q), axis=-1) > 0)
-            wrong = v & ~(q_ok & np.isfinite(p).all(axis=-1))
+            wrong = _unusable(q, p, v)
             if wrong.any():
                 bad += int(wrong.sum())
                 first = first or tuple(int(x) for x in np.argwhere(wrong)[0] + (start, 0))
@@ -393,10 +392,7 @@ def read_dataset_poses(path: str | os.PathLike[str], *, in_memory: bool | None =
             store.p[frames] = np.where(v[..., None], p, np.nan)
         if bad:
             f, k = first
-            raise InputError(
-                f"{path}: /measured: {bad} sample(s) marked valid without a finite position and a "
-                f"non-zero quaternion (the first: sensor {sensors[k]!r} at t = {time_s[f]:g} s)"
-            )
+            raise _unusable_error(path, bad, sensors[k], float(time_s[f]))
     R_w_s, p_w_s = store.arrays()
     return PoseRecording(
         names=sensors,
@@ -482,14 +478,24 @@ def _check_poses(m: SensorData, time_s: np.ndarray, sensors: tuple[str, ...], pa
             f"{path}: /measured holds {m.valid.shape} (frames, sensors); /time_s and /sensors say "
             f"{(time_s.size, len(sensors))}"
         )
-    q_ok = np.isfinite(m.q_w_s).all(axis=-1) & (np.linalg.norm(np.nan_to_num(m.q_w_s), axis=-1) > 0)
-    bad = m.valid & ~(q_ok & np.isfinite(m.p_w_s).all(axis=-1))
+    bad = _unusable(m.q_w_s, m.p_w_s, m.valid)
     if bad.any():
         f, k = np.argwhere(bad)[0]
-        raise InputError(
-            f"{path}: /measured: {int(bad.sum())} sample(s) marked valid without a finite position and a "
-            f"non-zero quaternion (the first: sensor {sensors[k]!r} at t = {time_s[f]:g} s)"
-        )
+        raise _unusable_error(path, int(bad.sum()), sensors[k], float(time_s[f]))
+
+
+def _unusable(q_w_s: np.ndarray, p_w_s: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``(frames, sensors)``: samples marked valid without a finite position and a non-zero finite
+    quaternion (``(frames, sensors, 4)``, ``(frames, sensors, 3)``, ``(frames, sensors)``)."""
+    q_ok = np.isfinite(q_w_s).all(axis=-1) & (np.linalg.norm(np.nan_to_num(q_w_s), axis=-1) > 0)
+    return valid & ~(q_ok & np.isfinite(p_w_s).all(axis=-1))
+
+
+def _unusable_error(path: Path, count: int, sensor: str, t: float) -> InputError:
+    return InputError(
+        f"{path}: /measured: {count} sample(s) marked valid without a finite position and a "
+        f"non-zero quaternion (the first: sensor {sensor!r} at t = {t:g} s)"
+    )
 
 
 def _check_times(time_s: np.ndarray, path: Path) -> None:
