@@ -212,9 +212,7 @@ class Dataset:
     def poses(self) -> PoseRecording:
         """The measured poses as the calibration reads them."""
         m = self.measured
-        R = quat_to_matrix(np.where(m.valid[..., None], m.q_w_s, [1.0, 0.0, 0.0, 0.0]))
-        R = np.where(m.valid[..., None, None], R, np.nan)
-        p = np.where(m.valid[..., None], m.p_w_s, np.nan)
+        R, p = _pose_arrays(m.q_w_s, m.p_w_s, m.valid)
         return PoseRecording(
             names=self.sensors,
             time_s=np.array(self.time_s),
@@ -387,9 +385,7 @@ def read_dataset_poses(path: str | os.PathLike[str], *, in_memory: bool | None =
                 bad += int(wrong.sum())
                 first = first or tuple(int(x) for x in np.argwhere(wrong)[0] + (start, 0))
                 continue
-            R = quat_to_matrix(np.where(v[..., None], q, [1.0, 0.0, 0.0, 0.0]))
-            store.R[frames] = np.where(v[..., None, None], R, np.nan)
-            store.p[frames] = np.where(v[..., None], p, np.nan)
+            store.R[frames], store.p[frames] = _pose_arrays(q, p, v)
         if bad:
             f, k = first
             raise _unusable_error(path, bad, sensors[k], float(time_s[f]))
@@ -403,6 +399,14 @@ def read_dataset_poses(path: str | os.PathLike[str], *, in_memory: bool | None =
         source=str(path),
         notes=_pose_notes(scale, int((~valid).sum())),
     )
+
+
+def _pose_arrays(q_w_s: np.ndarray, p_w_s: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``R_w_s`` ``(frames, sensors, 3, 3)`` and ``p_w_s`` ``(frames, sensors, 3)`` as the calibration
+    reads them, NaN where a sample is not ``valid``, from the stored quaternions (w first) and
+    positions."""
+    R = quat_to_matrix(np.where(valid[..., None], q_w_s, [1.0, 0.0, 0.0, 0.0]))
+    return np.where(valid[..., None, None], R, np.nan), np.where(valid[..., None], p_w_s, np.nan)
 
 
 def _pose_notes(scale: float, missing: int) -> tuple[str, ...]:
