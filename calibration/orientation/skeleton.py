@@ -120,11 +120,11 @@ class Priors:
         mag_rad: the measured field's direction, rad (sensor noise and small disturbances).
         joint_acc: the joint equation, m/s^2 (accelerometer noise, skin motion, a skeleton
             that is not exact).
-        root_acc: a root's own acceleration, m/s^2, at least (a standing or walking person's
-            pelvis: 0.1-0.4 m/s^2 RMS in simbench's humanoid). Each root's is raised to the RMS
-            of ``|f| - g`` over its samples where that is larger (a hand-held IMU: BROAD trial
-            30 goes from 92.6 to 67.2 degrees, 0.72 x TRIAD's; trial 02 and the humanoid
-            exercise are unchanged).
+        root_acc: a body's root's own acceleration, m/s^2, at least (a standing or walking
+            person's pelvis: 0.1-0.4 m/s^2 RMS in simbench's humanoid). Each root's is raised to
+            the RMS of ``|f| - g`` over its samples where that is larger. A sensor on its own
+            (no children) has the velocity model instead (:attr:`lone_speed`), unless that is
+            ``None``.
         angular_acc: each sensor's angular acceleration, rad/s^2 per axis (the humanoid's
             segments: 5-25 rad/s^2 RMS at 20 Hz; the prior is loose so as not to flatten real
             motion).
