@@ -365,7 +365,7 @@ def test_orient_on_a_simulated_session_with_its_calibrated_skeleton(tmp_path, ca
     # violent from the first frame, are a large share; see the validation report)
     assert with_skeleton.score.total_rmse_deg < 0.3 * per_sample.score.total_rmse_deg
     assert with_skeleton.score.total_rmse_deg < alone.score.total_rmse_deg
-    rec = ds.imu()
+    rec = few.imu()
     assert estimate(rec, "skeleton").q_enu.shape == (*rec.acc.shape[:2], 4)
     assert main(["orient", str(short), "--method", "triad", "--skeleton", str(cal)]) == 2
     assert "--skeleton is for --method skeleton" in capsys.readouterr().err
