@@ -392,18 +392,23 @@ def test_gait_is_found_by_mixing_the_starts():
 def test_sensors_on_their_own_move_with_a_bounded_speed():
     """Without a skeleton every sensor is on its own: its linear acceleration integrates to a
     velocity with a prior (``Priors.lone_speed``), not a white prior on the acceleration that
-    calls every sustained acceleration a tilt. On a walking humanoid's 16 sensors, each estimated
-    alone, that more than halves the error (module docstring)."""
+    calls every sustained acceleration a tilt. On a walking humanoid's pelvis and arms, each
+    estimated alone, that more than halves the error (module docstring)."""
     ds = sb.simulate(
         model="humanoid", motion="gait", sensors="mems-industrial", duration_s=10, rate_hz=50.0, seed=3
     )
     rec = ds.imu()
+    pick = [
+        rec.names.index(n) for n in ("pelvis", "forearm_l", "hand_l", "upper_arm_r", "forearm_r", "hand_r")
+    ]
     errors = {}
     for name, priors in (("white", Priors(lone_speed=None)), ("velocity", Priors())):
-        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, valid=rec.valid, priors=priors)
-        e = orientation_errors(est.q_w_s, rec.q_true)[..., 0]
+        est = skeleton_orientation(
+            rec.acc[:, pick], rec.mag[:, pick], rec.rate_hz, valid=rec.valid[:, pick], priors=priors
+        )
+        e = orientation_errors(est.q_w_s, rec.q_true[:, pick])[..., 0]
         errors[name] = float(np.rad2deg(np.sqrt(np.nanmean(e**2))))
-    # measured: white 33.4 degrees, velocity 14.1
+    # measured: white 34.7 degrees, velocity 15.2 (all 16 sensors: 33.4 and 14.1)
     assert errors["velocity"] < 0.5 * errors["white"], errors
 
 

@@ -32,7 +32,7 @@ orientations (three more unknowns per lone sensor and frame). Measured, against 
 prior: BROAD's 22 public trials 0.21-0.87 x TRIAD (were 0.28-0.95; the stationary-magnet trials
 30 and 31 0.23 and 0.22, were 0.62 and 0.64), the fast-rotation trials 07 and 09 worse (0.35
 and 0.51, were 0.28 and 0.33); humanoid without a skeleton, 30 s, ``mems-industrial``:
-exercise 8.1 degrees (was 17.7), gait 14.9 (was 33.9). A body's root keeps the white prior:
+exercise 8.1 degrees (was 17.7), gait 14.7 (was 33.9). A body's root keeps the white prior:
 with the velocity model instead, the humanoid exercise went from 1.58 to 2.42 degrees and gait
 from 3.3 to 11.2 (a pelvis accelerates little).
 
