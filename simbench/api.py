@@ -24,7 +24,7 @@ import numpy as np
 
 from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
-from calibration.orientation import Skeleton
+from calibration.orientation import Priors, Skeleton
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset
 from simbench.io.export import export_dataset
@@ -193,6 +193,7 @@ def orient(
     weighting: bool = True,
     smooth_hz: float | None = None,
     calibrate_mag: bool = True,
+    priors: Priors | None = None,
 ) -> Orientations:
     """Sensor orientations from accelerometer and magnetometer, scored against the truth when
     there is one: by default every sensor over the whole recording at once, on the skeleton when
@@ -209,6 +210,10 @@ def orient(
         smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
         calibrate_mag: calibrate each magnetometer from the recording's own samples first
             (:func:`simbench.orient.calibrate_magnetometers`; applied only where it pays).
+        priors: for the ``skeleton`` method, the residuals' standard deviations
+            (:class:`calibration.orientation.Priors`), e.g. ``Priors(lone_speed=1.5)`` for a
+            sensor on its own that moves slowly, ``Priors(lone_speed=None)`` for the white prior
+            on its acceleration.
     """
     rec = data.imu() if isinstance(data, Dataset) else data
     if not isinstance(rec, ImuRecording):
@@ -218,7 +223,7 @@ def orient(
     fits = None
     if calibrate_mag:
         rec, fits = calibrate_magnetometers(rec)
-    run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton)
+    run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton, priors=priors)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return Orientations(
         q_w_s=run.q_enu,

@@ -30,6 +30,7 @@ from calibration.errors import CalibrationError
 from calibration.orientation import (
     Estimate,
     MagnetometerCalibration,
+    Priors,
     Skeleton,
     SpanCalibration,
     Weighting,
@@ -86,6 +87,7 @@ def estimate(
     weighting: bool = True,
     smooth_hz: float | None = None,
     skeleton: Skeleton | None = None,
+    priors: Priors | None = None,
 ) -> OrientationRun:
     """Estimate every sensor's orientation at every sample (ENU).
 
@@ -102,16 +104,23 @@ def estimate(
         skeleton: for ``skeleton``, the body's tree and joints over ``rec``'s sensors (e.g.
             :func:`skeleton_from_calibration`); ``None``: every sensor on its own. The reference
             field then comes from the roots' samples.
+        priors: for ``skeleton``, the residuals' standard deviations
+            (:class:`calibration.orientation.Priors`; default ``Priors()``), e.g. a sensor on its
+            own's speed prior (``lone_speed``).
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
     if skeleton is not None and method != "skeleton":
         raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
+    if priors is not None and method != "skeleton":
+        raise InputError(f"priors are used by the skeleton method only, not {method!r}")
     if method == "skeleton":
         # the reference from the roots' samples, as skeleton_orientation would take it
         roots = (skeleton or Skeleton.none(len(rec.names))).roots
         ref = reference_from_data(rec.acc[:, roots], rec.mag[:, roots], "enu", valid=rec.valid[:, roots])
-        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, ref, valid=rec.valid)
+        est = skeleton_orientation(
+            rec.acc, rec.mag, rec.rate_hz, skeleton, ref, valid=rec.valid, priors=priors
+        )
         return OrientationRun(
             est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
         )

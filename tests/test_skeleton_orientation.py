@@ -27,6 +27,7 @@ from calibration.orientation.skeleton import STARTS
 from calibration.orientation.world import quat_where
 from calibration.rotations import quat_to_matrix, rotvec_to_matrix
 from simbench.cli import main
+from simbench.errors import InputError
 from simbench.io.dataset import write_dataset
 from simbench.io.imu import ImuRecording, read_broad
 from simbench.orient import calibrate_magnetometers, estimate, skeleton_from_calibration
@@ -431,3 +432,26 @@ def test_broad_trials_at_hand_meet_the_issue_targets():
         }
         # measured: 02 0.38 x (3.3 against 8.9 degrees), 30 0.23 x (21.6 against 93.9)
         assert total["skeleton"] <= target * total["triad"], (stem, total)
+
+
+def test_the_lone_speed_prior_from_the_command_line_and_the_api(tmp_path, capsys):
+    """``--lone-speed`` and ``priors=`` reach the estimator, say so in the header, and are
+    refused for the methods that have no such prior."""
+    few = sb.simulate(model="humanoid", motion="exercise", sensors="mems-industrial", duration_s=3, seed=11)
+    short = tmp_path / "short.h5"
+    write_dataset(short, few)
+    capsys.readouterr()
+    assert main(["orient", str(short), "--lone-speed", "1.5"]) == 0
+    assert "(no skeleton: each sensor on its own, speed prior 1.5 m/s)" in capsys.readouterr().out
+    assert main(["orient", str(short), "--method", "triad", "--lone-speed", "1.5"]) == 2
+    assert "--lone-speed is for --method skeleton, not triad" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: a speed must be > 0
+        main(["orient", str(short), "--lone-speed", "0"])
+    assert "--lone-speed" in capsys.readouterr().err
+    default = sb.orient(few, calibrate_mag=False)
+    white = sb.orient(few, calibrate_mag=False, priors=Priors(lone_speed=None))
+    assert not np.allclose(default.q_w_s, white.q_w_s, equal_nan=True)
+    with pytest.raises(InputError, match="priors are used by the skeleton method only"):
+        sb.orient(few, method="triad", priors=Priors())
+    with pytest.raises(CalibrationInputError, match="lone_speed must be > 0"):
+        Priors(lone_speed=-1.0)

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
+from calibration.orientation import Priors
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
 from simbench.io.orientation_csv import write_orientation_csv
@@ -52,6 +55,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "where the samples determine it and it steadies the field strength (default: on)",
     )
     ori.add_argument(
+        "--lone-speed",
+        type=positive_float,
+        default=None,
+        metavar="M/S",
+        help="the skeleton method: the speed prior of a sensor on its own (no skeleton, or a root with "
+        f"no children), m/s (default {Priors().lone_speed:g})",
+    )
+    ori.add_argument(
         "--smooth-hz",
         type=positive_float,
         default=None,
@@ -69,11 +80,21 @@ def cmd_orient(args: argparse.Namespace) -> int:
         if args.method != "skeleton":
             raise InputError(f"--skeleton is for --method skeleton, not {args.method}")
         skeleton = skeleton_from_calibration(args.skeleton, rec.names)
+    priors = None
+    if args.lone_speed is not None:
+        if args.method != "skeleton":
+            raise InputError(f"--lone-speed is for --method skeleton, not {args.method}")
+        priors = Priors(lone_speed=args.lone_speed)
     fits = {}
     if args.calibrate_mag:
         rec, fits = calibrate_magnetometers(rec)
     run = estimate(
-        rec, args.method, weighting=not args.no_weighting, smooth_hz=args.smooth_hz, skeleton=skeleton
+        rec,
+        args.method,
+        weighting=not args.no_weighting,
+        smooth_hz=args.smooth_hz,
+        skeleton=skeleton,
+        priors=priors,
     )
     n_total = run.ok.size
     print(f"simbench orient: {rec.source}")
@@ -81,7 +102,7 @@ def cmd_orient(args: argparse.Namespace) -> int:
         f"  sensors: {len(rec.names)}   samples: {rec.time_s.size} at {rec.rate_hz:.6g} Hz   "
         f"method: {args.method}"
         f"{'' if args.no_weighting or args.method in UNWEIGHTED else ' (disturbance weighting)'}"
-        f"{skeleton_line(skeleton) if args.method == 'skeleton' else ''}"
+        f"{skeleton_line(skeleton, priors or Priors()) if args.method == 'skeleton' else ''}"
     )
     print(
         f"  reference field from the data: {run.field_strength_ut:.1f} uT, inclination "
@@ -116,9 +137,13 @@ def cmd_orient(args: argparse.Namespace) -> int:
 UNWEIGHTED = ("triad", "skeleton", *GYRO_AIDED)
 
 
-def skeleton_line(skeleton) -> str:
+def skeleton_line(skeleton, priors: Priors) -> str:
     """What the skeleton method stands on, for the header."""
+    speed = f", speed prior {priors.lone_speed:g} m/s" if priors.lone_speed is not None else ""
     if skeleton is None:
-        return " (no skeleton: each sensor on its own)"
-    joints = int((skeleton.parent >= 0).sum())
-    return f" ({joints} joints, {int((skeleton.parent < 0).sum())} root(s))"
+        return f" (no skeleton: each sensor on its own{speed})"
+    parent = np.asarray(skeleton.parent)
+    roots = np.flatnonzero(parent < 0)
+    lone = int(np.sum(~np.isin(roots, parent)))
+    alone = f"; {lone} sensor(s) on their own{speed}" if lone else ""
+    return f" ({int((parent >= 0).sum())} joints, {roots.size} root(s){alone})"
