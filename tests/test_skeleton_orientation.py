@@ -455,3 +455,37 @@ def test_the_lone_speed_prior_from_the_command_line_and_the_api(tmp_path, capsys
         sb.orient(few, method="triad", priors=Priors())
     with pytest.raises(CalibrationInputError, match="lone_speed must be > 0"):
         Priors(lone_speed=-1.0)
+
+
+def test_ranges_from_poses_and_a_joint_held_inside_its_range():
+    """``with_ranges`` finds a joint's cone (centre and radius) from poses that sweep it, and a
+    solve with the ranges still recovers the noise-free chain (the truth lies inside them)."""
+    _, R, acc, mag = chain_session(seconds=10.0)
+    skeleton = Skeleton(PARENT, LP, LC).with_ranges(R)
+    assert np.isinf(skeleton.range_rad[0]) and skeleton.ranged.tolist() == [1, 2]
+    for c in (1, 2):
+        rel = np.swapaxes(R[:, PARENT[c]], -1, -2) @ R[:, c]
+        cos = (np.einsum("ij,fij->f", skeleton.range_centre[c], rel) - 1) / 2
+        # every pose inside, one on the surface
+        assert np.rad2deg(np.arccos(np.clip(cos, -1, 1)).max()) == pytest.approx(
+            np.rad2deg(skeleton.range_rad[c])
+        )
+    est = skeleton_orientation(acc, mag, 100.0, skeleton, REF)
+    # measured: 0.75 degrees RMS, as without the ranges (10 s; the first seconds dominate)
+    assert np.sqrt(np.nanmean(total_deg(est.q_w_s, R) ** 2)) < 1.0
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"range_rad": np.ones(3)}, "both"),
+        ({"range_centre": np.broadcast_to(np.eye(3), (3, 3, 3)), "range_rad": np.ones(2)}, "range_rad as"),
+        ({"range_centre": np.broadcast_to(2 * np.eye(3), (3, 3, 3)), "range_rad": np.ones(3)}, "rotation"),
+        ({"range_centre": np.broadcast_to(np.eye(3), (3, 3, 3)), "range_rad": np.zeros(3)}, "> 0"),
+    ],
+)
+def test_bad_ranges_are_refused(kwargs, match):
+    with pytest.raises(CalibrationInputError, match=match):
+        Skeleton(PARENT, LP, LC, **kwargs)
+    with pytest.raises(CalibrationInputError, match="R_w_s"):
+        Skeleton(PARENT, LP, LC).with_ranges(np.zeros((5, 2, 3, 3)))

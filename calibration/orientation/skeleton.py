@@ -39,6 +39,15 @@ either halved or doubled (1.5 or 6 m/s, 1 or 4 m/s^2) the 22 trials' mean ratio 
 0.40-0.46 (0.43 as set, 0.59 with the white prior) and every magnet trial stays below its
 white-prior figure; single trials move by up to 0.3 x TRIAD (the problem is not convex).
 
+**Joint ranges.** A skeleton may carry each joint's range of motion (:attr:`Skeleton.range_rad`,
+e.g. from a calibration session's tracker poses, :meth:`Skeleton.with_ranges`): a cone about a
+centre rotation of the child's frame in the parent's. A joint beyond it costs its excess angle
+(``log(C^T R_p^T R_c)`` scaled back to the cone's surface, :attr:`Priors.beyond_range_rad`);
+inside it costs nothing. It holds on the last level only, as the hinges. Measured, 30 s, on the
+skeleton calibrated from the session's tracker poses and the ranges those poses show: gait
+4.07 -> 2.79 degrees, exercise 1.56 -> 1.55; the chicken walk 35 -> 52 (its starts settle in
+wrong minima either way).
+
 **Solver.** Levenberg-Marquardt on left perturbations ``R <- exp([d]x) R``. Frames couple only
 to their neighbours, so with the unknowns ordered frame by frame the normal equations are a band
 matrix (half-bandwidth ``9N - 1``), solved by banded Cholesky (LAPACK ``pbtrf``): the cost is
@@ -140,6 +149,8 @@ class Priors:
         lone_acc: a lone sensor's velocity change against its measured linear acceleration
             ``R f - g up``, m/s^2 (accelerometer noise and bias, vibration, taps, and the
             level's low-pass).
+        beyond_range_rad: a joint's excess angle beyond its range of motion
+            (:attr:`Skeleton.range_rad`), rad.
     """
 
     mag_rad: float = 0.05
@@ -149,9 +160,19 @@ class Priors:
     hinge_rad: float = 0.02
     lone_speed: float | None = 3.0
     lone_acc: float = 2.0
+    beyond_range_rad: float = 0.02
 
     def __post_init__(self) -> None:
-        names = ("mag_rad", "joint_acc", "root_acc", "angular_acc", "hinge_rad", "lone_speed", "lone_acc")
+        names = (
+            "mag_rad",
+            "joint_acc",
+            "root_acc",
+            "angular_acc",
+            "hinge_rad",
+            "lone_speed",
+            "lone_acc",
+            "beyond_range_rad",
+        )
         for name in names:
             v = getattr(self, name)
             if name == "lone_speed" and v is None:
@@ -175,6 +196,11 @@ class Skeleton:
             child's sensor frame (unit vectors, ``R_p a_p = R_c a_c``); zero rows for the other
             joints. A hinge leaves the child one angle about the axis: the estimator holds the
             axis common to both sensors (a residual with :attr:`Priors.hinge_rad`).
+        range_centre, range_rad: optional ``(N, 3, 3)`` and ``(N,)``: each joint's range of
+            motion as a cone, the child's sensor frame in the parent's (``R_p^T R_c``) within
+            ``range_rad`` of ``range_centre`` (e.g. as a calibration session's poses show it,
+            :meth:`with_ranges`); ``inf`` for a joint without a range, roots' rows ignored. A
+            joint beyond its range costs its excess angle over :attr:`Priors.beyond_range_rad`.
     """
 
     parent: np.ndarray
@@ -182,6 +208,8 @@ class Skeleton:
     joint_in_child: np.ndarray
     hinge_in_parent: np.ndarray | None = None
     hinge_in_child: np.ndarray | None = None
+    range_centre: np.ndarray | None = None
+    range_rad: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         parent = np.asarray(self.parent)
@@ -221,6 +249,24 @@ class Skeleton:
                 )
             if np.any((norms[0] > 0) & (parent < 0)):
                 raise CalibrationInputError("a root has no inboard joint, so no hinge axis")
+        if (self.range_centre is None) != (self.range_rad is None):
+            raise CalibrationInputError("give both range_centre and range_rad, or neither")
+        if self.range_centre is not None:
+            C = np.asarray(self.range_centre, dtype=float)
+            r = np.asarray(self.range_rad, dtype=float)
+            if C.shape != (n, 3, 3) or r.shape != (n,):
+                raise CalibrationInputError(
+                    f"Expected range_centre as ({n}, 3, 3) and range_rad as ({n},), got {C.shape} and "
+                    f"{r.shape}"
+                )
+            if (
+                not np.isfinite(C).all()
+                or np.any(np.abs(C @ np.swapaxes(C, -1, -2) - np.eye(3)) > 1e-6)
+                or np.any(np.linalg.det(C) < 0)
+            ):
+                raise CalibrationInputError("range_centre must hold rotation matrices")
+            if np.any(np.isnan(r) | (r <= 0)):
+                raise CalibrationInputError(f"range_rad must be > 0 (inf: no range), got {r}")
         # every sensor reaches a root: no cycles
         for k in range(n):
             seen, j = 0, k
@@ -238,13 +284,49 @@ class Skeleton:
         hinge = [
             None if h is None else np.asarray(h)[order] for h in (self.hinge_in_parent, self.hinge_in_child)
         ]
+        ranges = [None if x is None else np.asarray(x)[order] for x in (self.range_centre, self.range_rad)]
         return Skeleton(
             np.where(old_parent >= 0, new_of_old[np.maximum(old_parent, 0)], -1),
             np.asarray(self.joint_in_parent)[order],
             np.asarray(self.joint_in_child)[order],
             hinge[0],
             hinge[1],
+            ranges[0],
+            ranges[1],
         )
+
+    def with_ranges(self, R_w_s: np.ndarray, valid: np.ndarray | None = None) -> Skeleton:
+        """This skeleton with each joint's range of motion as poses of its sensors show it
+        (e.g. a calibration session's magnetic-tracker poses of the same sensors): the centre
+        the chordal mean of ``R_p^T R_c`` over the frames where both are valid (the mean matrix
+        projected onto the rotations), the radius the largest angle from it.
+
+        Args:
+            R_w_s: ``(F, N, 3, 3)`` the sensors' orientations, any world frame.
+            valid: optional ``(F, N)`` usable poses (default: the finite ones).
+        """
+        R = np.asarray(R_w_s, dtype=float)
+        parent = np.asarray(self.parent)
+        n = parent.size
+        if R.ndim != 4 or R.shape[1:] != (n, 3, 3):
+            raise CalibrationInputError(f"Expected R_w_s as (frames, {n}, 3, 3), got {R.shape}")
+        ok = np.isfinite(R).all(axis=(-1, -2))
+        if valid is not None:
+            if np.shape(valid) != ok.shape:
+                raise CalibrationInputError(f"Expected valid of shape {ok.shape}, got {np.shape(valid)}")
+            ok &= np.asarray(valid, dtype=bool)
+        centre = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        radius = np.full(n, np.inf)
+        for c in self.children:
+            both = ok[:, c] & ok[:, parent[c]]
+            if not both.any():
+                continue
+            rel = np.swapaxes(R[both, parent[c]], -1, -2) @ R[both, c]
+            u, _, vt = np.linalg.svd(rel.mean(axis=0))
+            centre[c] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+            cos = (np.einsum("ij,fij->f", centre[c], rel) - 1.0) / 2.0
+            radius[c] = max(float(np.arccos(np.clip(cos, -1.0, 1.0)).max()), 1e-6)
+        return dataclasses.replace(self, range_centre=centre, range_rad=radius)
 
     def narrow_order(self) -> np.ndarray:
         """An order of the sensors that keeps each joint's two sensors close (reverse
@@ -269,6 +351,14 @@ class Skeleton:
     @property
     def children(self) -> np.ndarray:
         return np.flatnonzero(np.asarray(self.parent) >= 0)
+
+    @property
+    def ranged(self) -> np.ndarray:
+        """Children whose joint has a range of motion."""
+        if self.range_rad is None:
+            return np.zeros(0, dtype=int)
+        c = self.children
+        return c[np.isfinite(np.asarray(self.range_rad, dtype=float)[c])]
 
     @property
     def hinges(self) -> np.ndarray:
@@ -427,6 +517,29 @@ class _Problem:
                         (col(frames, hc[None]), Ac / pri.hinge_rad),
                     ]
                 )
+        # ranges: the excess of log(C^T R_p^T R_c) beyond the cone's radius
+        rc = sk.ranged
+        if rc.size:
+            rp = np.asarray(sk.parent)[rc]
+            C = np.asarray(sk.range_centre, dtype=float)[rc]
+            M = np.einsum("kji,fklj,fklm->fkim", C, R[:, rp], R[:, rc])
+            phi = _log(M)
+            size = np.linalg.norm(phi, axis=-1)[..., None]
+            theta = np.asarray(sk.range_rad, dtype=float)[rc][None, :, None]
+            out = size > theta
+            safe = np.where(out, size, 1.0)
+            res.append((np.where(out, phi * (1.0 - theta / safe), 0.0) / pri.beyond_range_rad).reshape(-1))
+            if jacobian:
+                # d excess / d phi, then d phi / d(delta_c) = J_r^-1(phi) R_c^T, d(delta_p) = -that
+                D = np.where(
+                    out[..., None],
+                    (1.0 - theta / safe)[..., None] * np.eye(3)
+                    + (theta / safe**3)[..., None] * phi[..., :, None] * phi[..., None, :],
+                    0.0,
+                )
+                Jc = D @ np.swapaxes(_log_jacobian_inverse(phi), -1, -2) @ np.swapaxes(R[:, rc], -1, -2)
+                Jc = Jc / pri.beyond_range_rad
+                groups.append([(col(frames, rp[None]), -Jc), (col(frames, rc[None]), Jc)])
         # smoothness: change of the world angular increment
         if f > 2:
             s = pri.angular_acc * dt**2
@@ -656,6 +769,13 @@ def _interpolate(R: np.ndarray, t_from: np.ndarray, t_to: np.ndarray) -> np.ndar
     return out
 
 
+def _loose(skeleton: Skeleton) -> Skeleton:
+    """The skeleton without its hinges and ranges (the coarser levels')."""
+    return dataclasses.replace(
+        skeleton, hinge_in_parent=None, hinge_in_child=None, range_centre=None, range_rad=None
+    )
+
+
 def _interpolate_linear(V: np.ndarray, t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
     """Each column of ``V`` ``(Fc, ...)`` at times ``t_from``, linearly at ``t_to`` (held beyond
     the ends)."""
@@ -774,16 +894,17 @@ def _solve_levels(
         else:
             R = _interpolate(R, t_prev, t_level)
             V = _interpolate_linear(V, t_prev, t_level)
-        # hinges hold only on the last level: from a start that breaks them, a stiff axis
+        # hinges and ranges hold only on the last level: from a start that breaks them, a stiff
         # constraint traps the solve in a wrong minimum (measured on an analytic chain: 19
-        # degrees RMS with it from the start, 0.55 with it on the last level only, 0.85 without)
+        # degrees RMS with the hinge from the start, 0.55 with it on the last level only, 0.85
+        # without; chicken walk with ranges: 84 degrees from the start, 52 on the last level)
         last = i == len(steps) - 1
         problem = _Problem(
             np.where(use[..., None], a, 0.0),
             np.where(use[..., None], m_dir, 0.0),
             use,
             k / rate_hz,
-            skeleton if last else dataclasses.replace(skeleton, hinge_in_parent=None, hinge_in_child=None),
+            skeleton if last else _loose(skeleton),
             ref,
             priors,
         )
