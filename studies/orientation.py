@@ -8,7 +8,8 @@
    motion (``exercise``; ``gait``, a person walking; ``walk``, O'Brien's "chicken walk", every
    joint through 70 % of its range at up to 1.1 Hz while walking: head and hands at 2 g RMS);
    the skeleton method without a skeleton, on the skeleton
-   calibrated from the session's own tracker poses, and on the true skeleton; with and without
+   calibrated from the session's own tracker poses (also with the joints' ranges of motion those
+   poses show), and on the true skeleton; with and without
    Fontaine's disturbance weighting (and weighted smoothing at 1 Hz); near a ferromagnetic object
    (a 2 A m^2 dipole 40 cm in front of the chest).
 2. Posture (Fontaine 3.2): the humanoid's hands and feet placed by forward kinematics from the
@@ -38,6 +39,7 @@ from simbench.sim.sensor_config import SensorConfig, parse_sensor_config
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 VARIANTS = {
     "skeleton (calibrated skeleton)": dict(method="skeleton", skeleton="calibrated"),
+    "skeleton (calibrated skeleton, ranges)": dict(method="skeleton", skeleton="ranges"),
     "skeleton (true skeleton)": dict(method="skeleton", skeleton="truth"),
     "skeleton (no skeleton)": dict(method="skeleton"),
     "triad": dict(method="triad"),
@@ -79,11 +81,15 @@ def simulated(motion: str, sensors: str | SensorConfig):
 
 
 def skeletons(ds) -> dict[str, Skeleton]:
-    """The session's skeleton as calibrated from its tracker poses, and the true one."""
+    """The session's skeleton as calibrated from its tracker poses (and with the joints' ranges
+    of motion those poses show), and the true one."""
     tree = hierarchy_from_parents(ds.truth.parent_of, ds.sensors)
     tlp, tlc = ds.truth_joint_arrays()
+    calibrated = skeleton_of(sb.calibrate(ds))
+    poses = ds.poses()
     return {
-        "calibrated": skeleton_of(sb.calibrate(ds)),
+        "calibrated": calibrated,
+        "ranges": calibrated.with_ranges(poses.R_w_s, poses.valid),
         "truth": Skeleton(np.asarray(tree.parent), tlp, tlc),
     }
 
