@@ -47,6 +47,7 @@ from calibration.orientation import (
     triad,
     wahba,
 )
+from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_joints, read_calibration_json
 from simbench.io.imu import ImuRecording
@@ -205,7 +206,7 @@ def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ..
     The calibration must be of the same sensors mounted as in the recording (e.g. made from the
     session's magnetic-tracker poses, or from an earlier session without re-mounting). Sensors
     that the calibration leaves out are their own roots; a joint it found single-axis is a hinge
-    about its axis (``axis_in_parent``, ``axis_in_child``).
+    about its axis (``axis_in_parent``, ``axis_in_child``); a joint with a ``range`` keeps to it.
 
     Raises:
         InputError: the file is not a calibration JSON, is not in metres, names sensors the
@@ -225,6 +226,12 @@ def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ..
     lc[joints.child_index] = joints.joint_in_child
     a_p = np.zeros((n, 3))
     a_c = np.zeros((n, 3))
+    centre = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    radius = np.full(n, np.inf)
+    for k, entry in enumerate(doc["joints"]):
+        if entry.get("range") is not None:  # checked by read_calibration_json
+            centre[joints.child_index[k]] = quat_to_matrix(np.asarray(entry["range"]["centre_in_parent"]))
+            radius[joints.child_index[k]] = np.deg2rad(entry["range"]["radius_deg"])
     for k, entry in enumerate(doc["joints"]):
         if not joints.single_axis[k]:
             continue
@@ -237,8 +244,9 @@ def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ..
         a_p[joints.child_index[k]], a_c[joints.child_index[k]] = (
             np.asarray(a) / np.linalg.norm(a) for a in axes
         )
+    ranges = (centre, radius) if np.isfinite(radius).any() else (None, None)
     try:
-        return Skeleton(parent, lp, lc, a_p, a_c)
+        return Skeleton(parent, lp, lc, a_p, a_c, *ranges)
     except CalibrationError as exc:
         raise InputError(f"{path}: the joints are not a tree over the recording's sensors: {exc}") from None
 

@@ -343,6 +343,33 @@ def test_a_calibration_json_becomes_the_skeleton(tmp_path):
         skeleton_from_calibration(path, names)
 
 
+def test_a_calibration_json_carries_the_joints_ranges(tmp_path, monkeypatch):
+    """``simbench calibrate --json`` writes each joint's range of motion in its poses (as
+    ``with_ranges`` finds it, read a chunk at a time or whole alike); ``--skeleton`` reads it
+    back; a malformed range is refused naming the file and the joint."""
+    ds = sb.simulate(model="humanoid", motion="exercise", sensors="mems-industrial", duration_s=6, seed=5)
+    data = tmp_path / "s.h5"
+    write_dataset(data, ds)
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(data), "--json", str(cal), "--no-slip"]) == 0
+    poses = ds.poses()
+    sk = skeleton_from_calibration(cal, tuple(poses.names))
+    expected = sk.with_ranges(poses.R_w_s, poses.valid)
+    monkeypatch.setattr("calibration.orientation.skeleton.RANGE_CHUNK", 7)
+    chunked = sk.with_ranges(poses.R_w_s, poses.valid)
+    assert sk.ranged.tolist() == expected.ranged.tolist() == sk.children.tolist()
+    for other in (expected, chunked):
+        np.testing.assert_allclose(sk.range_rad[sk.children], other.range_rad[sk.children], rtol=1e-9)
+        np.testing.assert_allclose(sk.range_centre, other.range_centre, atol=1e-9)
+    doc = json.loads(cal.read_text())
+    doc["joints"][0]["range"]["radius_deg"] = -3
+    cal.write_text(json.dumps(doc))
+    with pytest.raises(
+        sb.InputError, match=r"cal.json: not a calibration JSON: joints\[0\]: expected 'range'"
+    ):
+        skeleton_from_calibration(cal, tuple(poses.names))
+
+
 def test_orient_on_a_simulated_session_with_its_calibrated_skeleton(tmp_path, capsys):
     """The whole path: simulate, calibrate the tracker poses to a JSON, orient with it."""
     ds = sb.simulate(model="humanoid", motion="exercise", sensors="mems-industrial", duration_s=30, seed=11)
@@ -357,7 +384,7 @@ def test_orient_on_a_simulated_session_with_its_calibrated_skeleton(tmp_path, ca
     write_dataset(short, few)
     assert main(["orient", str(short), "--skeleton", str(cal)]) == 0
     out = capsys.readouterr().out
-    assert "method: skeleton (15 joints, 1 root(s))" in out
+    assert "method: skeleton (15 joints, 1 root(s); ranges of motion on 15)" in out
     with_skeleton = sb.orient(ds, skeleton=cal)
     alone = sb.orient(ds)
     per_sample = sb.orient(ds, method="fontaine")

@@ -115,6 +115,9 @@ COMBINE_S = 2.0
 #: Longest span solved at once, s; longer recordings are cut into segments that overlap by
 #: :data:`OVERLAP_S` and are joined in the middle of the overlap.
 SEGMENT_S = 120.0
+
+#: Frames read at once by :meth:`Skeleton.with_ranges`.
+RANGE_CHUNK = 65536
 OVERLAP_S = 10.0
 
 
@@ -299,33 +302,52 @@ class Skeleton:
         """This skeleton with each joint's range of motion as poses of its sensors show it
         (e.g. a calibration session's magnetic-tracker poses of the same sensors): the centre
         the chordal mean of ``R_p^T R_c`` over the frames where both are valid (the mean matrix
-        projected onto the rotations), the radius the largest angle from it.
+        projected onto the rotations), the radius the largest angle from it. Two passes over the
+        frames, a chunk at a time (an HDF5 dataset is not read whole).
 
         Args:
-            R_w_s: ``(F, N, 3, 3)`` the sensors' orientations, any world frame.
+            R_w_s: ``(F, N, 3, 3)`` the sensors' orientations, any world frame (an array or
+                anything sliced like one along its frames, e.g. an h5py dataset).
             valid: optional ``(F, N)`` usable poses (default: the finite ones).
         """
-        R = np.asarray(R_w_s, dtype=float)
         parent = np.asarray(self.parent)
         n = parent.size
-        if R.ndim != 4 or R.shape[1:] != (n, 3, 3):
-            raise CalibrationInputError(f"Expected R_w_s as (frames, {n}, 3, 3), got {R.shape}")
-        ok = np.isfinite(R).all(axis=(-1, -2))
-        if valid is not None:
-            if np.shape(valid) != ok.shape:
-                raise CalibrationInputError(f"Expected valid of shape {ok.shape}, got {np.shape(valid)}")
-            ok &= np.asarray(valid, dtype=bool)
+        shape = tuple(R_w_s.shape)
+        if len(shape) != 4 or shape[1:] != (n, 3, 3):
+            raise CalibrationInputError(f"Expected R_w_s as (frames, {n}, 3, 3), got {shape}")
+        if valid is not None and np.shape(valid) != shape[:2]:
+            raise CalibrationInputError(f"Expected valid of shape {shape[:2]}, got {np.shape(valid)}")
+        c = self.children
+        p = parent[c]
+
+        def chunks():
+            for a in range(0, shape[0], RANGE_CHUNK):
+                R = np.asarray(R_w_s[a : a + RANGE_CHUNK], dtype=float)
+                ok = np.isfinite(R).all(axis=(-1, -2))
+                if valid is not None:
+                    ok &= np.asarray(valid[a : a + RANGE_CHUNK], dtype=bool)
+                both = ok[:, c] & ok[:, p]
+                rel = np.einsum("fkji,fkjl->fkil", np.where(both[..., None, None], R[:, p], 0.0), R[:, c])
+                yield both, np.nan_to_num(rel)
+
+        total = np.zeros((c.size, 3, 3))
+        count = np.zeros(c.size)
+        for both, rel in chunks():
+            total += rel.sum(axis=0)
+            count += both.sum(axis=0)
+        u, _, vt = np.linalg.svd(total)
+        flip = np.ones((c.size, 3))
+        flip[:, 2] = np.linalg.det(u @ vt)
         centre = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        centre[c] = (u * flip[:, None, :]) @ vt
+        largest = np.zeros(c.size)
+        for both, rel in chunks():
+            cos = (np.einsum("kij,fkij->fk", centre[c], rel) - 1.0) / 2.0
+            angle = np.where(both, np.arccos(np.clip(cos, -1.0, 1.0)), 0.0)
+            largest = np.maximum(largest, angle.max(axis=0, initial=0.0))
         radius = np.full(n, np.inf)
-        for c in self.children:
-            both = ok[:, c] & ok[:, parent[c]]
-            if not both.any():
-                continue
-            rel = np.swapaxes(R[both, parent[c]], -1, -2) @ R[both, c]
-            u, _, vt = np.linalg.svd(rel.mean(axis=0))
-            centre[c] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-            cos = (np.einsum("ij,fij->f", centre[c], rel) - 1.0) / 2.0
-            radius[c] = max(float(np.arccos(np.clip(cos, -1.0, 1.0)).max()), 1e-6)
+        radius[c] = np.where(count > 0, np.maximum(largest, 1e-6), np.inf)
+        centre[c[count == 0]] = np.eye(3)
         return dataclasses.replace(self, range_centre=centre, range_rad=radius)
 
     def narrow_order(self) -> np.ndarray:

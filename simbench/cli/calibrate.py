@@ -25,6 +25,7 @@ from simbench.io.calibration_json import calibration_to_dict, write_calibration_
 from simbench.io.hierarchy_json import read_hierarchy_json
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read_poses
+from simbench.orient import skeleton_of
 from simbench.units import LENGTH_UNITS
 
 
@@ -199,8 +200,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if odd:
         print(f"\n  warning: {odd}")
     if args.json:
+        # each joint's range of motion in these poses, for the skeleton orientation estimator
+        ranged = skeleton_of(cal).with_ranges(rec.R_w_s, rec.valid)
+        ranges = {cal.names[c]: (ranged.range_centre[c], float(ranged.range_rad[c])) for c in ranged.children}
         doc = calibration_to_dict(
             cal,
+            ranges=ranges,
             time_s=rec.time_s,
             slips=slips,
             input_info={

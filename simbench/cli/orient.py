@@ -146,4 +146,5 @@ def skeleton_line(skeleton, priors: Priors) -> str:
     roots = np.flatnonzero(parent < 0)
     lone = int(np.sum(~np.isin(roots, parent)))
     alone = f"; {lone} sensor(s) on their own{speed}" if lone else ""
-    return f" ({int((parent >= 0).sum())} joints, {roots.size} root(s){alone})"
+    ranged = f"; ranges of motion on {skeleton.ranged.size}" if skeleton.ranged.size else ""
+    return f" ({int((parent >= 0).sum())} joints, {roots.size} root(s){ranged}{alone})"

@@ -24,7 +24,12 @@ otherwise ignores them):
 - per joint ``"orientation_noise_rad2"`` and top level ``"rotation_noise_rad2"``
   (``--correct-rotation-noise``): the rotation-noise variances (rad^2 per rotation-vector
   component) the joint was corrected for, ``[parent, child]``, and every sensor's
-  ``{name: variance}`` (:mod:`calibration.eiv`).
+  ``{name: variance}`` (:mod:`calibration.eiv`);
+- per joint ``"range"`` (written by ``simbench calibrate --json``): the joint's range of motion in
+  the calibrated poses as a cone, ``{"centre_in_parent": [w, x, y, z], "radius_deg": r}``: the
+  child sensor's frame in the parent's (scalar-first quaternion) at the cone's centre, and the
+  largest angle from it seen (:meth:`calibration.orientation.Skeleton.with_ranges`); the
+  skeleton orientation estimator keeps the joint inside it.
 
 :func:`read_calibration_json` reads such a file back (checking the fields the readers need) and
 :func:`calibration_joints` turns its joints into arrays indexed by a recording's sensors.
@@ -43,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from calibration.pipeline import Calibration, Joint
+from calibration.rotations import matrix_to_quat
 from calibration.slip import SlipReport
 from calibration.uncertainty import LengthUncertainty, length_to_json, to_json
 from simbench.errors import InputError
@@ -172,6 +178,7 @@ def calibration_to_dict(
     input_info: dict[str, Any] | None = None,
     notes: Sequence[str] = (),
     options: dict[str, Any] | None = None,
+    ranges: dict[str, tuple[np.ndarray, float]] | None = None,
 ) -> dict[str, Any]:
     """The calibration as a JSON-ready dict (schema: module docstring and DESIGN.md).
 
@@ -182,6 +189,8 @@ def calibration_to_dict(
         input_info: what was read (source, sensors, frames, rate, units).
         notes: what the reader repaired or noticed.
         options: the options the calibration ran with.
+        ranges: per child sensor, its joint's range of motion: the centre rotation ``(3, 3)``
+            of its frame in its parent's and the radius, rad (module docstring).
     """
     doc = {
         "format": FORMAT,
@@ -209,6 +218,13 @@ def calibration_to_dict(
         "timing_s": dict(cal.seconds),
         "software": software_versions(),
     }
+    for entry in doc["joints"]:
+        if ranges and entry["child"] in ranges and math.isfinite(ranges[entry["child"]][1]):
+            centre, radius = ranges[entry["child"]]
+            entry["range"] = {
+                "centre_in_parent": _vec(matrix_to_quat(np.asarray(centre))),
+                "radius_deg": float(np.rad2deg(radius)),
+            }
     if cal.robust is not None:
         doc["robust"] = cal.robust
     if cal.rotation_noise_rad2:
@@ -244,6 +260,23 @@ def _check_joint(path: Path, k: int, joint: Any) -> None:
             )
     if not isinstance(joint.get("single_axis", False), bool | None):
         raise InputError(f"{where}: expected 'single_axis' to be true or false, got {joint['single_axis']!r}")
+    rng = joint.get("range")
+    if rng is not None:
+        q = rng.get("centre_in_parent") if isinstance(rng, dict) else None
+        r = rng.get("radius_deg") if isinstance(rng, dict) else None
+        if not (
+            isinstance(q, list)
+            and len(q) == 4
+            and all(isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x) for x in q)
+            and abs(math.hypot(*q) - 1.0) < 1e-6
+            and isinstance(r, int | float)
+            and not isinstance(r, bool)
+            and 0 < r <= 180
+        ):
+            raise InputError(
+                f"{where}: expected 'range' to be {{'centre_in_parent': a unit quaternion [w, x, y, z], "
+                f"'radius_deg': a number in (0, 180]}}, got {rng!r}"
+            )
     for key in ("uncertainty", "robust"):  # optional: accepted, not used by the readers
         if not isinstance(joint.get(key), dict | None):
             raise InputError(f"{where}: expected {key!r} to be an object or null, got {joint[key]!r}")
