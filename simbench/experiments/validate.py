@@ -10,7 +10,8 @@ report module turns it into tables, plots and pictures):
   residual over time and the intervals the detector finds;
 - **orientation**: a humanoid exercise with the ``mems-industrial`` preset, the orientation error
   over time of the sourceless estimators (the default, ``skeleton``, on the skeleton calibrated
-  from the same session's tracker poses) and the gyro-aided reference; and each on the BROAD
+  from the same session's tracker poses, with the joints' ranges of motion those poses show) and
+  the gyro-aided reference; and each on the BROAD
   trials at hand (no skeleton: one IMU);
 - **decisions** (:mod:`simbench.experiments.decisions`): slip alarms per hour on the sessions
   above (none has a slip), detection of 1-3 cm slips, hinge verdicts, cluster grouping, each
@@ -179,7 +180,9 @@ def _orientation(plan: Plan) -> dict[str, Any]:
         "methods": {},
     }
     poses = ds.poses()
-    skeleton = skeleton_of(calibrate(poses.R_w_s, poses.p_w_s, poses.names, valid=poses.valid))
+    # the skeleton and the joints' ranges of motion as `simbench calibrate --json` gives them
+    cal = calibrate(poses.R_w_s, poses.p_w_s, poses.names, valid=poses.valid)
+    skeleton = skeleton_of(cal).with_ranges(poses.R_w_s, poses.valid)
     for label, kw in ORIENTATION_METHODS.items():
         run = estimate(rec, **kw, **({"skeleton": skeleton} if kw["method"] == "skeleton" else {}))
         scored = score_orientation(run.q_enu, rec.q_true, rec.names)

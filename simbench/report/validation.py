@@ -221,10 +221,12 @@ def _slip_and_orientation(slip: dict[str, Any], orientation: dict[str, Any]) -> 
         f"## Sourceless orientation (humanoid exercise, `{orientation['preset']}`)",
         "",
         "`skeleton`, the default, estimates every sensor over the whole session at once on the skeleton "
-        "that `simbench calibrate` finds from the same session's tracker poses: a joint's acceleration "
-        "is the same seen from both its sensors, so the limbs' linear acceleration is predicted from "
-        "the chain's motion instead of being taken for gravity. On BROAD (one IMU, no skeleton) it is "
-        "a smoother with priors on the sensor's acceleration and angular acceleration. The others "
+        "that `simbench calibrate` finds from the same session's tracker poses, each joint kept within "
+        "the range of motion those poses show: a joint's acceleration is the same seen from both its "
+        "sensors, so the limbs' linear acceleration is predicted from the chain's motion instead of "
+        "being taken for gravity. On BROAD (one IMU, no skeleton) the sensor moves on its own: its "
+        "velocity, the integral of its linear acceleration, has a prior, and its angular acceleration "
+        "another. The others "
         "are per sample (Fontaine et al., TRIAD), and VQF uses the gyroscope.",
         "",
         markdown_table(["estimator", "total RMSE (deg)", "heading", "inclination"], errors),
