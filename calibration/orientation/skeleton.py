@@ -303,7 +303,9 @@ class Skeleton:
         (e.g. a calibration session's magnetic-tracker poses of the same sensors): the centre
         the chordal mean of ``R_p^T R_c`` over the frames where both are valid (the mean matrix
         projected onto the rotations), the radius the largest angle from it. Two passes over the
-        frames, a chunk at a time (an HDF5 dataset is not read whole).
+        frames, a chunk at a time (an HDF5 dataset is not read whole). The ranges are those the
+        poses show: a session estimated with them should take its joints no farther (a
+        calibration session that covers the motion, or the same session).
 
         Args:
             R_w_s: ``(F, N, 3, 3)`` the sensors' orientations, any world frame (an array or
