@@ -157,9 +157,9 @@ def main() -> None:
 
     def table(title: str, rows: dict[str, dict[str, float]]) -> None:
         print(f"\n{title}")
-        print(f"  {'estimator':<32}{'total':>8}{'heading':>9}{'inclin.':>9}  (RMSE, degrees)")
+        print(f"  {'estimator':<40}{'total':>8}{'heading':>9}{'inclin.':>9}  (RMSE, degrees)")
         for v, s in rows.items():
-            print(f"  {v:<32}{s['total_deg']:>8.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}")
+            print(f"  {v:<40}{s['total_deg']:>8.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}")
 
     for cond, rows in results["simulation"].items():
         table(f"humanoid, {cond}", rows)
@@ -168,7 +168,7 @@ def main() -> None:
         print("\nposture: hand and foot sensors placed from estimated orientations")
         print(f"(mems-industrial, {motion}), RMS error in cm")
         for v, s in rows.items():
-            print(f"  {v:<32}" + "".join(f"{k} {x:6.2f}  " for k, x in s.items()))
+            print(f"  {v:<40}" + "".join(f"{k} {x:6.2f}  " for k, x in s.items()))
     for trial, rows in results["broad"].items():
         table(f"BROAD {trial}", rows)
     if args.json:
