@@ -1,6 +1,10 @@
 """Sourceless orientation under the testbed's conditions and on real BROAD trials (issue 5).
 
     .venv/bin/python studies/orientation.py [--json studies/results/orientation.json]
+        [--only VARIANT ...]
+
+``--only`` runs those estimators alone and, with ``--json``, replaces just their rows in the file
+(each row is its own estimate of the same sessions: the others' rows stay valid).
 
 1. Simulation (humanoid, 30 s): orientation error of every estimator against the exact actual
    orientations, for the ``mems-industrial`` and ``mems-consumer`` presets (magnetometers
@@ -120,29 +124,28 @@ def posture_error(ds, rec, method_kwargs, skels) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", metavar="OUT")
+    parser.add_argument(
+        "--only", nargs="+", choices=list(VARIANTS), metavar="VARIANT", help="these rows only"
+    )
     args = parser.parse_args()
+    variants = {v: kw for v, kw in VARIANTS.items() if not args.only or v in args.only}
+    posture = [v for v in POSTURE_VARIANTS if v in variants]
     results: dict = {"simulation": {}, "disturbance": {}, "posture_cm": {}, "broad": {}}
     for preset in ("mems-industrial", "mems-consumer"):
         for motion in ("static", "exercise", "gait", "walk"):
             ds, rec = simulated(motion, preset)
             skels = skeletons(ds)
-            row = {v: mean_scores(score(run(ds, rec, kw, skels), rec)) for v, kw in VARIANTS.items()}
+            row = {v: mean_scores(score(run(ds, rec, kw, skels), rec)) for v, kw in variants.items()}
             results["simulation"][f"{preset} / {motion}"] = row
             print(f"{preset} / {motion}: done", flush=True)
-            if preset == "mems-industrial" and motion in ("exercise", "gait", "walk"):
+            if preset == "mems-industrial" and motion in ("exercise", "gait", "walk") and posture:
                 results["posture_cm"][motion] = {
-                    v: posture_error(ds, rec, VARIANTS[v], skels)
-                    for v in (
-                        "skeleton (calibrated skeleton)",
-                        "triad",
-                        "fontaine (weighting, 1 Hz)",
-                        "mahony (gyro)",
-                    )
+                    v: posture_error(ds, rec, VARIANTS[v], skels) for v in posture
                 }
     ds, rec = simulated("exercise", parse_sensor_config(MAGNET, "the magnet case"))
     skels = skeletons(ds)
     results["disturbance"] = {
-        v: mean_scores(score(run(ds, rec, kw, skels), rec)) for v, kw in VARIANTS.items()
+        v: mean_scores(score(run(ds, rec, kw, skels), rec)) for v, kw in variants.items()
     }
     for trial in ("broad_02_undisturbed_slow_rotation_B", "broad_30_disturbed_stationary_magnet_C"):
         path = DATA / f"{trial}.hdf5"
@@ -150,10 +153,13 @@ def main() -> None:
             rec = read_broad(path)
             results["broad"][trial] = {
                 v: score(estimate(rec, **kw), rec)["imu"]
-                for v, kw in VARIANTS.items()
+                for v, kw in variants.items()
                 if "skeleton" not in kw
             }
-            results["broad"][trial]["skeleton (no skeleton)"] = score(estimate(rec, "skeleton"), rec)["imu"]
+            if "skeleton (no skeleton)" in variants:
+                results["broad"][trial]["skeleton (no skeleton)"] = score(estimate(rec, "skeleton"), rec)[
+                    "imu"
+                ]
 
     def table(title: str, rows: dict[str, dict[str, float]]) -> None:
         print(f"\n{title}")
@@ -172,7 +178,16 @@ def main() -> None:
     for trial, rows in results["broad"].items():
         table(f"BROAD {trial}", rows)
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+        out = Path(args.json)
+        if args.only and out.is_file():  # these rows into the earlier run's, in its order
+            earlier = json.loads(out.read_text())
+            for part, rows in results.items():
+                for key, row in rows.items():
+                    earlier.setdefault(part, {}).setdefault(key, {}).update(row)
+            results = earlier
+        tmp = out.with_suffix(out.suffix + ".tmp")
+        tmp.write_text(json.dumps(results, indent=2) + "\n")
+        tmp.replace(out)
 
 
 if __name__ == "__main__":

@@ -32,7 +32,7 @@ orientations (three more unknowns per lone sensor and frame). Measured, against 
 prior: BROAD's 22 public trials 0.21-0.87 x TRIAD (were 0.28-0.95; the stationary-magnet trials
 30 and 31 0.23 and 0.22, were 0.62 and 0.64), the fast-rotation trials 07 and 09 worse (0.35
 and 0.51, were 0.28 and 0.33); humanoid without a skeleton, 30 s, ``mems-industrial``:
-exercise 8.1 degrees (was 17.7), gait 14.7 (was 33.9). A body's root keeps the white prior:
+exercise 9.8 degrees (was 17.7), gait 16.2 (was 33.9). A body's root keeps the white prior:
 with the velocity model instead, the humanoid exercise went from 1.58 to 2.42 degrees and gait
 from 3.3 to 11.2 (a pelvis accelerates little). The two priors were not tuned to BROAD: with
 either halved or doubled (1.5 or 6 m/s, 1 or 4 m/s^2) the 22 trials' mean ratio to TRIAD is
@@ -73,6 +73,16 @@ last level is solved once more from that mix (its seams cost a few iterations). 
 on the calibrated skeleton, gait 18.4, 6.0 and 9.4 alone, 4.1 mixed. The lower cost picked the
 lower error in every case measured; the chicken ``walk`` is where it fails (every start ends
 40-70 degrees off). Three starts cost three times one (``starts=((),)`` for one).
+
+**Trees.** The skeleton's trees (a root and its descendants; every sensor is one without a
+skeleton) share no residual, so each is solved on its own (:meth:`Skeleton.trees`): a sensor's
+estimate does not depend on what else the recording holds, and the banded solve, whose cost goes
+as the cube of the sensors solved together, is the cheaper: the humanoid's 16 sensors without a
+skeleton, 30 s, 19 -> 4 s. Against one solve of them all (a shared damping, starts mixed
+window by window for all sensors at once) the figures moved by chance in single sensors, as a
+non-convex problem does: exercise 8.1 -> 9.8 degrees (the head 26 -> 34), gait 14.7 -> 16.2
+(a hand 20 -> 34), the chicken walk 64.1 -> 61.0, ``mems-consumer`` exercise 22.5 -> 22.4, gait
+21.5 -> 24.0, walk 67.4 -> 65.4.
 
 Long recordings are solved in overlapping segments (:data:`SEGMENT_S`), so memory does not grow
 with the recording.
@@ -279,9 +289,16 @@ class Skeleton:
                     raise CalibrationInputError(f"parent indices form a cycle through sensor {k}")
 
     def permuted(self, order: np.ndarray) -> Skeleton:
-        """The same skeleton over the sensors reordered: new sensor ``i`` is old ``order[i]``."""
-        order = np.asarray(order)
-        new_of_old = np.empty_like(order)
+        """The same skeleton over the sensors reordered: new sensor ``i`` is old ``order[i]``.
+        ``order`` may leave sensors out (e.g. one tree of a forest) if it keeps every kept
+        sensor's parent."""
+        order = np.asarray(order, dtype=int)
+        parent = np.asarray(self.parent)
+        kept = np.zeros(parent.size, dtype=bool)
+        kept[order] = True
+        if np.unique(order).size != order.size or not np.all(kept[parent[order][parent[order] >= 0]]):
+            raise CalibrationInputError("a reordered skeleton needs distinct sensors and their parents")
+        new_of_old = np.full(parent.size, -1)
         new_of_old[order] = np.arange(order.size)
         old_parent = np.asarray(self.parent)[order]
         hinge = [
@@ -351,6 +368,18 @@ class Skeleton:
         radius[c] = np.where(count > 0, np.maximum(largest, 1e-6), np.inf)
         centre[c[count == 0]] = np.eye(3)
         return dataclasses.replace(self, range_centre=centre, range_rad=radius)
+
+    def trees(self) -> list[np.ndarray]:
+        """The sensors of each tree (a root and its descendants), each in :meth:`narrow_order`.
+        Trees share no residual, so each is solved on its own: the banded solve's cost goes as
+        the cube of the sensors solved together."""
+        parent = np.asarray(self.parent)
+        root = np.arange(parent.size)
+        for _ in range(parent.size):  # every sensor's root, by pointer jumping
+            up = parent[root]
+            root = np.where(up >= 0, up, root)
+        order = self.narrow_order()
+        return [order[root[order] == r] for r in self.roots]
 
     def narrow_order(self) -> np.ndarray:
         """An order of the sensors that keeps each joint's two sensors close (reverse
@@ -946,6 +975,56 @@ def _solve_levels(
     return R, V, t_prev, problem, cost, total
 
 
+def _solve_tree(
+    acc: np.ndarray,
+    mag: np.ndarray,
+    ok: np.ndarray,
+    rate_hz: float,
+    skeleton: Skeleton,
+    ref: Reference,
+    priors: Priors,
+    levels_hz: tuple[float, ...],
+    max_iter: int,
+    fine_iter: int,
+    segment_s: float,
+    weigh_disturbance: bool,
+    carry: np.ndarray | None,
+    starts: tuple[tuple[float, ...], ...],
+) -> tuple[np.ndarray, int]:
+    """One tree's sensors over the recording, ``(F, N, 3, 3)``, solved in overlapping segments
+    (:data:`SEGMENT_S`), and the iterations."""
+    f, n = ok.shape
+    R = np.empty((f, n, 3, 3))
+    seg = max(round(segment_s * rate_hz), 8)
+    over = min(round(OVERLAP_S * rate_hz), seg // 4)
+    iterations = 0
+    start = 0
+    kept = 0  # first frame not yet written
+    while kept < f:
+        stop = min(start + seg, f)
+        Rs, it = _solve_span(
+            acc[start:stop],
+            mag[start:stop],
+            ok[start:stop],
+            rate_hz,
+            skeleton,
+            ref,
+            priors,
+            levels_hz,
+            max_iter,
+            fine_iter,
+            weigh_disturbance,
+            None if carry is None else carry[start:stop],
+            starts,
+        )
+        iterations += it
+        keep_to = f if stop == f else stop - over // 2
+        R[kept:keep_to] = Rs[kept - start : keep_to - start]
+        kept = keep_to
+        start = stop - over
+    return R, iterations
+
+
 def skeleton_orientation(
     acc: np.ndarray,
     mag: np.ndarray,
@@ -1026,39 +1105,25 @@ def skeleton_orientation(
         v = None if valid is None else np.asarray(valid, dtype=bool)[:, roots]
         ref = reference_from_data(acc[:, roots], mag[:, roots], valid=v)
     _, _, ok = measured_directions(acc, mag, ref, valid)
-    # solved over the sensors in an order that narrows the band, returned in the caller's
-    order = skeleton.narrow_order()
-    back = np.argsort(order)
-    acc, mag, ok, skeleton = acc[:, order], mag[:, order], ok[:, order], skeleton.permuted(order)
-    if carry is not None:
-        carry = carry[:, order]
+    # each tree on its own, over its sensors in an order that narrows the band
     R = np.empty((f, n, 3, 3))
-    seg = max(round(segment_s * rate_hz), 8)
-    over = min(round(OVERLAP_S * rate_hz), seg // 4)
     iterations = 0
-    start = 0
-    kept = 0  # first frame not yet written
-    while kept < f:
-        stop = min(start + seg, f)
-        Rs, it = _solve_span(
-            acc[start:stop],
-            mag[start:stop],
-            ok[start:stop],
+    for tree in skeleton.trees():
+        R[:, tree], it = _solve_tree(
+            acc[:, tree],
+            mag[:, tree],
+            ok[:, tree],
             rate_hz,
-            skeleton,
+            skeleton.permuted(tree),
             ref,
             priors,
             levels_hz,
             max_iter,
             fine_iter,
+            segment_s,
             weigh_disturbance,
-            None if carry is None else carry[start:stop],
+            None if carry is None else carry[:, tree],
             tuple(tuple(p) for p in starts) or ((),),
         )
         iterations += it
-        keep_to = f if stop == f else stop - over // 2
-        R[kept:keep_to] = Rs[kept - start : keep_to - start]
-        kept = keep_to
-        start = stop - over
-    R, ok = R[:, back], ok[:, back]
     return Estimate(quat_where(R, ok), ok, ref.frame, iterations=iterations)
