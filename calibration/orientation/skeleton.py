@@ -853,20 +853,23 @@ def _fill_start(q: np.ndarray) -> np.ndarray:
     return q
 
 
+@dataclass(frozen=True)
+class _Setup:
+    """What every solve of one tree shares (:func:`skeleton_orientation`'s arguments)."""
+
+    rate_hz: float
+    skeleton: Skeleton
+    ref: Reference
+    priors: Priors
+    levels_hz: tuple[float, ...]
+    max_iter: int
+    fine_iter: int
+    weigh_disturbance: bool
+    starts: tuple[tuple[float, ...], ...]
+
+
 def _solve_span(
-    acc: np.ndarray,
-    mag: np.ndarray,
-    ok: np.ndarray,
-    rate_hz: float,
-    skeleton: Skeleton,
-    ref: Reference,
-    priors: Priors,
-    levels_hz: tuple[float, ...],
-    max_iter: int,
-    fine_iter: int,
-    weigh_disturbance: bool,
-    carry: np.ndarray | None,
-    starts: tuple[tuple[float, ...], ...] = ((),),
+    acc: np.ndarray, mag: np.ndarray, ok: np.ndarray, carry: np.ndarray | None, setup: _Setup
 ) -> tuple[np.ndarray, int]:
     """The coarse-to-fine solve of one span; ``(F, N, 3, 3)`` at every sample, and iterations.
 
@@ -875,9 +878,10 @@ def _solve_span(
     costs less there is taken, and the last level solved once more from that mix; kept if it
     costs less than the best of them."""
     f = acc.shape[0]
+    rate_hz, ref = setup.rate_hz, setup.ref
     acc = np.where(ok[..., None], acc, np.nan)
     mag = np.where(ok[..., None], mag, np.nan)
-    schedules = [tuple(prefix) + tuple(levels_hz) for prefix in starts]
+    schedules = [tuple(prefix) + tuple(setup.levels_hz) for prefix in setup.starts]
     solves = []
     total = 0
     for schedule in schedules:
@@ -885,9 +889,7 @@ def _solve_span(
         steps = [k for k in steps if not (k > 1 and f // k < 3)]
         if not steps or any(steps == s[0] for s in solves):
             continue
-        *solve, it = _solve_levels(
-            acc, mag, rate_hz, steps, skeleton, ref, priors, max_iter, fine_iter, weigh_disturbance, carry
-        )
+        *solve, it = _solve_levels(acc, mag, steps, carry, setup)
         solves.append((steps, *solve))
         total += it
     if not solves:  # too short for any level: the per-sample estimate
@@ -904,7 +906,7 @@ def _solve_span(
         picked = np.repeat(pick, np.diff(np.append(edges, n_frames)))
         start = np.stack([s[1] for s in solves])[picked, np.arange(n_frames)]
         start_v = np.stack([s[2] for s in solves])[picked, np.arange(n_frames)]
-        R_mix, _, it, cost_mix = _levenberg_marquardt(problem, start, start_v, fine_iter)
+        R_mix, _, it, cost_mix = _levenberg_marquardt(problem, start, start_v, setup.fine_iter)
         total += it
         if cost_mix < cost:
             R = R_mix
@@ -912,23 +914,14 @@ def _solve_span(
 
 
 def _solve_levels(
-    acc: np.ndarray,
-    mag: np.ndarray,
-    rate_hz: float,
-    steps: list[int],
-    skeleton: Skeleton,
-    ref: Reference,
-    priors: Priors,
-    max_iter: int,
-    fine_iter: int,
-    weigh_disturbance: bool,
-    carry: np.ndarray | None,
+    acc: np.ndarray, mag: np.ndarray, steps: list[int], carry: np.ndarray | None, setup: _Setup
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, _Problem, float, int]:
     """One coarse-to-fine solve, every ``steps[i]``-th sample at level ``i``, the first level
     started from the per-sample estimate: the last level's orientations ``(Fl, N, 3, 3)`` and
     roots' velocities ``(Fl, n_vel, 3)``, its sample indices ``(Fl,)``, its problem, its final
     cost and the iterations."""
     f = acc.shape[0]
+    rate_hz, ref, skeleton = setup.rate_hz, setup.ref, setup.skeleton
     R = None
     V = np.zeros((0, 0, 3))
     t_prev = np.zeros(0)
@@ -959,16 +952,16 @@ def _solve_levels(
             k / rate_hz,
             skeleton if last else _loose(skeleton),
             ref,
-            priors,
+            setup.priors,
         )
-        if weigh_disturbance:
+        if setup.weigh_disturbance:
             problem.weigh_disturbance(np.nan_to_num(m))
         if carry is not None:  # a level sample is carried if any sample it stands for is
             near = maximum_filter1d(carry.astype(np.uint8), size=k, axis=0)[::k].astype(bool)
             problem.mag_weight = np.where(near, 0.0, problem.mag_weight)
         if V.shape[:2] != (t_level.size, problem.n_vel):
             V = np.zeros((t_level.size, problem.n_vel, 3))
-        R, V, it, cost = _levenberg_marquardt(problem, R, V, max_iter if i == 0 else fine_iter)
+        R, V, it, cost = _levenberg_marquardt(problem, R, V, setup.max_iter if i == 0 else setup.fine_iter)
         total += it
         t_prev = t_level
     assert R is not None and problem is not None
@@ -979,24 +972,16 @@ def _solve_tree(
     acc: np.ndarray,
     mag: np.ndarray,
     ok: np.ndarray,
-    rate_hz: float,
-    skeleton: Skeleton,
-    ref: Reference,
-    priors: Priors,
-    levels_hz: tuple[float, ...],
-    max_iter: int,
-    fine_iter: int,
-    segment_s: float,
-    weigh_disturbance: bool,
     carry: np.ndarray | None,
-    starts: tuple[tuple[float, ...], ...],
+    setup: _Setup,
+    segment_s: float,
 ) -> tuple[np.ndarray, int]:
     """One tree's sensors over the recording, ``(F, N, 3, 3)``, solved in overlapping segments
     (:data:`SEGMENT_S`), and the iterations."""
     f, n = ok.shape
     R = np.empty((f, n, 3, 3))
-    seg = max(round(segment_s * rate_hz), 8)
-    over = min(round(OVERLAP_S * rate_hz), seg // 4)
+    seg = max(round(segment_s * setup.rate_hz), 8)
+    over = min(round(OVERLAP_S * setup.rate_hz), seg // 4)
     iterations = 0
     start = 0
     kept = 0  # first frame not yet written
@@ -1006,16 +991,8 @@ def _solve_tree(
             acc[start:stop],
             mag[start:stop],
             ok[start:stop],
-            rate_hz,
-            skeleton,
-            ref,
-            priors,
-            levels_hz,
-            max_iter,
-            fine_iter,
-            weigh_disturbance,
             None if carry is None else carry[start:stop],
-            starts,
+            setup,
         )
         iterations += it
         keep_to = f if stop == f else stop - over // 2
@@ -1109,21 +1086,24 @@ def skeleton_orientation(
     R = np.empty((f, n, 3, 3))
     iterations = 0
     for tree in skeleton.trees():
-        R[:, tree], it = _solve_tree(
-            acc[:, tree],
-            mag[:, tree],
-            ok[:, tree],
+        setup = _Setup(
             rate_hz,
             skeleton.permuted(tree),
             ref,
             priors,
-            levels_hz,
+            tuple(levels_hz),
             max_iter,
             fine_iter,
-            segment_s,
             weigh_disturbance,
-            None if carry is None else carry[:, tree],
             tuple(tuple(p) for p in starts) or ((),),
+        )
+        R[:, tree], it = _solve_tree(
+            acc[:, tree],
+            mag[:, tree],
+            ok[:, tree],
+            None if carry is None else carry[:, tree],
+            setup,
+            segment_s,
         )
         iterations += it
     return Estimate(quat_where(R, ok), ok, ref.frame, iterations=iterations)
