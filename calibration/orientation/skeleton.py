@@ -125,10 +125,10 @@ COMBINE_S = 2.0
 #: Longest span solved at once, s; longer recordings are cut into segments that overlap by
 #: :data:`OVERLAP_S` and are joined in the middle of the overlap.
 SEGMENT_S = 120.0
+OVERLAP_S = 10.0
 
 #: Frames read at once by :meth:`Skeleton.with_ranges`.
 RANGE_CHUNK = 65536
-OVERLAP_S = 10.0
 
 
 #: Departures of the field strength or dip beyond this many robust standard deviations of the
@@ -176,17 +176,7 @@ class Priors:
     beyond_range_rad: float = 0.02
 
     def __post_init__(self) -> None:
-        names = (
-            "mag_rad",
-            "joint_acc",
-            "root_acc",
-            "angular_acc",
-            "hinge_rad",
-            "lone_speed",
-            "lone_acc",
-            "beyond_range_rad",
-        )
-        for name in names:
+        for name in (f.name for f in dataclasses.fields(self)):
             v = getattr(self, name)
             if name == "lone_speed" and v is None:
                 continue
@@ -300,7 +290,7 @@ class Skeleton:
             raise CalibrationInputError("a reordered skeleton needs distinct sensors and their parents")
         new_of_old = np.full(parent.size, -1)
         new_of_old[order] = np.arange(order.size)
-        old_parent = np.asarray(self.parent)[order]
+        old_parent = parent[order]
         hinge = [
             None if h is None else np.asarray(h)[order] for h in (self.hinge_in_parent, self.hinge_in_child)
         ]
@@ -374,10 +364,9 @@ class Skeleton:
         Trees share no residual, so each is solved on its own: the banded solve's cost goes as
         the cube of the sensors solved together."""
         parent = np.asarray(self.parent)
-        root = np.arange(parent.size)
-        for _ in range(parent.size):  # every sensor's root, by pointer jumping
-            up = parent[root]
-            root = np.where(up >= 0, up, root)
+        root = np.where(parent >= 0, parent, np.arange(parent.size))
+        while np.any(root[root] != root):  # every sensor's root, by pointer jumping
+            root = root[root]
         order = self.narrow_order()
         return [order[root[order] == r] for r in self.roots]
 
@@ -400,6 +389,12 @@ class Skeleton:
     @property
     def roots(self) -> np.ndarray:
         return np.flatnonzero(np.asarray(self.parent) < 0)
+
+    @property
+    def lone(self) -> np.ndarray:
+        """Roots with no children: sensors on their own (every sensor without a skeleton)."""
+        roots = self.roots
+        return roots[~np.isin(roots, np.asarray(self.parent))]
 
     @property
     def children(self) -> np.ndarray:
@@ -442,7 +437,7 @@ class _Problem:
     def __post_init__(self) -> None:
         self.mag_weight = self.use.astype(float)
         roots = self.skeleton.roots
-        self.lone = roots[~np.isin(roots, np.asarray(self.skeleton.parent))]
+        self.lone = self.skeleton.lone
         if self.priors.lone_speed is None:
             self.lone = self.lone[:0]
         self.body_roots = roots[~np.isin(roots, self.lone)]

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from calibration.orientation import Priors
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
@@ -142,9 +140,7 @@ def skeleton_line(skeleton, priors: Priors) -> str:
     speed = f", speed prior {priors.lone_speed:g} m/s" if priors.lone_speed is not None else ""
     if skeleton is None:
         return f" (no skeleton: each sensor on its own{speed})"
-    parent = np.asarray(skeleton.parent)
-    roots = np.flatnonzero(parent < 0)
-    lone = int(np.sum(~np.isin(roots, parent)))
+    lone = skeleton.lone.size
     alone = f"; {lone} sensor(s) on their own{speed}" if lone else ""
     ranged = f"; ranges of motion on {skeleton.ranged.size}" if skeleton.ranged.size else ""
-    return f" ({int((parent >= 0).sum())} joints, {roots.size} root(s){ranged}{alone})"
+    return f" ({skeleton.children.size} joints, {skeleton.roots.size} root(s){ranged}{alone})"
