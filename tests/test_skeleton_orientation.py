@@ -553,3 +553,57 @@ def test_a_skeleton_cut_to_a_tree_keeps_its_joints_and_refuses_an_orphan():
         sk.permuted(np.array([1, 2]))
     with pytest.raises(CalibrationInputError, match="distinct"):
         sk.permuted(np.array([0, 0, 1]))
+
+
+def test_normal_equations_equal_those_of_a_finite_difference_jacobian():
+    """``J^T J`` (LAPACK's lower band) and ``J^T r`` as the solver assembles them from the
+    residuals' blocks equal those of ``J`` differenced numerically, on a problem with every
+    residual: field, a body root, a lone sensor's velocity, joints (two sharing a parent), a
+    hinge, a range (beyond it), smoothness; and some samples unusable."""
+    from calibration.orientation.skeleton import _normal_equations, _Problem
+
+    rng = np.random.default_rng(5)
+    f = 6
+    parent = np.array([-1, 0, 1, -1, 0])  # 3: a lone sensor; 0: a root with two children
+    lp, lc = rng.normal(scale=0.2, size=(2, 5, 3))
+    axis = np.zeros((5, 3))
+    axis[2] = [0.0, 0.6, 0.8]
+    centre = np.broadcast_to(np.eye(3), (5, 3, 3)).copy()
+    centre[1] = rotvec_to_matrix(np.array([0.2, -0.1, 0.3]))
+    sk = Skeleton(parent, lp, lc, axis, axis, centre, np.array([np.inf, 0.3, np.inf, np.inf, np.inf]))
+    use = rng.random((f, 5)) > 0.15
+    mag_dir = rng.normal(size=(f, 5, 3))
+    mag_dir /= np.linalg.norm(mag_dir, axis=-1, keepdims=True)
+    acc = rng.normal(scale=3.0, size=(f, 5, 3)) + np.array([0.0, 0.0, G])
+    problem = _Problem(
+        np.where(use[..., None], acc, 0.0),
+        np.where(use[..., None], mag_dir, 0.0),
+        use,
+        0.05,
+        sk,
+        REF,
+        Priors(),
+    )
+    assert problem.lone.tolist() == [3] and sk.hinges.tolist() == [2] and sk.ranged.tolist() == [1]
+    R = rotvec_to_matrix(rng.normal(scale=1.0, size=(f, 5, 3)))
+    V = rng.normal(size=(f, 1, 3))
+    nb = problem.blocks_per_frame
+    r, groups = problem.residuals(R, V, jacobian=True)
+    ab, g = _normal_equations(r, groups, f * nb, {})
+
+    def perturbed(x: np.ndarray) -> np.ndarray:
+        d = x.reshape(f, nb, 3)
+        return problem.residuals(rotvec_to_matrix(d[:, :5]) @ R, V + d[:, 5:])
+
+    h = 1e-6
+    eye = np.eye(3 * f * nb)
+    J = np.stack([(perturbed(h * e) - perturbed(-h * e)) / (2 * h) for e in eye], axis=1)
+    A = np.zeros((3 * f * nb,) * 2)
+    for d in range(ab.shape[0]):
+        j = np.arange(3 * f * nb - d)
+        A[j + d, j] = ab[d, : j.size]
+    A = np.tril(A) + np.tril(A, -1).T
+    scale = np.abs(J.T @ J).max()
+    np.testing.assert_allclose(A, J.T @ J, rtol=0, atol=1e-7 * scale)
+    np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-7 * np.abs(J.T @ r).max())
+    assert ab.flags.f_contiguous  # what LAPACK reads without a copy
