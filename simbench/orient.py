@@ -39,6 +39,7 @@ from calibration.orientation import (
     fit_circle_hard_iron,
     fit_disturbed_spans,
     fit_magnetometer,
+    follow_fits,
     fontaine,
     mahony,
     reference_from_data,
@@ -278,9 +279,10 @@ def calibrate_magnetometers(
     """Each sensor's magnetometer calibrated from its own samples (hard and soft iron by an
     ellipsoid fit, :func:`calibration.orientation.fit_magnetometer`), applied where it is worth
     it (:func:`applies`); then each span where the field strength departs from the recording's
-    (a magnet attached to the sensor for a while) fitted and recalibrated on its own samples
-    where they determine it (:func:`calibration.orientation.fit_disturbed_spans`; the recording's
-    notes say which).
+    (a magnet attached to the sensor for a while) fitted on its own samples where they determine
+    it (:func:`calibration.orientation.fit_disturbed_spans`), and those fits applied from the
+    magnet's putting-on to its taking-off (:func:`calibration.orientation.follow_fits`; the
+    recording's notes say where).
 
     Returns:
         The recording with the calibrated magnetometers (a sensor whose fit does not apply keeps
@@ -305,11 +307,13 @@ def calibrate_magnetometers(
     ]
     for k, name in enumerate(rec.names):
         spans = fit_disturbed_spans(mag[:, k], rec.rate_hz, rec.valid[:, k])
-        for span in spans:
-            if span.applied:
-                mag[span.start : span.stop, k] = span.fit.apply(mag[span.start : span.stop, k])
+        fitted = [s.fit for s in spans if s.applied]
+        follows = follow_fits(mag[:, k], rec.rate_hz, fitted, rec.valid[:, k])
+        before = mag[:, k].copy()
+        for i, fit in enumerate(fitted):
+            mag[follows == i, k] = fit.apply(before[follows == i])
         if spans:
-            notes.append(describe_spans(name, spans, rec.time_s))
+            notes.append(describe_spans(name, spans, rec.time_s, follows))
     return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, *notes)), fits
 
 
@@ -351,16 +355,31 @@ def disturbed_fraction(rec: ImuRecording) -> dict[str, float]:
     return out
 
 
-def describe_spans(name: str, spans: list[SpanCalibration], time_s: np.ndarray) -> str:
-    """One line on a sensor's spans of a different field, and which were recalibrated."""
+def describe_spans(name: str, spans: list[SpanCalibration], time_s: np.ndarray, follows: np.ndarray) -> str:
+    """One line on a sensor's spans of a different field: which were fitted on their own samples,
+    and where the fits were applied (``follows``, :func:`calibration.orientation.follow_fits`
+    over the fitted spans in order)."""
     parts = []
+    fitted = [s for s in spans if s.applied]
     for s in spans:
         when = f"{time_s[s.start]:.1f}-{time_s[s.stop - 1]:.1f} s"
         if s.applied:
-            parts.append(f"{when} recalibrated ({s.fit.model}, |b| spread {100 * s.fit.spread_after:.2g} %)")
+            parts.append(f"{when} fitted ({s.fit.model}, |b| spread {100 * s.fit.spread_after:.2g} %)")
         else:
-            parts.append(f"{when} left to the estimator")
-    return f"magnetometer {name}: field strength departs in {len(spans)} span(s): " + "; ".join(parts)
+            parts.append(f"{when} not fitted")
+    line = f"magnetometer {name}: field strength departs in {len(spans)} span(s): " + "; ".join(parts)
+    edges = np.flatnonzero(np.diff(follows) != 0) + 1
+    runs = [
+        (a, b, int(follows[a]))
+        for a, b in zip(np.r_[0, edges], np.r_[edges, follows.size], strict=True)
+        if follows[a] >= 0
+    ]
+    applied = [
+        f"{time_s[a]:.1f}-{time_s[b - 1]:.1f} s (the fit of "
+        f"{time_s[fitted[i].start]:.1f}-{time_s[fitted[i].stop - 1]:.1f} s)"
+        for a, b, i in runs
+    ]
+    return line + "; recalibrated " + (", ".join(applied) if applied else "nowhere: left to the estimator")
 
 
 def applies(fit: MagnetometerCalibration) -> bool:

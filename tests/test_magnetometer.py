@@ -223,3 +223,54 @@ def test_turns_about_the_vertical_are_calibrated_by_the_circle_and_the_dip():
         fit_circle_hard_iron(m, up, np.deg2rad(85.0))
     with pytest.raises(CalibrationInputError, match=r"up \(3,\)"):
         fit_circle_hard_iron(m, up[:2], dip)
+
+
+def test_a_fit_of_part_of_an_attachment_is_followed_over_all_of_it_and_no_farther():
+    """A magnet rides on a turning sensor from 20 s to 60 s. The fit of its last 20 s alone (as
+    a span's own fit is, when the departures of ``|m|`` break the attachment into pieces) is
+    followed back to the moment the magnet went on, across the stretches where ``|m|`` is near
+    the Earth field's and the departures alone see nothing, and stops where it came off."""
+    from calibration.orientation.magnetometer import SWITCH_S, disturbed_spans, follow_fits
+
+    rng = np.random.default_rng(8)
+    rate = 50.0
+    t = np.arange(4000) / rate
+    v = np.stack([2.5 * np.sin(0.31 * t), 2.0 * np.sin(0.23 * t + 1), 2.8 * np.sin(0.17 * t + 2)], axis=-1)
+    R = rotvec_to_matrix(v)
+    magnet = 0.6 * 48.0 * np.array([0.6, -0.48, 0.64])
+    on = (t >= 20.0) & (t < 60.0)
+    mag = raw_samples(R, np.eye(3), np.zeros(3), 0.2, rng) + on[:, None] * magnet
+    spans, _ = disturbed_spans(mag, rate, gap_s=0.0)
+    departing = np.zeros(t.size, dtype=bool)
+    for a, b in spans:
+        departing[a:b] = True
+    assert (on & ~departing).sum() > 100  # the departures miss stretches of the attachment
+    late = (t >= 40.0) & (t < 60.0)
+    part = fit_magnetometer(mag[late])
+    follows = follow_fits(mag, rate, [part])
+    wrong = (follows == 0) != on
+    assert wrong.sum() <= SWITCH_S * rate  # a few samples at the edges at most
+    assert np.all(np.minimum(np.abs(t[wrong] - 20.0), np.abs(t[wrong] - 60.0)) < 1.0)
+    # no fit: nothing to follow; the clean recording follows none of a magnet's fit
+    assert np.all(follow_fits(mag, rate, []) == -1)
+    clean = raw_samples(R, np.eye(3), np.zeros(3), 0.2, rng)
+    assert np.all(follow_fits(clean, rate, [part]) == -1)
+
+
+def test_the_cheapest_path_is_the_cheapest_of_all_paths():
+    """The Viterbi pass against every path of a small problem (3 states, 8 samples), each change
+    of state costing the same, the path starting in state 0."""
+    import itertools
+
+    from calibration.orientation.magnetometer import _cheapest_path
+
+    rng = np.random.default_rng(4)
+    for change in (0.0, 0.3, 2.0):
+        cost = rng.random((3, 8))
+
+        def total(path, cost=cost, change=change):
+            p = np.asarray(path)
+            return cost[p, np.arange(p.size)].sum() + change * (np.count_nonzero(np.diff(p)) + (p[0] != 0))
+
+        best = min(total(p) for p in itertools.product(range(3), repeat=8))
+        assert total(_cheapest_path(cost, change)) == pytest.approx(best, abs=1e-12)

@@ -25,7 +25,8 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
   samples by an ellipsoid fit, with whether the samples determine it and how steady it makes
   the field strength (:class:`MagnetometerCalibration`); and spans of the recording where
   the field strength departs (a magnet attached for a while), each recalibrated on its own
-  samples where they determine it (:func:`fit_disturbed_spans`).
+  samples where they determine it (:func:`fit_disturbed_spans`), the fits followed from the
+  magnet's putting-on to its taking-off (:func:`follow_fits`).
 - :mod:`.skeleton`: :func:`skeleton_orientation`, every segment at once over the whole
   recording, on the calibrated skeleton (:class:`Skeleton`): each sensor's linear acceleration
   predicted from the chain's motion instead of ignored, heading carried across spans the data do
@@ -49,6 +50,7 @@ from calibration.orientation.magnetometer import (
     fit_circle_hard_iron,
     fit_disturbed_spans,
     fit_magnetometer,
+    follow_fits,
 )
 from calibration.orientation.skeleton import Priors, Skeleton, skeleton_orientation
 from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
@@ -83,6 +85,7 @@ __all__ = [
     "fit_circle_hard_iron",
     "fit_disturbed_spans",
     "fit_magnetometer",
+    "follow_fits",
     "fontaine",
     "mahony",
     "orientation_errors",

@@ -324,6 +324,11 @@ SPAN_THRESHOLD = 6.0
 SPAN_GAP_S = 5.0
 SPAN_SPLIT_S = 1.0
 
+#: A change of calibration (a magnet put on or taken off, :func:`follow_fits`) has to be paid for
+#: by this long of samples that the new calibration explains and the old does not, s. Measured on
+#: BROAD's attached-magnet trials 32-35: the result is the same from 0.1 to 2 s.
+SWITCH_S = 0.5
+
 
 @dataclass(frozen=True)
 class SpanCalibration:
@@ -439,6 +444,86 @@ def fit_disturbed_spans(
         parts = [(c, d) for c, d in fine if a <= c and d <= b]
         out += [whole] if whole.applied or len(parts) < 2 else [judged(c, d) for c, d in parts]
     return out
+
+
+def follow_fits(
+    mag: np.ndarray,
+    rate_hz: float,
+    fits: list[MagnetometerCalibration],
+    valid: np.ndarray | None = None,
+    strength: float | None = None,
+) -> np.ndarray:
+    """Which of ``fits`` (e.g. the applied span fits, :func:`fit_disturbed_spans`), or none, each
+    sample's field follows.
+
+    A magnet attached to the sensor is one hard iron from the moment it is put on to the moment
+    it is taken off; but its spans of departing field strength end where the sensor's turn
+    happens to bring ``|m|`` back near the Earth's, and a span that holds the putting-on (the
+    field changing while the sensor is still) fits no ellipsoid, so the span fits alone leave
+    such stretches to the estimator (BROAD trial 33: 41-54 s). Here each sample costs, under each
+    calibration, its departure ``(|b| / B - 1)`` in units of :data:`SPAN_THRESHOLD` robust
+    standard deviations of the recording's field strength, squared and capped at 1 (a sample
+    that departs under a calibration costs 1); the cheapest sequence of calibrations over the
+    recording (Viterbi), a change costing :data:`SWITCH_S` seconds of samples, says which
+    calibration each sample follows: it carries a fit over the stretches where the strength is
+    near the Earth's under both, and stops where the magnet comes off.
+
+    Args:
+        mag: ``(F, 3)`` samples (calibrated for the recording as a whole, as the fits were fitted).
+        rate_hz: sample rate, Hz.
+        fits: the candidate calibrations.
+        valid: optional ``(F,)`` mask (other samples follow their neighbours).
+        strength: the recording's field strength ``B`` (default: the median ``|m|``).
+
+    Returns:
+        ``(F,)`` the index into ``fits`` each sample follows, ``-1`` for none (the samples as they
+        are).
+    """
+    m = np.asarray(mag, dtype=float)
+    d = _departures(m, valid, strength)
+    if not fits or not d.spread > 0:
+        return np.full(m.shape[0], -1)
+    scale = SPAN_THRESHOLD * d.spread
+    cost = np.empty((len(fits) + 1, m.shape[0]))
+    for k, (b, B) in enumerate([(m, d.strength)] + [(f.apply(m), f.field_strength) for f in fits]):
+        with np.errstate(invalid="ignore"):
+            x = (np.linalg.norm(b, axis=1) / B - 1.0) / scale
+        cost[k] = np.where(d.use, np.minimum(np.nan_to_num(x, nan=1.0) ** 2, 1.0), 0.0)
+    return _cheapest_path(cost, SWITCH_S * rate_hz) - 1
+
+
+def _cheapest_path(cost: np.ndarray, change: float) -> np.ndarray:
+    """The states ``(F,)`` of the path through ``cost`` ``(K, F)`` (state by sample) whose costs
+    plus ``change`` per change of state sum least, starting in state 0 (Viterbi; every change
+    costs the same, so each step keeps only whether a state stayed or came from the best)."""
+    n_states, f = cost.shape
+    rows = cost.T.tolist()
+    states = range(n_states)
+    total = [rows[0][0]] + [rows[0][k] + change for k in range(1, n_states)]
+    came_from = []
+    for t in range(1, f):
+        best = min(total)
+        jump = best + change
+        source = total.index(best)
+        here = rows[t]
+        step = [-1] * n_states
+        new = [0.0] * n_states
+        for k in states:
+            if total[k] <= jump:
+                new[k] = total[k] + here[k]
+            else:
+                new[k] = jump + here[k]
+                step[k] = source
+        came_from.append(step)
+        total = new
+    path = np.empty(f, dtype=int)
+    k = total.index(min(total))
+    path[-1] = k
+    for t in range(f - 1, 0, -1):
+        if came_from[t - 1][k] >= 0:
+            k = came_from[t - 1][k]
+        path[t - 1] = k
+    return path
 
 
 def _usable_samples(m: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
