@@ -96,6 +96,12 @@ inclination_deg = 60.0
 [[magnetic.disturbance]]
 position = [0.5, 0.0, 1.0]
 moment_am2 = [0.0, 0.0, 2.0]
+[[magnetic.attached]]
+sensor = "forearm_l"
+start_s = 0.2
+stop_s = 0.8
+field_ut = [10.0, 0.0, 5.0]
+ramp_s = 0.1
 [skin]
 sta_amplitude_m = 0.002
 sta_by_sensor = { head = 0.003 }
@@ -990,6 +996,30 @@ SENSOR_CONFIGS: list[tuple[str, Maker]] = [
         "disturbance unknown key",
         raw("[[magnetic.disturbance]]\nposition = [1, 2, 3]\nmoment_am2 = [0, 0, 1]\nsize = 2\n"),
     ),
+    (
+        "attached sensor a number",
+        raw("[[magnetic.attached]]\nsensor = 5\nstart_s = 0\nstop_s = 1\nfield_ut = [1, 0, 0]\n"),
+    ),
+    (
+        "attached an unknown sensor",
+        raw('[[magnetic.attached]]\nsensor = "thigh_l"\nstart_s = 0\nstop_s = 1\nfield_ut = [1, 0, 0]\n'),
+    ),
+    (
+        "attached off before its ramps",
+        raw(
+            '[[magnetic.attached]]\nsensor = "head"\nstart_s = 0\nstop_s = 1\n'
+            "field_ut = [1, 0, 0]\nramp_s = 0.6\n"
+        ),
+    ),
+    (
+        "attached start negative",
+        raw('[[magnetic.attached]]\nsensor = "head"\nstart_s = -1\nstop_s = 1\nfield_ut = [1, 0, 0]\n'),
+    ),
+    (
+        "attached field two numbers",
+        raw('[[magnetic.attached]]\nsensor = "head"\nstart_s = 0\nstop_s = 1\nfield_ut = [1, 0]\n'),
+    ),
+    ("attached missing field", raw('[[magnetic.attached]]\nsensor = "head"\nstart_s = 0\nstop_s = 1\n')),
     ("skin amplitude negative", raw("[skin]\nsta_amplitude_m = -0.01\n")),
     ("skin by sensor a string value", raw('[skin]\nsta_by_sensor = { head = "a" }\n')),
     ("skin by sensor negative", raw("[skin]\nsta_by_sensor = { head = -1 }\n")),

@@ -160,8 +160,8 @@ def sensors_source(config: SessionConfig) -> str:
 
 
 def check_sensor_names(sensor_config: SensorConfig, cm: CaptureModel, source: str) -> None:
-    """The sensors and joints a configuration's skin names must be on the model: checked before
-    any physics (the skin models would find them only after it).
+    """The sensors and joints a configuration's skin and attached magnets name must be on the
+    model: checked before any physics (the skin models would find them only after it).
 
     Raises:
         InputError: naming ``source`` (the preset or file), the key and the model's sensors.
@@ -177,6 +177,7 @@ def check_sensor_names(sensor_config: SensorConfig, cm: CaptureModel, source: st
         ("skin.slip", [slip.sensor for slip in skin.slip], sensors),
         ("skin.pack", pack, sensors),
         ("skin.girdle", [g.joint for g in skin.girdle], children),
+        ("magnetic.attached", [m.sensor for m in sensor_config.magnetic.attached], sensors),
     ]
     for key, names, among in groups:
         unknown = sorted(set(names) - set(among))

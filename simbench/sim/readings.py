@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.rotations import quat_to_matrix
+from simbench.errors import InputError
 from simbench.io.dataset import SensorData
 from simbench.sim.models import CaptureModel, joint_sensor_indices
 from simbench.sim.sensor_config import FieldConfig, SkinConfig
@@ -179,19 +180,49 @@ def field_in_sensor_frames(magnetic: FieldConfig, p_w_s: np.ndarray, R_w_s: np.n
     return np.einsum("fsji,fsj->fsi", R_w_s, b_w)
 
 
-def true_sensor_data(motion: SensorMotion, valid: np.ndarray, magnetic: FieldConfig) -> SensorData:
+def attached_field(
+    magnetic: FieldConfig, time_s: np.ndarray, sensors: tuple[str, ...] | list[str]
+) -> np.ndarray:
+    """The field of the magnets riding on sensors (:class:`AttachedMagnet`), ``(F, N, 3)`` uT in
+    each sensor's frame."""
+    out = np.zeros((np.size(time_s), len(sensors), 3))
+    index = {name: k for k, name in enumerate(sensors)}
+    for magnet in magnetic.attached:
+        if magnet.sensor not in index:
+            raise InputError(
+                f"magnetic.attached names {magnet.sensor!r}, which carries no sensor; "
+                f"sensors: {list(sensors)}"
+            )
+        out[:, index[magnet.sensor]] += magnet.share(time_s)[:, None] * np.asarray(magnet.field_ut)
+    return out
+
+
+def true_sensor_data(
+    motion: SensorMotion,
+    valid: np.ndarray,
+    magnetic: FieldConfig,
+    time_s: np.ndarray | None = None,
+    sensors: tuple[str, ...] | list[str] = (),
+) -> SensorData:
     """The exact :class:`SensorData` of sensor frames, with the field at their places.
 
     Args:
         motion: the sensor frames.
         valid: ``(F, N)`` bool.
-        magnetic: the field in the room.
+        magnetic: the field in the room, and the magnets riding on sensors.
+        time_s: ``(F,)`` the samples' times, s, and ``sensors`` the sensors' names: where the
+            magnets ride (needed when ``magnetic.attached`` names any).
     """
+    mag = field_in_sensor_frames(magnetic, motion.p_w_s, quat_to_matrix(motion.q_w_s))
+    if magnetic.attached:
+        if time_s is None:
+            raise InputError("attached magnets need the samples' times and the sensors' names")
+        mag = mag + attached_field(magnetic, time_s, sensors)
     return SensorData(
         p_w_s=motion.p_w_s,
         q_w_s=motion.q_w_s,
         valid=valid,
         acc=motion.acc,
         gyro=motion.gyro,
-        mag=field_in_sensor_frames(magnetic, motion.p_w_s, quat_to_matrix(motion.q_w_s)),
+        mag=mag,
     )

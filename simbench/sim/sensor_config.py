@@ -19,6 +19,12 @@ unknown key or out-of-range value is an error naming the file and key::
     [[magnetic.disturbance]]        # ferromagnetic objects as magnetic dipoles
     position = [0.5, 0.0, 1.0]
     moment_am2 = [0.0, 0.0, 2.0]
+    [[magnetic.attached]]           # AttachedMagnet: a magnet riding on a sensor for a while
+    sensor = "forearm_l"
+    start_s = 10.0
+    stop_s = 20.0
+    field_ut = [15.0, -12.0, 16.0]  # in the sensor's frame
+    ramp_s = 1.0
     [skin]                          # SkinConfig fields
     sta_amplitude_m = 0.005
     sta_by_sensor = { thigh_l = 0.03 }
@@ -82,12 +88,53 @@ class Disturbance:
 
 
 @dataclass(frozen=True)
+class AttachedMagnet:
+    """A magnet that rides on a sensor for a while (BROAD's attached-magnet trials): a field
+    fixed in the sensor's frame, ``field_ut`` (uT, the sensor's axes), from ``start_s`` to
+    ``stop_s``, put on and taken off over ``ramp_s`` (the field growing and shrinking linearly
+    as the magnet comes near and goes)."""
+
+    sensor: str
+    start_s: float
+    stop_s: float
+    field_ut: tuple[float, float, float]
+    ramp_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.sensor, str) or not self.sensor:
+            raise InputError(f"attached.sensor must be a sensor name, got {self.sensor!r}")
+        if len(self.field_ut) != 3 or not np.all(np.isfinite(self.field_ut)):
+            raise InputError(f"attached.field_ut must be 3 finite numbers, got {self.field_ut}")
+        times = (self.start_s, self.stop_s, self.ramp_s)
+        if not (np.all(np.isfinite(times)) and 0 <= self.start_s and self.ramp_s >= 0):
+            raise InputError(
+                f"attached.start_s and ramp_s must be >= 0, got start_s {self.start_s}, ramp_s {self.ramp_s}"
+            )
+        if self.stop_s - self.start_s < 2 * self.ramp_s:
+            raise InputError(
+                f"attached: the magnet must stay on for its two ramps, got start_s {self.start_s}, "
+                f"stop_s {self.stop_s}, ramp_s {self.ramp_s}"
+            )
+
+    def share(self, time_s: np.ndarray) -> np.ndarray:
+        """``(F,)`` how much of ``field_ut`` is on at each time, 0 to 1."""
+        t = np.asarray(time_s, dtype=float)
+        if self.ramp_s == 0:
+            return ((t >= self.start_s) & (t < self.stop_s)).astype(float)
+        up = (t - self.start_s) / self.ramp_s
+        down = (self.stop_s - t) / self.ramp_s
+        return np.clip(np.minimum(up, down), 0.0, 1.0)
+
+
+@dataclass(frozen=True)
 class FieldConfig:
-    """The magnetic field in the room: the Earth's, plus disturbances."""
+    """The magnetic field: the Earth's, plus disturbances in the room, plus magnets that ride on
+    sensors for a while (``[[magnetic.attached]]``)."""
 
     strength_ut: float = 50.0
     inclination_deg: float = 60.0
     disturbance: tuple[Disturbance, ...] = ()
+    attached: tuple[AttachedMagnet, ...] = ()
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.strength_ut) and self.strength_ut >= 0):
@@ -199,6 +246,7 @@ def _build(cls: type, table: Any, where: str) -> Any:
         sub = {
             "distortion": Distortion,
             "disturbance": Disturbance,
+            "attached": AttachedMagnet,
             "slip": SkinSlip,
             "girdle": SkinGirdle,
         }.get(key)

@@ -178,8 +178,9 @@ def run_session(config: SessionConfig, cm: CaptureModel | None = None) -> Datase
     readings = wear(readings_at_samples(cm, sensordata), cm, plan.sensor_config.skin, plan.streams["skin"])
     time_s = readings.time_s
     valid = np.ones((time_s.size, len(cm.sensors)), dtype=bool)
-    bone = true_sensor_data(readings.bone, valid, plan.sensor_config.magnetic)
-    actual = true_sensor_data(readings.worn, valid, plan.sensor_config.magnetic)
+    magnetic = plan.sensor_config.magnetic
+    bone = true_sensor_data(readings.bone, valid, magnetic, time_s, cm.sensors)
+    actual = true_sensor_data(readings.worn, valid, magnetic, time_s, cm.sensors)
     measured = _measure(config, plan, time_s, actual)
     if not measured.valid.any():
         raise InputError(
