@@ -607,3 +607,33 @@ def test_normal_equations_equal_those_of_a_finite_difference_jacobian():
     np.testing.assert_allclose(A, J.T @ J, rtol=0, atol=1e-7 * scale)
     np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-7 * np.abs(J.T @ r).max())
     assert ab.flags.f_contiguous  # what LAPACK reads without a copy
+
+
+def test_the_starts_are_mixed_sensor_by_sensor_and_the_costs_shared_among_them():
+    """Two solutions of the analytic chain, each with a different sensor turned 90 degrees
+    about the vertical over the whole recording: no one window of either is right everywhere,
+    but sensor by sensor each is right in one, and the mix takes each sensor from there. The
+    per-sensor costs add up to the problem's cost."""
+    from calibration.orientation.skeleton import _mixed, _Problem, _sensor_costs
+
+    _, R, acc, mag = chain_session(seconds=4.0)
+    problem = _Problem(
+        acc,
+        mag / np.linalg.norm(mag, axis=-1, keepdims=True),
+        np.ones(R.shape[:2], bool),
+        0.01,
+        Skeleton(PARENT, LP, LC),
+        REF,
+        Priors(),
+    )
+    V = np.zeros((R.shape[0], 0, 3))
+    turn = rotvec_to_matrix(np.array([0.0, 0.0, np.pi / 2]))
+    root_wrong, leaf_wrong = R.copy(), R.copy()
+    root_wrong[:, 0] = turn @ R[:, 0]
+    leaf_wrong[:, 2] = turn @ R[:, 2]
+    costs = _sensor_costs(problem, leaf_wrong, V)
+    r = problem.residuals(leaf_wrong, V)
+    assert costs.sum() == pytest.approx(r @ r, rel=1e-12)
+    assert costs[:, 2].sum() > 100 * costs[:, 0].sum()  # the leaf's wrong residuals are its own
+    mixed, _ = _mixed(problem, [(root_wrong, V), (leaf_wrong, V)], window=50)
+    np.testing.assert_array_equal(mixed, R)

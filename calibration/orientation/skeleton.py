@@ -66,13 +66,19 @@ finds each segment's mean orientation at 0.625-2.5 Hz, below the stride rate; on
 exercise those coarse starts end at 3.2-3.8 degrees, the 5 Hz start at 1.6. Each start settles
 right in some spans and wrong in others. So the problem is solved from each of :data:`STARTS`,
 and all end on the same last level, whose cost (the criterion the estimate minimises) compares
-them: in every :data:`COMBINE_S` window the solution that costs less there is taken, and the
-last level is solved once more from that mix (its seams cost a few iterations). Measured,
+them: in every :data:`COMBINE_S` window each sensor takes the solution that costs least on it
+there (each residual's cost shared among the sensors it involves, :func:`_sensor_costs`), and
+the last level is solved once more from that mix (its seams cost a few iterations). Measured,
 30 s at 120 Hz, ``mems-industrial``, true skeleton: gait 17.9 (5 Hz start alone), 5.1 and 5.0
 (each coarse start alone), 3.5 degrees mixed (3.4 from the truth); exercise 1.56 (unchanged);
-on the calibrated skeleton, gait 18.4, 6.0 and 9.4 alone, 4.1 mixed. The lower cost picked the
-lower error in every case measured; the chicken ``walk`` is where it fails (every start ends
-40-70 degrees off). Three starts cost three times one (``starts=((),)`` for one).
+on the calibrated skeleton, gait 18.4, 6.0 and 9.4 alone, 4.1 mixed window by window for all
+sensors at once, 3.1 sensor by sensor. In the chicken ``walk`` every start settles wrong
+somewhere, each in other limbs: mixed for all sensors at once 35.4 degrees (calibrated
+skeleton), 51.7 (with ranges), 19.1 (true skeleton); sensor by sensor 32.8, 6.8 and 9.2 (100 Hz,
+other seeds, true skeleton: 6.7 -> 5.2, 5.1 -> 4.8). Where the model is wrong the least cost is not
+the least error: ``mems-consumer``'s walk on the true skeleton, its iron calibrated from the
+session, 26.0 -> 41.9 (calibrated skeleton 32.0 -> 24.4). Three starts cost three times one
+(``starts=((),)`` for one).
 
 **Trees.** The skeleton's trees (a root and its descendants; every sensor is one without a
 skeleton) share no residual, so each is solved on its own (:meth:`Skeleton.trees`): a sensor's
@@ -749,22 +755,45 @@ def _band_index(
     return index.astype(np.int32 if drop < 2**31 - 1 else np.int64), u
 
 
-def _frame_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
-    """``(F,)`` the cost (sum of squared residuals) of ``R`` ``(F, N, 3, 3)`` and ``V``
-    ``(F, n_vel, 3)`` by frame: each residual row counted at the frame of its first block
-    column."""
-    f = problem.use.shape[0]
+def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """``(F, N)`` the cost (sum of squared residuals) of ``R`` ``(F, N, 3, 3)`` and ``V``
+    ``(F, n_vel, 3)`` by frame and sensor: each residual row's cost shared equally among its
+    blocks, each share at its block's frame and sensor (a joint's row half to the parent, half to
+    the child); a lone sensor's velocity blocks count as its own. The shares sum to the cost."""
+    f, n = problem.use.shape
     nb = problem.blocks_per_frame
     r, groups = problem.residuals(R, V, jacobian=True)
-    rows = r.reshape(-1, 3)
-    frame = np.concatenate(
-        [
-            np.broadcast_to(blocks[0][0], np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))).reshape(-1)
-            // nb
-            for blocks in groups
-        ]
-    )
-    return np.bincount(frame, np.sum(rows**2, axis=1), minlength=f)
+    rows = np.sum(r.reshape(-1, 3) ** 2, axis=1)
+    out = np.zeros(f * nb)
+    start = 0
+    for blocks in groups:
+        shape = np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))
+        size = int(np.prod(shape))
+        share = rows[start : start + size] / len(blocks)
+        start += size
+        for c, _ in blocks:
+            out += np.bincount(np.broadcast_to(c, shape).reshape(-1), share, minlength=out.size)
+    out = out.reshape(f, nb)
+    costs = out[:, :n].copy()
+    costs[:, problem.lone] += out[:, n:]
+    return costs
+
+
+def _mixed(
+    problem: _Problem, solutions: list[tuple[np.ndarray, np.ndarray]], window: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """A start from several solutions ``(R, V)`` of ``problem``: in each ``window`` of frames,
+    each sensor from the solution that costs least on it there (:func:`_sensor_costs`), a lone
+    sensor's velocity with it."""
+    costs = np.stack([_sensor_costs(problem, R, V) for R, V in solutions])  # (S, F, N)
+    f, n = costs.shape[1:]
+    edges = np.arange(0, f, window)
+    pick = np.argmin(np.add.reduceat(costs, edges, axis=1), axis=0)  # (windows, N)
+    picked = np.repeat(pick, np.diff(np.append(edges, f)), axis=0)  # (F, N)
+    frames = np.arange(f)[:, None]
+    R = np.stack([R for R, _ in solutions])[picked, frames, np.arange(n)]
+    V = np.stack([V for _, V in solutions])[picked[:, problem.lone], frames, np.arange(problem.n_vel)]
+    return R, V
 
 
 def _levenberg_marquardt(
@@ -871,9 +900,9 @@ def _solve_span(
     """The coarse-to-fine solve of one span; ``(F, N, 3, 3)`` at every sample, and iterations.
 
     Each of ``starts`` is a solve from those coarser levels before ``levels_hz``. All end on the
-    same problem, so their costs compare: window by window (:data:`COMBINE_S`) the solution that
-    costs less there is taken, and the last level solved once more from that mix; kept if it
-    costs less than the best of them."""
+    same problem, so their costs compare: window by window (:data:`COMBINE_S`) and sensor by
+    sensor the solution that costs less there is taken (:func:`_mixed`), and the last level
+    solved once more from that mix; kept if it costs less than the best of them."""
     f = acc.shape[0]
     rate_hz, ref = setup.rate_hz, setup.ref
     acc = np.where(ok[..., None], acc, np.nan)
@@ -894,15 +923,9 @@ def _solve_span(
         return quat_to_matrix(_fill_start(fontaine(acc, mag, ref, valid=use).q_w_s)), 0
     _, R, _, t_level, problem, cost = min(solves, key=lambda s: s[-1])
     if len(solves) > 1 and all(s[0][-1] == solves[0][0][-1] for s in solves):
-        # window by window, the start whose solution costs less there; then one more solve
+        # window by window and sensor by sensor, the start that costs less there; one more solve
         window = max(1, round(COMBINE_S * rate_hz / solves[0][0][-1]))
-        costs = np.stack([_frame_costs(problem, s[1], s[2]) for s in solves])
-        n_frames = costs.shape[1]
-        edges = np.arange(0, n_frames, window)
-        pick = np.argmin(np.add.reduceat(costs, edges, axis=1), axis=0)
-        picked = np.repeat(pick, np.diff(np.append(edges, n_frames)))
-        start = np.stack([s[1] for s in solves])[picked, np.arange(n_frames)]
-        start_v = np.stack([s[2] for s in solves])[picked, np.arange(n_frames)]
+        start, start_v = _mixed(problem, [(s[1], s[2]) for s in solves], window)
         R_mix, _, it, cost_mix = _levenberg_marquardt(problem, start, start_v, setup.fine_iter)
         total += it
         if cost_mix < cost:
