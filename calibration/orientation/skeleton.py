@@ -74,11 +74,12 @@ the last level is solved once more from that mix (its seams cost a few iteration
 on the calibrated skeleton, gait 18.4, 6.0 and 9.4 alone, 4.1 mixed window by window for all
 sensors at once, 3.1 sensor by sensor. In the chicken ``walk`` every start settles wrong
 somewhere, each in other limbs: mixed for all sensors at once 35.4 degrees (calibrated
-skeleton), 51.7 (with ranges), 19.1 (true skeleton); sensor by sensor 32.8, 6.8 and 9.2 (100 Hz,
-other seeds, true skeleton: 6.7 -> 5.2, 5.1 -> 4.8). Where the model is wrong the least cost is not
-the least error: ``mems-consumer``'s walk on the true skeleton, its iron calibrated from the
-session, 26.0 -> 41.9 (calibrated skeleton 32.0 -> 24.4). Three starts cost three times one
-(``starts=((),)`` for one).
+skeleton), 51.7 (with ranges), 19.1 (true skeleton); sensor by sensor 32.7, 6.6 and 9.2 (100 Hz,
+other seeds, true skeleton: 6.7 -> 5.2, 5.1 -> 4.8); ``mems-consumer``'s walk, its iron
+calibrated from the session, 32.0 -> 24.5 (calibrated skeleton), 26.0 -> 24.0 (true skeleton).
+A residual's cost counts at the frame of its first block (a smoothness row spans three frames):
+split among its blocks' frames instead, the consumer's walk on the true skeleton was 41.9, BROAD
+trial 36 16.7 (13.9). Three starts cost three times one (``starts=((),)`` for one).
 
 **Trees.** The skeleton's trees (a root and its descendants; every sensor is one without a
 skeleton) share no residual, so each is solved on its own (:meth:`Skeleton.trees`): a sensor's
@@ -757,9 +758,10 @@ def _band_index(
 
 def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
     """``(F, N)`` the cost (sum of squared residuals) of ``R`` ``(F, N, 3, 3)`` and ``V``
-    ``(F, n_vel, 3)`` by frame and sensor: each residual row's cost shared equally among its
-    blocks, each share at its block's frame and sensor (a joint's row half to the parent, half to
-    the child); a lone sensor's velocity blocks count as its own. The shares sum to the cost."""
+    ``(F, n_vel, 3)`` by frame and sensor: each residual row's cost at the frame of its first
+    block column, shared equally among its blocks' sensors (a joint's row half to the parent,
+    half to the child); a lone sensor's velocity blocks count as its own. The shares sum to the
+    cost."""
     f, n = problem.use.shape
     nb = problem.blocks_per_frame
     r, groups = problem.residuals(R, V, jacobian=True)
@@ -771,8 +773,10 @@ def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray
         size = int(np.prod(shape))
         share = rows[start : start + size] / len(blocks)
         start += size
+        frame = np.broadcast_to(blocks[0][0], shape).reshape(-1) // nb
         for c, _ in blocks:
-            out += np.bincount(np.broadcast_to(c, shape).reshape(-1), share, minlength=out.size)
+            place = frame * nb + np.broadcast_to(c, shape).reshape(-1) % nb
+            out += np.bincount(place, share, minlength=out.size)
     out = out.reshape(f, nb)
     costs = out[:, :n].copy()
     costs[:, problem.lone] += out[:, n:]
