@@ -171,17 +171,25 @@ class Dataset:
         return joint_arrays(self.sensors, t.child, t.joint_in_parent, t.joint_in_child)
 
     def imu(self) -> ImuRecording:
-        """The measured inertial data, truth the actual (on-skin) sensor orientations; samples at
-        the accelerometer's configured range are marked invalid (saturated)."""
+        """The measured inertial data, truth the actual (on-skin) sensor orientations; samples
+        with an accelerometer axis at the configured range (within one step of its resolution:
+        the clipped value is quantised) are marked saturated, and not valid."""
         m = self.measured
         valid = np.array(m.valid)
-        notes = []
-        acc_range = float(self.meta.get("sensor_config", {}).get("imu", {}).get("accel_range", 0.0) or 0.0)
+        notes = list(_pose_notes(self.position_unit_scale, int((~m.valid).sum())))
+        imu = self.meta.get("sensor_config", {}).get("imu", {})
+        acc_range = float(imu.get("accel_range", 0.0) or 0.0)
+        saturated = None
         if acc_range > 0:
-            saturated = (np.abs(m.acc) >= acc_range * (1 - 1e-9)).any(axis=2)
-            if saturated.any():
-                notes.append(f"{int(saturated.sum())} samples with the accelerometer at its range (masked)")
-            valid &= ~saturated
+            top = acc_range - float(imu.get("accel_resolution", 0.0) or 0.0)
+            saturated = valid[..., None] & (np.abs(m.acc) >= top * (1 - 1e-9))
+            at_range = saturated.any(axis=2)
+            if at_range.any():
+                notes.append(
+                    f"{int(at_range.sum())} samples with an accelerometer axis at its range "
+                    f"(+-{acc_range:g} m/s^2): not valid; the skeleton method uses them"
+                )
+            valid &= ~at_range
         rate = float(self.meta.get("rate_hz", 1.0 / np.median(np.diff(self.time_s))))
         return ImuRecording(
             names=self.sensors,
@@ -194,7 +202,8 @@ class Dataset:
             evaluate=None,
             rate_hz=rate,
             source=str(self.meta.get("source", "dataset")),
-            notes=_pose_notes(self.position_unit_scale, int((~m.valid).sum())),
+            notes=tuple(notes),
+            saturated=saturated,
         )
 
     def to_pandas(self, *, layout: str = "long", source: str = "measured") -> Any:

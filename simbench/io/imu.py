@@ -39,6 +39,10 @@ class ImuRecording:
         rate_hz: sample rate, Hz.
         source: where it came from.
         notes: what the reader noticed (saturated or missing samples).
+        saturated: ``(F, N, 3)`` True where an accelerometer axis was at its range, or ``None``
+            (not known): such samples are not ``valid`` (the axis's specific force is known only
+            to be beyond the range), but their other axes, magnetometer and gyroscope are good.
+            The skeleton method uses them as measured (:func:`simbench.orient.estimate`).
     """
 
     names: tuple[str, ...]
@@ -52,6 +56,7 @@ class ImuRecording:
     rate_hz: float
     source: str
     notes: tuple[str, ...] = ()
+    saturated: np.ndarray | None = None
 
 
 def _field(fh: h5py.File, path: Path, name: str, shape_tail: tuple[int, ...]) -> np.ndarray:
