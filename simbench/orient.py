@@ -128,7 +128,7 @@ def estimate(
         # as what the joints ask of it beyond the range, in a last solve: 2.5 and 5.2 on the
         # chain, but 21 -> 44 degrees on the humanoid's chicken walk with mems-consumer (both
         # sides of a joint clip, and the fill of each absorbs the joint's residual)
-        valid = rec.valid if rec.saturated is None else rec.valid | rec.saturated.any(axis=-1)
+        valid = magnetometer_valid(rec)
         est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, ref, valid=valid, priors=priors)
         return OrientationRun(
             est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
@@ -296,10 +296,11 @@ def calibrate_magnetometers(
         its raw samples), and per sensor its fit or why there is none.
     """
     mag = np.array(rec.mag, dtype=float)
+    valid = magnetometer_valid(rec)
     fits: dict[str, MagnetometerCalibration | str] = {}
     for k, name in enumerate(rec.names):
         try:
-            fit = fit_magnetometer(rec.mag[:, k], rec.valid[:, k])
+            fit = fit_magnetometer(rec.mag[:, k], valid[:, k])
         except CalibrationError as exc:
             fits[name] = str(exc)
             continue
@@ -313,9 +314,9 @@ def calibrate_magnetometers(
         f"({', '.join(applied) or 'none'})"
     ]
     for k, name in enumerate(rec.names):
-        spans = fit_disturbed_spans(mag[:, k], rec.rate_hz, rec.valid[:, k])
+        spans = fit_disturbed_spans(mag[:, k], rec.rate_hz, valid[:, k])
         fitted = [s.fit for s in spans if s.applied]
-        follows = follow_fits(mag[:, k], rec.rate_hz, fitted, rec.valid[:, k])
+        follows = follow_fits(mag[:, k], rec.rate_hz, fitted, valid[:, k])
         before = mag[:, k].copy()
         for i, fit in enumerate(fitted):
             mag[follows == i, k] = fit.apply(before[follows == i])
@@ -338,12 +339,18 @@ def _circles(rec: ImuRecording, mag: np.ndarray, fits: dict[str, MagnetometerCal
             continue
         up = np.nanmean(np.where(rec.valid[:, k, None], rec.acc[:, k], np.nan), axis=0)
         try:
-            circle = fit_circle_hard_iron(rec.mag[:, k], up, ref.inclination, rec.valid[:, k])
+            circle = fit_circle_hard_iron(rec.mag[:, k], up, ref.inclination, magnetometer_valid(rec)[:, k])
         except CalibrationError:
             continue
         if applies(circle):
             fits[name] = circle
             mag[:, k] = circle.apply(rec.mag[:, k])
+
+
+def magnetometer_valid(rec: ImuRecording) -> np.ndarray:
+    """``(F, N)`` the samples whose magnetometer is usable: the valid ones and those left out
+    for an accelerometer axis at its range only (:attr:`ImuRecording.saturated`)."""
+    return rec.valid if rec.saturated is None else rec.valid | rec.saturated.any(axis=-1)
 
 
 def disturbed_fraction(rec: ImuRecording) -> dict[str, float]:
@@ -352,12 +359,13 @@ def disturbed_fraction(rec: ImuRecording) -> dict[str, float]:
     ``rec`` carries): where the magnetometer is disturbed and nothing recalibrated it, the
     heading rests on the other terms (joints, smoothness) and on a disturbed field."""
     out = {}
+    valid = magnetometer_valid(rec)
     for k, name in enumerate(rec.names):
-        spans, _ = disturbed_spans(rec.mag[:, k], rec.rate_hz, rec.valid[:, k])
-        inside = np.zeros(rec.valid.shape[0], dtype=bool)
+        spans, _ = disturbed_spans(rec.mag[:, k], rec.rate_hz, valid[:, k])
+        inside = np.zeros(valid.shape[0], dtype=bool)
         for a, b in spans:
             inside[a:b] = True
-        usable = rec.valid[:, k] & np.isfinite(rec.mag[:, k]).all(axis=1)
+        usable = valid[:, k] & np.isfinite(rec.mag[:, k]).all(axis=1)
         out[name] = float((inside & usable).sum() / max(int(usable.sum()), 1))
     return out
 

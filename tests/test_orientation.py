@@ -27,7 +27,7 @@ from calibration.posture import joint_positions, segment_alignment, segment_rota
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from simbench.cli import main
 from simbench.io.imu import read_broad
-from simbench.orient import estimate, vqf_offline
+from simbench.orient import calibrate_magnetometers, estimate, magnetometer_valid, vqf_offline
 from simbench.score import score_orientation
 from simbench.sim.session import SessionConfig, run_session
 
@@ -332,3 +332,10 @@ def test_an_accelerometer_at_its_range_is_marked_saturated_though_its_samples_ar
     # the per-sample methods leave them out; the skeleton method estimates through them
     assert np.isnan(estimate(rec, "triad").q_enu[at_range]).all()
     assert np.isfinite(estimate(rec, "skeleton").q_enu[at_range]).all()
+    # their magnetometer samples calibrate the magnetometer
+    usable = magnetometer_valid(rec)
+    np.testing.assert_array_equal(usable, rec.valid | at_range)
+    _, fits = calibrate_magnetometers(rec)
+    k = int(np.argmax(at_range.sum(axis=0)))
+    fit = fits[rec.names[k]]
+    assert not isinstance(fit, str) and fit.n_samples == usable[:, k].sum() > rec.valid[:, k].sum()
