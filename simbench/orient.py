@@ -350,7 +350,15 @@ def _circles(rec: ImuRecording, mag: np.ndarray, fits: dict[str, MagnetometerCal
 def magnetometer_valid(rec: ImuRecording) -> np.ndarray:
     """``(F, N)`` the samples whose magnetometer is usable: the valid ones and those left out
     for an accelerometer axis at its range only (:attr:`ImuRecording.saturated`)."""
-    return rec.valid if rec.saturated is None else rec.valid | rec.saturated.any(axis=-1)
+    if rec.saturated is None:
+        return rec.valid
+    saturated = np.asarray(rec.saturated)
+    if saturated.dtype != bool or saturated.shape != (*rec.valid.shape, 3):
+        raise InputError(
+            f"{rec.source}: expected saturated as booleans of shape {(*rec.valid.shape, 3)} "
+            f"(frames, sensors, axes), got {saturated.dtype} {saturated.shape}"
+        )
+    return rec.valid | saturated.any(axis=-1)
 
 
 def disturbed_fraction(rec: ImuRecording) -> dict[str, float]:

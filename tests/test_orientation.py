@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import h5py
@@ -26,6 +27,7 @@ from calibration.orientation import (
 from calibration.posture import joint_positions, segment_alignment, segment_rotations
 from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
 from simbench.cli import main
+from simbench.errors import InputError
 from simbench.io.imu import read_broad
 from simbench.orient import calibrate_magnetometers, estimate, magnetometer_valid, vqf_offline
 from simbench.score import score_orientation
@@ -339,3 +341,8 @@ def test_an_accelerometer_at_its_range_is_marked_saturated_though_its_samples_ar
     k = int(np.argmax(at_range.sum(axis=0)))
     fit = fits[rec.names[k]]
     assert not isinstance(fit, str) and fit.n_samples == usable[:, k].sum() > rec.valid[:, k].sum()
+    # a saturation mask of another shape is refused by name
+    bad = dataclasses.replace(rec, saturated=rec.saturated.any(axis=-1))
+    expected = r"shape \(360, 16, 3\) \(frames, sensors, axes\), got bool \(360, 16\)"
+    with pytest.raises(InputError, match=expected):
+        estimate(bad, "skeleton")
