@@ -120,16 +120,19 @@ def estimate(
         # the reference from the roots' samples, as skeleton_orientation would take it
         roots = (skeleton or Skeleton.none(len(rec.names))).roots
         ref = reference_from_data(rec.acc[:, roots], rec.mag[:, roots], "enu", valid=rec.valid[:, roots])
-        # samples with an accelerometer axis at its range used as measured: their other axes and
-        # magnetometer are good, the clipped axis short of the truth, weighed by the joints against
-        # the other rows. Measured on an analytic chain whose tip clips 11-45 % of its samples
-        # (tests/test_skeleton_orientation.py's): at 45 % 15 degrees there, 33 with the
-        # accelerometer left out of them; at 11 % 4.9 against 2.2. Tried: the clipped axis taken
-        # as what the joints ask of it beyond the range, in a last solve: 2.5 and 5.2 on the
-        # chain, but 21 -> 44 degrees on the humanoid's chicken walk with mems-consumer (both
-        # sides of a joint clip, and the fill of each absorbs the joint's residual)
+        # samples with an accelerometer axis at its range: the axis filled from the joints
+        # (skeleton_orientation's acc_clipped), the rest of the sample used as measured
         valid = magnetometer_valid(rec)
-        est = skeleton_orientation(rec.acc, rec.mag, rec.rate_hz, skeleton, ref, valid=valid, priors=priors)
+        est = skeleton_orientation(
+            rec.acc,
+            rec.mag,
+            rec.rate_hz,
+            skeleton,
+            ref,
+            valid=valid,
+            priors=priors,
+            acc_clipped=rec.saturated,
+        )
         return OrientationRun(
             est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
         )

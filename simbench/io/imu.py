@@ -42,7 +42,8 @@ class ImuRecording:
         saturated: ``(F, N, 3)`` True where an accelerometer axis was at its range, or ``None``
             (not known): such samples are not ``valid`` (the axis's specific force is known only
             to be beyond the range), but their other axes, magnetometer and gyroscope are good.
-            The skeleton method uses them as measured (:func:`simbench.orient.estimate`).
+            The skeleton method estimates them, the clipped axis taken from the joints
+            (:func:`calibration.orientation.skeleton_orientation`'s ``acc_clipped``).
     """
 
     names: tuple[str, ...]
