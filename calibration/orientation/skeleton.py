@@ -980,24 +980,36 @@ class _Setup:
     starts: tuple[tuple[float, ...], ...]
 
 
-def _solve_span(
-    acc: np.ndarray,
-    mag: np.ndarray,
-    ok: np.ndarray,
-    clipped: np.ndarray | None,
-    carry: np.ndarray | None,
-    setup: _Setup,
-) -> tuple[np.ndarray, int]:
+@dataclass(frozen=True)
+class _Data:
+    """:func:`skeleton_orientation`'s per-sample inputs: ``acc``, ``mag`` ``(F, N, 3)``, the
+    usable samples ``ok`` ``(F, N)``, and the optional masks ``clipped`` ``(F, N, 3)`` and
+    ``carry`` ``(F, N)``."""
+
+    acc: np.ndarray
+    mag: np.ndarray
+    ok: np.ndarray
+    clipped: np.ndarray | None
+    carry: np.ndarray | None
+
+    def take(self, index: slice | np.ndarray, axis: int) -> _Data:
+        """The frames (``axis`` 0) or sensors (``axis`` 1) ``index``."""
+        at = (index,) if axis == 0 else (slice(None), index)
+        parts = (getattr(self, x.name) for x in dataclasses.fields(self))
+        return _Data(*(None if x is None else x[at] for x in parts))
+
+
+def _solve_span(data: _Data, setup: _Setup) -> tuple[np.ndarray, int]:
     """The coarse-to-fine solve of one span; ``(F, N, 3, 3)`` at every sample, and iterations.
 
     Each of ``starts`` is a solve from those coarser levels before ``levels_hz``. All end on the
     same problem, so their costs compare: window by window (:data:`COMBINE_S`) and sensor by
     sensor the solution that costs less there is taken (:func:`_mixed`), and the last level
     solved once more from that mix; kept if it costs less than the best of them."""
-    f = acc.shape[0]
-    rate_hz, ref = setup.rate_hz, setup.ref
-    acc = np.where(ok[..., None], acc, np.nan)
-    mag = np.where(ok[..., None], mag, np.nan)
+    f = data.acc.shape[0]
+    rate_hz, ref, clipped, carry = setup.rate_hz, setup.ref, data.clipped, data.carry
+    acc = np.where(data.ok[..., None], data.acc, np.nan)
+    mag = np.where(data.ok[..., None], data.mag, np.nan)
     schedules = [tuple(prefix) + tuple(setup.levels_hz) for prefix in setup.starts]
     solves = []
     total = 0
@@ -1090,18 +1102,10 @@ def _solve_levels(
     return R, V, t_prev, problem, cost, total
 
 
-def _solve_tree(
-    acc: np.ndarray,
-    mag: np.ndarray,
-    ok: np.ndarray,
-    clipped: np.ndarray | None,
-    carry: np.ndarray | None,
-    setup: _Setup,
-    segment_s: float,
-) -> tuple[np.ndarray, int]:
+def _solve_tree(data: _Data, setup: _Setup, segment_s: float) -> tuple[np.ndarray, int]:
     """One tree's sensors over the recording, ``(F, N, 3, 3)``, solved in overlapping segments
     (:data:`SEGMENT_S`), and the iterations."""
-    f, n = ok.shape
+    f, n = data.ok.shape
     R = np.empty((f, n, 3, 3))
     seg = max(round(segment_s * setup.rate_hz), 8)
     over = min(round(OVERLAP_S * setup.rate_hz), seg // 4)
@@ -1110,14 +1114,7 @@ def _solve_tree(
     kept = 0  # first frame not yet written
     while kept < f:
         stop = min(start + seg, f)
-        Rs, it = _solve_span(
-            acc[start:stop],
-            mag[start:stop],
-            ok[start:stop],
-            None if clipped is None else clipped[start:stop],
-            None if carry is None else carry[start:stop],
-            setup,
-        )
+        Rs, it = _solve_span(data.take(slice(start, stop), axis=0), setup)
         iterations += it
         keep_to = f if stop == f else stop - over // 2
         R[kept:keep_to] = Rs[kept - start : keep_to - start]
@@ -1218,6 +1215,7 @@ def skeleton_orientation(
         ref = reference_from_data(acc[:, roots], mag[:, roots], valid=v)
     _, _, ok = measured_directions(acc, mag, ref, valid)
     # each tree on its own, over its sensors in an order that narrows the band
+    data = _Data(acc, mag, ok, clipped, carry)
     R = np.empty((f, n, 3, 3))
     iterations = 0
     for tree in skeleton.trees():
@@ -1232,14 +1230,6 @@ def skeleton_orientation(
             weigh_disturbance,
             tuple(tuple(p) for p in starts) or ((),),
         )
-        R[:, tree], it = _solve_tree(
-            acc[:, tree],
-            mag[:, tree],
-            ok[:, tree],
-            None if clipped is None else clipped[:, tree],
-            None if carry is None else carry[:, tree],
-            setup,
-            segment_s,
-        )
+        R[:, tree], it = _solve_tree(data.take(tree, axis=1), setup, segment_s)
         iterations += it
     return Estimate(quat_where(R, ok), ok, ref.frame, iterations=iterations)
