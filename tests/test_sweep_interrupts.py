@@ -190,18 +190,26 @@ def _raise_terminated(signum, frame):
     raise Terminated
 
 
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_an_interrupt_mid_write_removes_the_temporary_file(tmp_path, signum):
     """Ctrl-C or SIGTERM (an exception, as ``simbench`` handles it) while an atomic write is under
     way: the old file stays as it was and no temporary file is left."""
     path = tmp_path / "trial.parquet"
     path.write_text("old")
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)  # what simbench.cli.main does
+    # what simbench.cli.main does; both set here, whatever an earlier test in this worker left
+    # (once in a full run under xdist the SIGINT raised nothing)
+    handlers = {signal.SIGTERM: _raise_terminated, signal.SIGINT: _raise_interrupt}
+    previous = {sig: signal.signal(sig, handler) for sig, handler in handlers.items()}
     try:
         with pytest.raises((KeyboardInterrupt, Terminated)), atomic_open(path) as fh:
             fh.write("half of the new content")
             signal.raise_signal(signum)
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     assert path.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["trial.parquet"]
