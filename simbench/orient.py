@@ -310,7 +310,7 @@ def calibrate_magnetometers(
         fits[name] = fit
         if applies(fit):
             mag[:, k] = fit.apply(rec.mag[:, k])
-    _circles(rec, mag, fits)
+    _circles(rec, mag, fits, valid)
     applied = [n for n, f in fits.items() if not isinstance(f, str) and applies(f)]
     notes = [
         f"magnetometers calibrated from the recording: {len(applied)} of {len(fits)} "
@@ -328,10 +328,13 @@ def calibrate_magnetometers(
     return dataclasses.replace(rec, mag=mag, notes=(*rec.notes, *notes)), fits
 
 
-def _circles(rec: ImuRecording, mag: np.ndarray, fits: dict[str, MagnetometerCalibration | str]) -> None:
+def _circles(
+    rec: ImuRecording, mag: np.ndarray, fits: dict[str, MagnetometerCalibration | str], valid: np.ndarray
+) -> None:
     """The sensors whose sphere the samples do not determine (turns about one axis), calibrated
-    by the circle and the dip (:func:`calibration.orientation.fit_circle_hard_iron`), the field's
-    strength and dip from the sensors calibrated already; ``mag`` and ``fits`` updated in place."""
+    by the circle and the dip (:func:`calibration.orientation.fit_circle_hard_iron`) on their
+    magnetometer's ``valid`` ``(F, N)`` samples, the field's strength and dip from the sensors
+    calibrated already; ``mag`` and ``fits`` updated in place."""
     done = [k for k, n in enumerate(rec.names) if not isinstance(fits[n], str) and applies(fits[n])]
     if not done:
         return
@@ -342,7 +345,7 @@ def _circles(rec: ImuRecording, mag: np.ndarray, fits: dict[str, MagnetometerCal
             continue
         up = np.nanmean(np.where(rec.valid[:, k, None], rec.acc[:, k], np.nan), axis=0)
         try:
-            circle = fit_circle_hard_iron(rec.mag[:, k], up, ref.inclination, magnetometer_valid(rec)[:, k])
+            circle = fit_circle_hard_iron(rec.mag[:, k], up, ref.inclination, valid[:, k])
         except CalibrationError:
             continue
         if applies(circle):

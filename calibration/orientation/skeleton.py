@@ -489,27 +489,38 @@ class _Problem:
         out.clipped = self._usable_clipped(clipped)
         return out
 
-    def filled(self, R: np.ndarray, V: np.ndarray) -> np.ndarray:
+    def joints(self, R: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The joints' parent and child sensors ``(J,)`` (none with fewer than three frames),
+        their places ``R_p l_p`` and ``R_c l_c`` ``(F, J, 3)`` (m) at orientations ``R``, and
+        those places' second derivatives ``(F - 2, J, 3)`` (m/s^2)."""
+        sk, dt = self.skeleton, self.dt
+        c = sk.children if R.shape[0] > 2 else sk.children[:0]
+        p = np.asarray(sk.parent)[c]
+        Lp = np.einsum("fkij,kj->fki", R[:, p], np.asarray(sk.joint_in_parent, dtype=float)[c])
+        Lc = np.einsum("fkij,kj->fki", R[:, c], np.asarray(sk.joint_in_child, dtype=float)[c])
+
+        def d2(x: np.ndarray) -> np.ndarray:
+            return (x[2:] - 2 * x[1:-1] + x[:-2]) / dt**2
+
+        return p, c, Lp, Lc, d2(Lp), d2(Lc)
+
+    def filled(self, R: np.ndarray, V: np.ndarray, joints: tuple | None = None) -> np.ndarray:
         """``(F, N, 3)`` the specific forces, each clipped axis (:attr:`clipped`, its value the
         range, a bound) at what the sensor's accelerometer rows (root, lone, joints) ask of it
         at ``R``, ``V``, where that is beyond the range. Each row ``s R_k f_k + c`` (``s`` = +-1,
         weight ``w``) asks ``f_k = -s R_k^T c``: their weighted mean is ``f_k - R_k^T sum(w^2 s
         e) / sum(w^2)`` for the rows' residuals ``e``. Sensor by sensor (Gauss-Seidel: a joint
         whose two sides clip is absorbed once, by the first, not by both), so the cost is a
-        function of ``R`` and ``V`` alone."""
+        function of ``R`` and ``V`` alone. ``joints``: :meth:`joints` at ``R``, when at hand."""
         acc = self.acc
         if self.clipped is None:
             return acc
         f = acc.copy()
         frames = f.shape[0]
-        dt, pri, sk = self.dt, self.priors, self.skeleton
+        dt, pri = self.dt, self.priors
         g_up = self.ref.gravity * self.ref.up_w
         Rf = np.einsum("fnij,fnj->fni", R, f)
-        c = sk.children if frames > 2 else sk.children[:0]
-        p = np.asarray(sk.parent)[c]
-        Lp = np.einsum("fkij,kj->fki", R[:, p], np.asarray(sk.joint_in_parent, dtype=float)[c])
-        Lc = np.einsum("fkij,kj->fki", R[:, c], np.asarray(sk.joint_in_child, dtype=float)[c])
-        d2 = (Lp[2:] - 2 * Lp[1:-1] + Lp[:-2] - Lc[2:] + 2 * Lc[1:-1] - Lc[:-2]) / dt**2
+        p, c, _, _, d2p, d2c = self.joints(R) if joints is None else joints
         w2j = (self.use[1:-1, p] & self.use[1:-1, c]) / pri.joint_acc**2
         roots, lone = list(self.body_roots), list(self.lone)
         for k in np.flatnonzero(self.clipped.any(axis=(0, 2))):
@@ -526,7 +537,7 @@ class _Problem:
                 pull[1:-1] -= w2[:, None] * e
                 weight[1:-1] += w2
             for j in np.flatnonzero((p == k) | (c == k)):
-                e = Rf[1:-1, p[j]] - Rf[1:-1, c[j]] + d2[:, j]
+                e = Rf[1:-1, p[j]] - Rf[1:-1, c[j]] + d2p[:, j] - d2c[:, j]
                 sign = 1.0 if p[j] == k else -1.0
                 pull[1:-1] += sign * w2j[:, j, None] * e
                 weight[1:-1] += w2j[:, j]
@@ -580,7 +591,8 @@ class _Problem:
             return t * nb + k
 
         frames = np.arange(f)[:, None]
-        acc = self.filled(R, V)
+        joints = self.joints(R)
+        acc = self.filled(R, V, joints)
         # magnetometer: R m - b
         Rm = np.einsum("fnij,fnj->fni", R, self.mag_dir)
         w = (self.mag_weight / pri.mag_rad)[..., None]
@@ -615,17 +627,10 @@ class _Problem:
                 )
                 groups.append([(col(frames, v_col), np.float64(1.0 / pri.lone_speed))])
         # joints: R_p f_p + D2(R_p l_p) - R_c f_c - D2(R_c l_c)
-        c = sk.children
-        if c.size and f > 2:
-            p = np.asarray(sk.parent)[c]
-            Lp = np.einsum("fkij,kj->fki", R[:, p], np.asarray(sk.joint_in_parent, dtype=float)[c])
-            Lc = np.einsum("fkij,kj->fki", R[:, c], np.asarray(sk.joint_in_child, dtype=float)[c])
-
-            def d2(x: np.ndarray) -> np.ndarray:
-                return (x[2:] - 2 * x[1:-1] + x[:-2]) / dt**2
-
+        p, c, Lp, Lc, d2p, d2c = joints
+        if c.size:
             wj = (self.use[1:-1, p] & self.use[1:-1, c]) / pri.joint_acc
-            res.append((wj[..., None] * (Rf[1:-1, p] - Rf[1:-1, c] + d2(Lp) - d2(Lc))).reshape(-1))
+            res.append((wj[..., None] * (Rf[1:-1, p] - Rf[1:-1, c] + d2p - d2c)).reshape(-1))
             if jacobian:
                 t = frames[1:-1]
                 W = wj[..., None]
