@@ -132,11 +132,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import fft as _fft
-from scipy import stats as _stats
 
 from calibration.eiv import corrected_normal_matrix, noise_diagonal
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.joint import JointFit, check_pair, finite_frames
+from calibration.quantiles import chi2_ppf, f_ppf, norm_ppf, t_ppf
 
 #: The estimators of :func:`joint_covariance`; the first is the default.
 METHODS = ("batch-means", "iid", "block-bootstrap")
@@ -346,7 +346,7 @@ def t_quantile(dof: float, level: float = LEVEL) -> float:
     """Two-sided Student's ``t`` quantile: half-width of a ``level`` interval in standard errors."""
     _check_level(level)
     q = 0.5 + level / 2.0
-    return float(_stats.norm.ppf(q) if math.isinf(dof) else _stats.t.ppf(q, dof))
+    return float(norm_ppf(q) if math.isinf(dof) else t_ppf(q, dof))
 
 
 def region_threshold(p: int | np.ndarray, dof: float | np.ndarray, level: float = LEVEL) -> np.ndarray:
@@ -360,8 +360,8 @@ def region_threshold(p: int | np.ndarray, dof: float | np.ndarray, level: float 
     p, dof = np.broadcast_arrays(np.asarray(p, dtype=float), np.asarray(dof, dtype=float))
     d2 = dof - p + 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        hot = p * dof / d2 * _stats.f.ppf(level, np.maximum(p, 1.0), np.where(d2 > 0, d2, 1.0))
-    out = np.where(np.isinf(dof), _stats.chi2.ppf(level, np.maximum(p, 1.0)), hot)
+        hot = p * dof / d2 * f_ppf(level, np.maximum(p, 1.0), np.where(d2 > 0, d2, 1.0))
+    out = np.where(np.isinf(dof), chi2_ppf(level, np.maximum(p, 1.0)), hot)
     out = np.where(~np.isinf(dof) & (d2 <= 0), np.inf, out)
     return np.where(p == 0, 0.0, out)
 
@@ -1029,20 +1029,31 @@ def working_model_null(
         Up, sp, _ = np.linalg.svd(np.asarray(P, dtype=float), full_matrices=False)
         keep = sp > _rank_tol(sp)[0] if sp.size else np.zeros(0, dtype=bool)
         reduced.append(Up[:, keep].T @ P if np.any(keep) else None)
+    # every part's rows of the corrected block scores at once: with Q_b = P adjust_b,
+    # P z_b = Q_b root_b x_b - Q_b M_b total, total = sum_b root_b x_b (x: the standard draws)
+    live = [i for i, P in enumerate(reduced) if P is not None]
+    rows = np.cumsum([0] + [reduced[i].shape[0] for i in live])
+    Q = np.concatenate([reduced[i] for i in live]) @ adjust if live else np.zeros((n_blocks, 0, k))
+    QR, QM = Q @ root_b, (Q @ M).reshape(-1, k)  # (B, m, k), (B m, k)
+    root_all = np.swapaxes(root_b, 0, 1).reshape(k, n_blocks * k)  # total = root_all @ x
     rng = np.random.default_rng(seed)
     draws: list[list[np.ndarray]] = [[] for _ in parts]
     chunk = max(1, min(n_draws, (1 << 21) // max(1, n_blocks * k)))
     for start in range(0, n_draws, chunk):
         n = min(chunk, n_draws - start)
-        g = root_b @ rng.standard_normal((n_blocks, k, n))  # (B, k, n)
-        total = g.sum(axis=0)  # (k, n)
-        z = adjust @ (g - M @ total[None])  # (B, k, n) the estimator's corrected block scores
-        for i, P in enumerate(reduced):
-            if P is None:
+        x = rng.standard_normal((n_blocks, k, n))
+        total = root_all @ x.reshape(n_blocks * k, n)  # (k, n)
+        Pz = QR @ x - (QM @ total).reshape(n_blocks, -1, n)  # (B, m, n)
+        for j, i in enumerate(live):
+            if reduced[i] is None:
                 continue
-            q = np.ascontiguousarray(np.moveaxis(P @ z, 2, 0))  # (n, B, m)
-            C = np.swapaxes(q, 1, 2) @ q  # (n, m, m)
-            e = (P @ total).T  # (n, m)
+            q = Pz[:, rows[j] : rows[j + 1]]  # (B, m_i, n)
+            m_i = q.shape[1]
+            C = np.empty((n, m_i, m_i))
+            for a in range(m_i):
+                for b in range(a + 1):
+                    C[:, a, b] = C[:, b, a] = np.einsum("bn,bn->n", q[:, a], q[:, b])
+            e = (reduced[i] @ total).T  # (n, m_i)
             try:
                 d2 = np.einsum("ni,ni->n", e, np.linalg.solve(C, e[..., None])[..., 0])
             except np.linalg.LinAlgError:
