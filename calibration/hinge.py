@@ -52,7 +52,8 @@ clean frames, and is then called a ball joint (studies/hinge_verdict.py measures
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats as _stats
+
+from calibration.quantiles import t_ppf
 
 #: Most blocks of frames for the batch-means variance of the scores (:func:`block_edges`): a
 #: recording longer than this many frames is cut into between ``N_BLOCKS / 2 + 1`` and
@@ -168,7 +169,7 @@ def critical_t(block_counts: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         n_eff = np.where(n > 0, n * n / np.sum(counts * counts, axis=-1), 0.0)
     dof = np.maximum(n_eff - 1.0, 1.0)
-    return _stats.t.ppf(1.0 - TEST_LEVEL / 2.0, dof)
+    return t_ppf(1.0 - TEST_LEVEL / 2.0, dof)
 
 
 def testable_directions(singular_values: np.ndarray, n_frames: np.ndarray) -> np.ndarray:

@@ -72,7 +72,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import integrate, stats
 
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import HIERARCHY_METHODS, misfit_weights
@@ -87,13 +86,14 @@ from calibration.joint import (
 )
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.poses import check_poses
+from calibration.quantiles import chi2_ppf
 
 #: The losses :func:`robust_fit_joint` knows; the first is the default (module docstring).
 LOSSES = ("tukey", "huber")
 
 #: Median of the chi distribution with 3 degrees of freedom, ``sqrt(chi2.ppf(0.5, 3))``: the
 #: median residual norm of 3-D Gaussian noise with unit standard deviation per axis.
-CHI3_MEDIAN = float(np.sqrt(stats.chi2.ppf(0.5, 3)))
+CHI3_MEDIAN = float(np.sqrt(chi2_ppf(0.5, 3)))
 
 #: Huber's ``c`` for 95 % efficiency on the norm of a 3-D Gaussian residual (module docstring;
 #: the root of ``asymptotic_efficiency("huber", c) = 0.95`` is 1.62799).
@@ -107,7 +107,7 @@ TUNING = {"huber": HUBER_C, "tukey": TUKEY_C}
 
 #: Frames with residual norm up to this many ``sigma`` are inliers: ``sqrt(chi2.ppf(0.999, 3))``,
 #: so one clean frame in a thousand is left out of :attr:`RobustJointFit.rms_residual`.
-INLIER_C = float(np.sqrt(stats.chi2.ppf(0.999, 3)))
+INLIER_C = float(np.sqrt(chi2_ppf(0.999, 3)))
 
 #: The robust scale is at least this times the rms of ``|b_f|`` (the sensors' separation): on
 #: exact data the residuals are rounding errors (~1e-16 of the separation), which must not be
@@ -210,11 +210,16 @@ def asymptotic_efficiency(loss: str, tuning: float) -> float:
         tuning: the loss's ``c`` (positive).
     """
     loss, c = _check_loss(loss, tuning)
-    pdf = stats.chi(3).pdf
+    # here, not at the top: scipy.stats and scipy.integrate cost 0.7 s at every start of the command
+    # line, for a figure only the tests and studies ask for
+    from scipy.integrate import quad
+    from scipy.stats import chi
+
+    pdf = chi(3).pdf
     if loss == "huber":
-        slope = integrate.quad(lambda u: 3.0 * pdf(u), 0.0, c)[0]
-        slope += integrate.quad(lambda u: 2.0 * c / u * pdf(u), c, np.inf)[0]
-        power = integrate.quad(lambda u: u * u * pdf(u), 0.0, c)[0] + c * c * stats.chi(3).sf(c)
+        slope = quad(lambda u: 3.0 * pdf(u), 0.0, c)[0]
+        slope += quad(lambda u: 2.0 * c / u * pdf(u), c, np.inf)[0]
+        power = quad(lambda u: u * u * pdf(u), 0.0, c)[0] + c * c * chi(3).sf(c)
     else:
 
         def psi(u: float) -> float:
@@ -223,8 +228,8 @@ def asymptotic_efficiency(loss: str, tuning: float) -> float:
         def dpsi(u: float) -> float:
             return (1.0 - (u / c) ** 2) * (1.0 - 5.0 * (u / c) ** 2)
 
-        slope = integrate.quad(lambda u: (2.0 * psi(u) / u + dpsi(u)) * pdf(u), 0.0, c, limit=200)[0]
-        power = integrate.quad(lambda u: psi(u) ** 2 * pdf(u), 0.0, c, limit=200)[0]
+        slope = quad(lambda u: (2.0 * psi(u) / u + dpsi(u)) * pdf(u), 0.0, c, limit=200)[0]
+        power = quad(lambda u: psi(u) ** 2 * pdf(u), 0.0, c, limit=200)[0]
     return float(slope * slope / (3.0 * power))
 
 

@@ -8,7 +8,8 @@ factor scales :func:`window_difference` and :func:`robust_scale` by that factor 
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import chi2
+
+from calibration.quantiles import chi2_ppf
 
 #: Quantile of the statistic above which its tail is modelled (the exponential tail's origin).
 TAIL_QUANTILE = 0.75
@@ -136,7 +137,7 @@ def tail_threshold(
     above = z[z > u] - u
     beta = float(above.mean()) if above.size else 0.0
     m = max(above.size / max(correlation, 1.0), 0.5)
-    beta *= 2.0 * m / float(chi2.ppf(1.0 - confidence, 2.0 * m))
+    beta *= 2.0 * m / float(chi2_ppf(1.0 - confidence, 2.0 * m))
     expected = (1.0 - TAIL_QUANTILE) * tests_per_hour / false_alarms_per_hour
     return u + beta * max(0.0, float(np.log(expected)))
 

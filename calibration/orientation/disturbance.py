@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, filtfilt
 
 from calibration.errors import CalibrationInputError
 from calibration.orientation.world import Reference
@@ -80,6 +79,9 @@ def smooth_vectors(x: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarra
     for k in np.flatnonzero(bad.any(axis=0)):
         good = ~bad[:, k]
         flat[:, k] = np.interp(idx, idx[good], flat[good, k]) if good.any() else 0.0
+    # here, not at the top: scipy.signal costs 0.6 s at every start of the command line
+    from scipy.signal import butter, filtfilt
+
     b, a = butter(2, cutoff_hz / (rate_hz / 2))
     if flat.shape[0] <= 3 * max(len(a), len(b)):
         return x.copy()

@@ -70,7 +70,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.signal import welch
 
 from calibration import calibrate
 from calibration.clusters import reference_shape, rigid_fit
@@ -357,6 +356,9 @@ def power_spectrum(x: np.ndarray, rate_hz: float) -> tuple[np.ndarray, np.ndarra
     if x.shape[0] < 8 or not rate_hz > 0:
         raise InputError(f"need at least 8 finite samples and a rate > 0, got {x.shape[0]} at {rate_hz}")
     nperseg = int(min(x.shape[0], round(SPECTRUM_SEGMENT_S * rate_hz)))
+    # here, not at the top: scipy.signal costs 0.6 s at every start of the command line
+    from scipy.signal import welch
+
     f, p = welch(x - x.mean(axis=0), fs=rate_hz, nperseg=nperseg, axis=0)
     return f, p.sum(axis=1)
 

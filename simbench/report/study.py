@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-from scipy.stats import norm, spearmanr
 
+from calibration.quantiles import norm_ppf
 from simbench.report.plots import PALETTE, SEQUENTIAL_CMAP, figure_axes, panel_grid, save_figure
 from simbench.units import UNITS
 
@@ -82,7 +82,7 @@ def wilson_interval(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Wilson score interval ``(lo, hi)`` of a proportion, inside [0, 1] (``nan`` where n = 0)."""
     k, n = np.asarray(successes, dtype=float), np.asarray(n, dtype=float)
-    z = float(norm.ppf(0.5 + level / 2))
+    z = float(norm_ppf(0.5 + level / 2))
     with np.errstate(invalid="ignore", divide="ignore"):
         p = k / n
         centre = (p + z * z / (2 * n)) / (1 + z * z / n)
@@ -214,6 +214,9 @@ def _joint_centre_findings(study: StudyDescription, data: Mapping[str, list], na
     cond = np.array(data["condition"], dtype=float)
     err = np.array(data["joint_centre_error_m"], dtype=float)
     ok = np.isfinite(cond) & np.isfinite(err)
+    # here, not at the top: scipy.stats costs 0.6 s at every start of the command line
+    from scipy.stats import spearmanr
+
     lines = []
     if ok.sum() > 2:
         rho = spearmanr(cond[ok], err[ok]).statistic
