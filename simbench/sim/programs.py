@@ -421,6 +421,14 @@ def joint_targets(program: Program, cm: CaptureModel, t: np.ndarray) -> np.ndarr
     """
     nu = cm.model.nu
     out = np.zeros((t.size, nu))
+    # each phase's samples and window once (not once per joint); a joint's motion is added only
+    # there: the window is 0 elsewhere
+    active = []
+    for ph in program.phases:
+        at = np.flatnonzero((t >= ph.start_s) & (t < ph.end_s))
+        if at.size and at[-1] - at[0] + 1 == at.size:  # a run of samples (sorted times): a view
+            at = slice(int(at[0]), int(at[-1]) + 1)
+        active.append((at, _window(t[at], ph.start_s, ph.end_s)[:, None], t[at, None] - ph.start_s))
     for art in cm.articulations:
         col = 0
         for joint, kind in zip(art.joints, art.kinds, strict=True):
@@ -428,15 +436,12 @@ def joint_targets(program: Program, cm: CaptureModel, t: np.ndarray) -> np.ndarr
             acts = list(art.actuators[col : col + n])
             col += n
             value = np.tile(program.neutral.get(joint, np.zeros(n)), (t.size, 1))
-            for ph in program.phases:
+            for ph, (at, w, since) in zip(program.phases, active, strict=True):
                 motion = ph.joints.get(joint)
-                if motion is None:
+                if motion is None or not w.size:
                     continue
-                w = _window(t, ph.start_s, ph.end_s)[:, None]
-                arg = (
-                    2 * np.pi * motion.frequency[None, :] * (t[:, None] - ph.start_s) + motion.phase[None, :]
-                )
-                value = value + w * (motion.offset[None, :] + motion.amplitude[None, :] * np.sin(arg))
+                arg = 2 * np.pi * motion.frequency[None, :] * since + motion.phase[None, :]
+                value[at] += w * (motion.offset[None, :] + motion.amplitude[None, :] * np.sin(arg))
             if kind == "ball" and art.cone > 0:
                 angle = np.linalg.norm(value, axis=1, keepdims=True)
                 limit = 0.85 * art.cone
