@@ -1580,6 +1580,12 @@ def _baseline_cases() -> list[Case]:
             "validate: --out a file", ("validate", "--quick", "--out", "{tmp}/f"), "{tmp}/f", {"f": raw("x")}
         ),
         Case(
+            "validate: --physics-cache a file",
+            ("validate", "--quick", "--physics-cache", "{tmp}/f", "--out", "{tmp}/r"),
+            "{tmp}/f",
+            {"f": raw("x")},
+        ),
+        Case(
             "validate: --out in a missing folder",
             ("validate", "--quick", "--out", "{tmp}/no/r"),
             "{tmp}/no/r",

@@ -11,7 +11,8 @@ import pytest
 from numpy.testing import assert_array_equal
 
 from simbench.sim import physics
-from simbench.sim.physics_cache import ENV, physics_cache, physics_key
+from simbench.sim import physics_cache as pc
+from simbench.sim.physics_cache import ENV, code_digest, physics_cache, physics_key
 from simbench.sim.plan import plan_session
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
@@ -76,6 +77,29 @@ def test_what_changes_the_physics_changes_the_key():
     cm_played = load_session_model(played)
     assert cm_played.joint_play_m > 0
     assert key != physics_key(cm_played, plan_session(played, cm_played), plan.timestep)
+
+
+def test_a_change_to_the_simulation_code_changes_the_key(monkeypatch):
+    """A folder kept between runs (``simbench validate --physics-cache``) must not give back a
+    run made by other code: the key covers the source of simbench.sim and the rotations."""
+    cm = load_session_model(CONFIG)
+    plan = plan_session(CONFIG, cm)
+    key, digest = physics_key(cm, plan, plan.timestep), code_digest()
+    for edited in ("programs.py", "rotations.py"):
+        real = pc.Path.read_bytes
+
+        def read_bytes(path, real=real, edited=edited):
+            return real(path) + (b"# edited" if path.name == edited else b"")
+
+        monkeypatch.setattr(pc.Path, "read_bytes", read_bytes)
+        code_digest.cache_clear()
+        try:
+            assert code_digest() != digest, edited
+            assert physics_key(cm, plan, plan.timestep) != key, edited
+        finally:
+            monkeypatch.undo()
+            code_digest.cache_clear()
+    assert code_digest() == digest and physics_key(cm, plan, plan.timestep) == key
 
 
 def test_an_unreadable_stored_run_is_computed_again(tmp_path):

@@ -146,6 +146,27 @@ def test_validation_is_deterministic(fresh_physics, monkeypatch, tmp_path):
         np.testing.assert_array_equal(first, again)
 
 
+def test_validate_keeps_the_physics_in_the_folder_asked_for(tmp_path, monkeypatch, capsys):
+    """``--physics-cache DIR`` makes the folder (parents too) and hands it to the run, whose physics
+    cache keeps the runs there and reads them back (byte-identical: tests/test_physics_cache.py);
+    without it the run gets none (a temporary folder)."""
+    seen: list = []
+
+    def stop_at_once(**kwargs):
+        seen.append(kwargs["physics_folder"])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("simbench.cli.validate.run_validation", stop_at_once)
+    folder = tmp_path / "cache" / "physics"
+    args = ["validate", "--quick", "--no-progress", "--out", str(tmp_path / "r")]
+    assert main([*args, "--physics-cache", str(folder)]) == 130
+    assert main(args) == 130
+    assert seen == [folder, None] and folder.is_dir()
+    (tmp_path / "file").write_text("x")
+    assert main([*args, "--physics-cache", str(tmp_path / "file")]) == 2
+    assert "--physics-cache" in capsys.readouterr().err and seen == [folder, None]
+
+
 def _browser() -> str | None:
     return next((b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
 

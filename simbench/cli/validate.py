@@ -24,6 +24,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     val.add_argument("--quick", action="store_true", help="fewer, shorter sessions (under a minute)")
     val.add_argument("--out", default="reports", metavar="DIR", help="report folder (default reports)")
     val.add_argument("--no-progress", action="store_true", help="no progress bar")
+    val.add_argument(
+        "--physics-cache",
+        metavar="DIR",
+        help="keep the sessions' physics in DIR and read back what an earlier run left there: the "
+        "same figures, a second full run in under a minute instead of two (a full run keeps about "
+        "830 MiB; default: a temporary folder, removed at the end)",
+    )
     val.set_defaults(func=cmd_validate)
 
 
@@ -34,6 +41,14 @@ def cmd_validate(args: argparse.Namespace) -> int:
         raise InputError(f"--out {out} exists and is not a folder")
     if not out.parent.is_dir():
         raise InputError(f"cannot write {out}: folder {out.parent} does not exist")
+    physics = None if args.physics_cache is None else Path(args.physics_cache)
+    if physics is not None:
+        if physics.exists() and not physics.is_dir():
+            raise InputError(f"--physics-cache {physics} exists and is not a folder")
+        try:
+            physics.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"--physics-cache {physics}: cannot make the folder ({exc.strerror})") from exc
     bar = tqdm(total=len(STEPS) + 1, desc="validate", unit="step", file=sys.stderr, disable=args.no_progress)
     seen: list[str] = []
 
@@ -43,7 +58,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         seen.append(step)
         bar.set_postfix_str(step)
 
-    results, keep = run_validation(quick=args.quick, progress=progress)
+    results, keep = run_validation(quick=args.quick, progress=progress, physics_folder=physics)
     bar.update(1)
     bar.set_postfix_str("report")
     paths = write_report(results, keep, out)

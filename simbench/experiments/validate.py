@@ -301,7 +301,11 @@ def _walk_failures(plan: Plan, run: Callable) -> dict[str, Any]:
 
 
 def run_validation(
-    *, quick: bool = False, progress: Callable[[str], None] | None = None, workers: int = 2
+    *,
+    quick: bool = False,
+    progress: Callable[[str], None] | None = None,
+    workers: int = 2,
+    physics_folder: Path | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Run every experiment; returns ``(results, keep)``: JSON-ready figures, and the objects
     the report draws from (datasets, calibrations).
@@ -311,6 +315,10 @@ def run_validation(
         progress: called with the name of each step as it starts.
         workers: processes for the human trials (1: run them here); the figures do not depend
             on it.
+        physics_folder: keep the physics runs there (:mod:`simbench.sim.physics_cache`) and read
+            back those it holds from an earlier run: the same figures, without the physics (a
+            full run's are about 830 MiB); ``None``: a temporary folder (or the one the
+            environment names).
     """
     plan = Plan.of(quick)
     say = progress or (lambda _: None)
@@ -323,7 +331,7 @@ def run_validation(
     # decisions' small checks) while this thread waits on its own; entered before the pool, so
     # that an interrupt stops the pool first and the threads waiting on it end
     with (
-        physics_cache(),
+        physics_cache(physics_folder),
         one_blas_thread(),
         ThreadPoolExecutor(2) if workers > 1 else _Here() as helper,
         worker_pool(workers) if workers > 1 else _Here() as pool,

@@ -8,11 +8,13 @@ sessions is the same to the bit; it is most of their cost (a humanoid second is 
 
 While :func:`physics_cache` is active (it sets :data:`ENV` to a folder, which worker processes
 inherit), :func:`simbench.sim.physics.run_physics` looks its run up there by :func:`physics_key`
-and stores what it computed. The key is a hash of everything the run depends on: MuJoCo's
-version, the compiled model's bytes (``mj_saveModel``, with the session's timestep), the motion
-program, the root's phases, the step counts and the rollout's chunking. A run read back is
-byte-identical to the one a fresh run gives. Writes are atomic; two processes that compute the
-same run at once both write it, and either copy is the same.
+and stores what it computed. The key is a hash of everything the run depends on: MuJoCo's and
+numpy's versions, the source of the code that makes it (:func:`code_digest`), the compiled
+model's bytes (``mj_saveModel``, with the session's timestep), the motion program, the root's
+phases, the step counts and the rollout's chunking; so a folder kept from one run to the next
+(``simbench validate --physics-cache DIR``) never gives back a run that is no longer what the code
+would make. A run read back is byte-identical to the one a fresh run gives. Writes are atomic;
+two processes that compute the same run at once both write it, and either copy is the same.
 
 A run is kept whole (every MuJoCo sensor at every sample, float64): a 45 s humanoid session is
 25 MB, and a full ``simbench validate`` holds about 830 MiB in its temporary folder (under
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -33,6 +36,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+import calibration.rotations
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_path
 from simbench.sim.models import CaptureModel
@@ -40,6 +44,19 @@ from simbench.sim.plan import SessionPlan
 
 #: Environment variable naming the cache folder (unset: no cache).
 ENV = "SIMBENCH_PHYSICS_CACHE"
+
+
+@functools.cache
+def code_digest() -> bytes:
+    """SHA-256 of the source of the code a physics run is made by: every module of
+    :mod:`simbench.sim` (programs, models, the rollout) and :mod:`calibration.rotations` (the
+    initial pose). A folder kept between runs (``simbench validate --physics-cache``) then never
+    gives back a run that changed code would make differently."""
+    h = hashlib.sha256()
+    sources = [*sorted(Path(__file__).parent.glob("*.py")), Path(calibration.rotations.__file__)]
+    for path in sources:
+        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.digest()
 
 
 def physics_key(cm: CaptureModel, plan: SessionPlan, timestep: float, extra: tuple = ()) -> str:
@@ -60,6 +77,8 @@ def physics_key(cm: CaptureModel, plan: SessionPlan, timestep: float, extra: tup
     finally:
         m.opt.timestep = saved
     h = hashlib.sha256(mujoco.__version__.encode())
+    h.update(np.__version__.encode())  # the set-points' sines and cosines
+    h.update(code_digest())
     h.update(buf.tobytes())
     plan_part = (
         plan.program,
