@@ -755,14 +755,16 @@ def _normal_equations(
     build = cache is None or "index" not in cache
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
     sym: list[np.ndarray | None] = [] if build else cache["sym"]
-    products: list[np.ndarray] = []
+    shapes = [np.broadcast_shapes(*(np.shape(c) for c, _ in blocks)) for blocks in groups]
+    sizes = [int(np.prod(shape)) for shape in shapes]
+    # every pair's products written straight into one buffer, in the order of the band index
+    products = np.empty(9 * sum(k * (len(x) * (len(x) + 1) // 2) for k, x in zip(sizes, groups, strict=True)))
     g = np.zeros(3 * n_blocks)
     eye = np.eye(3)
     start = 0
     pair = 0
-    for blocks in groups:
-        shape = np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))
-        size = int(np.prod(shape))
+    filled = 0
+    for blocks, shape, size in zip(groups, shapes, sizes, strict=True):
         rg = r[start : start + 3 * size].reshape(size, 3)
         start += 3 * size
         flat = []
@@ -778,16 +780,21 @@ def _normal_equations(
             g += np.bincount((3 * ca[:, None] + np.arange(3)).ravel(), ga.ravel(), minlength=g.size)
             for b in range(a, len(flat)):
                 cb, vb = flat[b]
+                P = products[filled : filled + 9 * size].reshape(size, 3, 3)
+                filled += 9 * size
                 if va.ndim == 3 or vb.ndim == 3:  # general 3 x 3 blocks
                     Ma = va if va.ndim == 3 else (skew(va) if va.ndim else va * eye)
                     Mb = vb if vb.ndim == 3 else (skew(vb) if vb.ndim else vb * eye)
-                    P = np.einsum("rki,rkj->rij", Ma, Mb)
-                elif va.ndim and vb.ndim:
-                    P = np.einsum("ri,ri->r", va, vb)[:, None, None] * eye - vb[:, :, None] * va[:, None, :]
-                elif va.ndim or vb.ndim:  # [a]x^T (s I) = -s [a]x, and (s I)^T [b]x = s [b]x
-                    P = -vb * skew(va) if va.ndim else va * skew(vb)
+                    np.einsum("rki,rkj->rij", Ma, Mb, out=P)
+                elif va.ndim and vb.ndim:  # -b a^T, then a . b added on its diagonal
+                    np.multiply(-vb[:, :, None], va[:, None, :], out=P)
+                    P.reshape(size, 9)[:, ::4] += np.einsum("ri,ri->r", va, vb)[:, None]
+                elif va.ndim:  # [a]x^T (s I) = -s [a]x
+                    np.multiply(-vb, skew(va), out=P)
+                elif vb.ndim:  # (s I)^T [b]x = s [b]x
+                    np.multiply(va, skew(vb), out=P)
                 else:
-                    P = np.broadcast_to(va * vb * eye, (size, 3, 3))
+                    P[...] = va * vb * eye
                 if build:
                     if b == a:
                         parts.append((ca, np.zeros_like(ca), None))
@@ -798,9 +805,7 @@ def _normal_equations(
                         sym.append(np.flatnonzero(d == 0) if np.any(d == 0) else None)
                 both = sym[pair]
                 if both is not None:
-                    P = np.array(P)
                     P[both] += np.swapaxes(P[both], -1, -2)
-                products.append(P.reshape(-1, 9))
                 pair += 1
     if build:
         index, u = _band_index(parts, n_blocks)
@@ -809,7 +814,7 @@ def _normal_equations(
     else:
         index, u = cache["index"], cache["u"]
     size = (u + 1) * 3 * n_blocks
-    ab = np.bincount(index, np.concatenate(products).ravel(), minlength=size + 1)[:size]
+    ab = np.bincount(index, products, minlength=size + 1)[:size]
     return ab.reshape(3 * n_blocks, u + 1).T, g
 
 
