@@ -101,8 +101,8 @@ def estimate(
         method: one of :data:`METHODS`.
         weighting: Fontaine's disturbance weighting (``fontaine`` and ``wahba``).
         smooth_hz: zero-phase smoothing cutoff, Hz: weighted by the disturbance weights for
-            ``fontaine``, plain low-pass of the inputs for the others (``skeleton`` chooses its
-            own levels and ignores it).
+            ``fontaine``, plain low-pass of the inputs for the others; not for ``skeleton``,
+            which low-passes its inputs level by level itself (refused).
         skeleton: for ``skeleton``, the body's tree and joints over ``rec``'s sensors (e.g.
             :func:`skeleton_from_calibration`); ``None``: every sensor on its own. The reference
             field then comes from the roots' samples.
@@ -116,6 +116,11 @@ def estimate(
         raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
     if priors is not None and method != "skeleton":
         raise InputError(f"priors are used by the skeleton method only, not {method!r}")
+    if smooth_hz is not None and method == "skeleton":
+        raise InputError(
+            "smoothing (smooth_hz) is for the per-sample and gyro-aided methods: the skeleton method "
+            "low-passes its inputs level by level itself"
+        )
     if method == "skeleton":
         # the reference from the roots' samples, as skeleton_orientation would take it
         roots = (skeleton or Skeleton.none(len(rec.names))).roots
@@ -145,7 +150,8 @@ def estimate(
     if method == "triad":
         est = triad(acc, mag, ref, valid=rec.valid)
     elif method == "wahba":
-        weights = w.weights(acc, mag, ref) if w is not None else None
+        # a sample whose vectors are not finite has NaN weights: it is not used (not valid) anyway
+        weights = np.nan_to_num(w.weights(acc, mag, ref), nan=0.0) if w is not None else None
         est = wahba(acc, mag, ref, weights=weights, valid=rec.valid)
     elif method == "fontaine":
         est = fontaine(

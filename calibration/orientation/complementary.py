@@ -36,7 +36,8 @@ def mahony(
         kp, ki: proportional and integral gains of the correction, 1/s.
         q0: ``(..., 4)`` initial orientation; default the TRIAD estimate of the first sample.
         valid: optional ``(F, ...)`` mask; invalid samples are propagated with the gyro only (and
-            output NaN).
+            output NaN). A sample whose gyro is not finite is propagated with the correction alone
+            and output NaN too (not estimated).
     """
     ref = ref or reference()
     acc, mag = check_vectors(acc, mag)
@@ -47,6 +48,7 @@ def mahony(
         raise CalibrationInputError(f"rate_hz must be > 0, got {rate_hz}")
     dt = 1.0 / rate_hz
     a, m, ok = measured_directions(acc, mag, ref, valid)
+    turned = np.isfinite(gyro).all(axis=-1)
     if q0 is None:
         first = triad(acc[:1], mag[:1], ref).q_w_s[0]
         q0 = np.where(np.isfinite(first), first, [1.0, 0.0, 0.0, 0.0])
@@ -65,5 +67,5 @@ def mahony(
             w, np.linalg.norm(w, axis=-1, keepdims=True), out=np.zeros_like(w), where=angle[..., None] > 0
         )
         R = R @ axis_angle_to_matrix(axis, angle)
-        out[t] = np.where(ok[t, ..., None], orthonormal_to_quat(R), np.nan)
-    return Estimate(out, ok, ref.frame)
+        out[t] = np.where((ok[t] & turned[t])[..., None], orthonormal_to_quat(R), np.nan)
+    return Estimate(out, ok & turned, ref.frame)

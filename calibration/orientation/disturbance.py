@@ -85,7 +85,13 @@ def smooth_vectors(x: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarra
     b, a = butter(2, cutoff_hz / (rate_hz / 2))
     if flat.shape[0] <= 3 * max(len(a), len(b)):
         return x.copy()
-    out = filtfilt(b, a, flat, axis=0)
+    try:
+        out = filtfilt(b, a, flat, axis=0)
+    except np.linalg.LinAlgError:  # the filter's start-up state: poles too near 1 to solve for
+        raise CalibrationInputError(
+            f"cutoff_hz {cutoff_hz:g} Hz is too low a low-pass at {rate_hz:g} Hz to compute "
+            f"(cutoff / Nyquist = {cutoff_hz / (rate_hz / 2):.1e})"
+        ) from None
     out[bad] = np.nan
     return out.reshape(x.shape)
 

@@ -551,9 +551,10 @@ def _cheapest_path(cost: np.ndarray, change: float) -> np.ndarray:
 
 
 def _usable_samples(m: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
-    """The finite rows of ``m`` (``(F, 3)``) that ``valid`` keeps, or an error when fewer than
-    :data:`MIN_SAMPLES` remain."""
-    use = np.isfinite(m).all(axis=1)
+    """The finite, non-zero rows of ``m`` (``(F, 3)``) that ``valid`` keeps, or an error when
+    fewer than :data:`MIN_SAMPLES` remain (a reading of exactly zero is no reading: no field is
+    that weak)."""
+    use = np.isfinite(m).all(axis=1) & np.any(m != 0, axis=1)
     if valid is not None:
         use &= np.asarray(valid, dtype=bool)
     m = m[use]

@@ -151,6 +151,10 @@ COMBINE_S = 2.0
 SEGMENT_S = 120.0
 OVERLAP_S = 10.0
 
+#: Fewest frames a segment holds, whatever the rate: a recording labelled with a rate far too low
+#: (0.01 Hz for a 100 Hz IMU) is not cut into thousands of tiny solves.
+MIN_SEGMENT_FRAMES = 512
+
 #: Frames read at once by :meth:`Skeleton.with_ranges`.
 RANGE_CHUNK = 65536
 
@@ -1117,7 +1121,7 @@ def _solve_tree(data: _Data, setup: _Setup, segment_s: float) -> tuple[np.ndarra
     (:data:`SEGMENT_S`), and the iterations."""
     f, n = data.ok.shape
     R = np.empty((f, n, 3, 3))
-    seg = max(round(segment_s * setup.rate_hz), 8)
+    seg = max(round(segment_s * setup.rate_hz), MIN_SEGMENT_FRAMES)
     over = min(round(OVERLAP_S * setup.rate_hz), seg // 4)
     iterations = 0
     start = 0

@@ -210,7 +210,7 @@ def orientation_errors(q_est: np.ndarray, q_true: np.ndarray, up_w: np.ndarray |
     With ``q_err = q_est (x) q_true^-1`` (in the world frame), the total error is its rotation
     angle, the heading error the part about the vertical (swing-twist decomposition with twist
     about ``up_w``, default ENU's ``(0, 0, 1)``), the inclination error the rest. NaN where either
-    input is NaN.
+    input is NaN or zero (no rotation); neither needs unit length.
 
     Args:
         q_est, q_true: ``(..., 4)`` scalar-first quaternions of ``R_w_s``, same world frame.
@@ -233,5 +233,8 @@ def orientation_errors(q_est: np.ndarray, q_true: np.ndarray, up_w: np.ndarray |
     tw = np.sqrt(w[..., 0] ** 2 + twist_v**2)
     inclination = 2 * np.arctan2(np.sqrt(np.clip(vnorm**2 - twist_v**2, 0.0, None)), tw)
     out = np.stack([total, heading, inclination], axis=-1)
-    out[~(np.isfinite(qe).all(axis=-1) & np.isfinite(qt).all(axis=-1))] = np.nan
+    # a zero quaternion is no rotation (its angles would come out 0): no error either
+    known = np.isfinite(qe).all(axis=-1) & np.isfinite(qt).all(axis=-1)
+    known &= np.any(qe != 0, axis=-1) & np.any(qt != 0, axis=-1)
+    out[~known] = np.nan
     return out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from calibration.errors import CalibrationInputError
 from calibration.orientation import Priors
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
@@ -65,7 +66,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=None,
         metavar="HZ",
-        help="zero-phase low-pass of the inputs (no lag)",
+        help="zero-phase low-pass of the inputs (no lag); for the per-sample and gyro-aided methods "
+        "(the skeleton method low-passes level by level itself)",
     )
     ori.set_defaults(func=cmd_orient)
 
@@ -83,17 +85,29 @@ def cmd_orient(args: argparse.Namespace) -> int:
         if args.method != "skeleton":
             raise InputError(f"--lone-speed is for --method skeleton, not {args.method}")
         priors = Priors(lone_speed=args.lone_speed)
+    if args.smooth_hz is not None and args.method == "skeleton":
+        raise InputError(
+            "--smooth-hz is for the per-sample and gyro-aided methods, not skeleton (it low-passes "
+            "level by level itself)"
+        )
     fits = {}
-    if args.calibrate_mag:
-        rec, fits = calibrate_magnetometers(rec)
-    run = estimate(
-        rec,
-        args.method,
-        weighting=not args.no_weighting,
-        smooth_hz=args.smooth_hz,
-        skeleton=skeleton,
-        priors=priors,
-    )
+    notes = rec.notes
+    try:
+        if args.calibrate_mag:
+            rec, fits = calibrate_magnetometers(rec)
+        run = estimate(
+            rec,
+            args.method,
+            weighting=not args.no_weighting,
+            smooth_hz=args.smooth_hz,
+            skeleton=skeleton,
+            priors=priors,
+        )
+    except CalibrationInputError as exc:
+        if not notes:
+            raise
+        # what the reader noticed is often why (e.g. every sample masked)
+        raise CalibrationInputError(f"{exc} (the reader's notes: {'; '.join(notes)})") from None
     n_total = run.ok.size
     print(f"simbench orient: {rec.source}")
     print(

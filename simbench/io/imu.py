@@ -75,6 +75,34 @@ def _field(fh: h5py.File, path: Path, name: str, shape_tail: tuple[int, ...]) ->
     return x
 
 
+#: Median magnitudes in these ranges pass as m/s^2 and uT (gravity, moving or not; the earth's
+#: field, 25-65 uT, with local iron): outside, a reading in other units (g or mg; nT or gauss)
+#: is named in a note.
+ACC_RANGE_MS2 = (9.81 / 2, 9.81 * 2)
+MAG_RANGE_UT = (10.0, 200.0)
+
+
+def unit_notes(acc: np.ndarray, mag: np.ndarray) -> list[str]:
+    """Notes on magnitudes that suggest other units than m/s^2 and uT, from the median magnitudes
+    of ``acc`` and ``mag`` ``(F, 3)`` (finite samples)."""
+    out = []
+    if acc.shape[0]:
+        a = float(np.median(np.linalg.norm(acc, axis=1)))
+        if not ACC_RANGE_MS2[0] <= a <= ACC_RANGE_MS2[1]:
+            out.append(
+                f"the accelerometer's median magnitude is {a:.4g}, where gravity gives about 9.81 m/s^2: "
+                "is it in m/s^2? (g gives about 1, mg about 1000)"
+            )
+    if mag.shape[0]:
+        m = float(np.median(np.linalg.norm(mag, axis=1)))
+        if not MAG_RANGE_UT[0] <= m <= MAG_RANGE_UT[1]:
+            out.append(
+                f"the magnetometer's median magnitude is {m:.4g}, where the earth's field is 25-65 uT: is it "
+                "in uT? (nT gives tens of thousands, gauss below 1)"
+            )
+    return out
+
+
 def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
     """Read a BROAD trial (module docstring)."""
     path = Path(path)
@@ -111,6 +139,22 @@ def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
     notes = []
     if not finite.all():
         notes.append(f"{int((~finite).sum())} samples with NaN accelerometer or magnetometer values")
+    # a vector of exactly zero is no reading (no gravity or field is that weak): not usable
+    zero = finite & ~(np.any(acc != 0, axis=1) & np.any(mag != 0, axis=1))
+    if zero.any():
+        notes.append(
+            f"{int(zero.sum())} samples whose accelerometer or magnetometer reads exactly zero: left out"
+        )
+    finite &= ~zero
+    if q is not None and np.any(none := np.isfinite(q).all(axis=1) & ~np.any(q != 0, axis=1)):
+        notes.append(f"{int(none.sum())} reference quaternions of zero (no rotation): not scored")
+    notes.extend(unit_notes(acc[finite], mag[finite]))
+    turned = np.isfinite(gyro).all(axis=1)
+    if not turned.all():
+        notes.append(
+            f"{int((~turned).sum())} samples with NaN gyroscope values (not estimated by the gyro-aided "
+            "methods)"
+        )
     return ImuRecording(
         names=("imu",),
         time_s=np.arange(n) / rate,
