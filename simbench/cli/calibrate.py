@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -249,6 +250,12 @@ def _follow(args: argparse.Namespace) -> int:
     ]
     if unsupported:
         raise InputError(f"--follow calibrates a pose CSV live; it does not take {', '.join(unsupported)}")
+    suffix = Path(args.input).suffix.lower()
+    if suffix not in (".csv", ".txt", ""):
+        raise InputError(
+            f"{args.input}: --follow calibrates a pose CSV (.csv) that another process appends to, not a "
+            f"{suffix} file; calibrate it without --follow"
+        )
     options = LiveOptions(
         slip=not args.no_slip,
         parent_of=read_hierarchy_json(args.hierarchy) if args.hierarchy else None,

@@ -279,7 +279,12 @@ class CsvFollower:
             if not self.path.exists():
                 return
             self._fh = open(self.path, encoding="utf-8", newline="")
-        chunk = self._fh.read()  # type: ignore[attr-defined]
+        try:
+            chunk = self._fh.read()  # type: ignore[attr-defined]
+        except UnicodeDecodeError as exc:
+            raise InputError(
+                f"{self.path}: not a pose CSV: byte {exc.start} of what was read is not UTF-8 text"
+            ) from None
         if not chunk:
             return
         text = self._partial + chunk
