@@ -207,11 +207,36 @@ def test_scale_command(capsys, tmp_path):
     )
     assert code == 0, err
     assert "scale factor        0.9400" in out
+    assert "note: the distance" not in out  # a fixed distance: no doubt cast on the mount
     code, _, err = run(capsys, "scale", str(path), "--sensors", "s1", "s9", "--distance", "56.5")
     assert code == 2 and "no sensor named ['s9']" in err
     with pytest.raises(SystemExit) as info:  # refused by the parser, naming the option
         main(["scale", str(path), "--sensors", "s1", "s2", "--distance", "-1"])
     assert info.value.code == 2 and "argument --distance: expected a number > 0" in capsys.readouterr().err
+
+
+def test_scale_says_when_the_distance_is_not_fixed(capsys, tmp_path):
+    """Two sensors whose distance drifts by +-2 cm (a loose mount) under 0.5 mm noise: the note
+    says so; with the noise alone it stays silent; a factor far below 1 keeps its digits."""
+    rng = np.random.default_rng(5)
+    n = 2000
+    t = np.arange(n) / 100.0
+    a = rng.normal(size=(n, 3))
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    R = np.tile(np.eye(3), (n, 2, 1, 1))
+    for drift, expect in ((0.02, True), (0.0, False)):
+        b = a + (0.3 + drift * np.sin(2 * np.pi * 0.2 * t))[:, None] * u + rng.normal(0, 0.0005, (n, 3))
+        path = tmp_path / f"pair{drift}.csv"
+        write_pose_csv(
+            path, PoseRecording(("s1", "s2"), t, R, np.stack([a, b], axis=1), np.ones((n, 2), bool))
+        )
+        code, out, err = run(capsys, "scale", str(path), "--sensors", "s1", "s2", "--distance", "0.3")
+        assert code == 0, err
+        assert ("note: the distance between the two sensors varies" in out) == expect
+    code, out, _ = run(capsys, "scale", str(path), "--sensors", "s1", "s2", "--distance", "0.000245")
+    factor = next(x for x in out.splitlines() if "scale factor" in x).split()[2]
+    assert len(factor.lstrip("0.")) == 4 and abs(float(factor) / (0.000245 / 0.3) - 1) < 1e-3  # 4 digits
 
 
 def test_slip_reported_in_table_and_json(capsys, tmp_path):

@@ -51,6 +51,27 @@ def cmd_scale(args: argparse.Namespace) -> int:
     print(f"  frames used         {est.n_frames} of {rec.n_frames}")
     print(f"  known distance      {known * 100:.2f} cm")
     print(f"  mean reported       {est.mean_reported * 100:.2f} cm (as {args.units} read)")
-    print(f"  scale factor        {est.scale:.4f}  (multiply reported lengths by this)")
+    print(f"  scale factor        {est.scale:#.4g}  (multiply reported lengths by this)")
     print(f"  scaled std          {est.scaled_std * 100:.3f} cm")
+    steady, noise = rigidity(est.distances)
+    if steady > 3 * noise:
+        print(
+            f"  note: the distance between the two sensors varies {steady / noise:.0f} times more than its "
+            f"frame-to-frame noise ({100 * steady / est.mean_reported:.2g} % of it, robust spread): are they "
+            "rigidly mounted, or is the field distorted where they moved?"
+        )
     return 0
+
+
+def rigidity(d: np.ndarray) -> tuple[float, float]:
+    """``(spread, noise)`` of a distance series ``(frames,)`` (NaN where unknown), in its unit:
+    its robust spread about the median (1.4826 MAD) and that of its frame-to-frame changes over
+    sqrt(2) -- equal, to sampling error, for a fixed distance measured with white noise; a
+    distance that changes (a loose mount, a distorted field) spreads far more than its noise."""
+    d = d[np.isfinite(d)]
+    if d.size < 3:
+        return 0.0, 0.0
+    spread = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+    step = np.diff(d)
+    noise = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / np.sqrt(2.0)
+    return spread, noise
