@@ -270,3 +270,14 @@ def test_quaternions_far_from_unit_norm_are_normalised_without_overflow(tmp_path
     assert_allclose(rec.R_w_s[0, 0], np.eye(3), atol=1e-15)
     assert_allclose(rec.R_w_s[0, 1], np.diag([1.0, -1.0, -1.0]), atol=1e-15)  # 180 deg about x
     assert "2 quaternion(s) off unit norm" in rec.notes[0] and "1e+200 on line 2" in rec.notes[0]
+
+
+def test_times_in_milliseconds_are_named(tmp_path):
+    """A 120 Hz recording stamped in ms read as s: steps of 8.3 s (0.12 Hz) get a note; the same
+    in seconds none."""
+    from simbench.io.read import read_poses
+
+    times = np.arange(300) / 120.0
+    assert not [n for n in read_poses(stamped_csv(tmp_path, times)).notes if "in seconds" in n]
+    rec = read_poses(stamped_csv(tmp_path, 1000 * times))
+    assert any("time steps of 8.333 s" in n and "milliseconds" in n for n in rec.notes)

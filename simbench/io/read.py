@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
@@ -61,11 +62,15 @@ MAX_COORDINATE_M = 1e6
 #: megahertz rate means times in another unit (or a counter), not seconds.
 MIN_STEP_S = 1e-6
 
+#: The coarsest median time step that passes without a note, s: below 1 Hz no motion capture
+#: system samples; such steps are most often times in milliseconds read as seconds.
+MAX_STEP_S = 1.0
+
 
 def check_plausible(rec: PoseRecording, path: str | os.PathLike[str]) -> PoseRecording:
     """Refuse a recording nothing sensible can come from: no valid pose at all, a median time
     step below :data:`MIN_STEP_S`, or positions beyond :data:`MAX_COORDINATE_M` (a corrupt
-    value, or a unit far off).
+    value, or a unit far off); note a median step above :data:`MAX_STEP_S`.
 
     Raises:
         InputError: naming the file, and the sensor and frame of the first far position.
@@ -78,6 +83,15 @@ def check_plausible(rec: PoseRecording, path: str | os.PathLike[str]) -> PoseRec
             raise InputError(
                 f"{path}: time steps of {step:.3g} s (a rate of {1 / step:.3g} Hz; expected below "
                 f"{1 / MIN_STEP_S:g} Hz): are the times in seconds?"
+            )
+        if step > MAX_STEP_S:
+            rec = dataclasses.replace(
+                rec,
+                notes=(
+                    *rec.notes,
+                    f"time steps of {step:.4g} s (a rate of {1 / step:.3g} Hz): are the times in seconds? "
+                    "(milliseconds give steps 1000 times too long)",
+                ),
             )
     far = np.zeros(rec.valid.shape, dtype=bool)
     for start in range(0, rec.n_frames, CHUNK_FRAMES):  # the positions may be larger than memory
