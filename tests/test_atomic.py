@@ -35,3 +35,7 @@ def test_failure_mid_write_keeps_old_file(tmp_path):
 def test_missing_folder_is_a_clear_error(tmp_path):
     with pytest.raises(InputError, match=r"folder .* does not exist"):
         atomic_write_text(tmp_path / "nope" / "out.txt", "x")
+    (tmp_path / "taken").mkdir()
+    with pytest.raises(InputError, match=r"cannot write .*taken: it is a folder"):
+        atomic_write_text(tmp_path / "taken", "x")
+    assert [p.name for p in tmp_path.iterdir()] == ["taken"]  # no temporary file left

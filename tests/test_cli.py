@@ -160,6 +160,7 @@ def hierarchy_file(tmp_path, text):
         ),
         (lambda t, c: [str(c), "--root", "nobody"], "--root: no sensor 'nobody' in"),
         (lambda t, c: [str(c), "--json", str(t / "no" / "such" / "dir.json")], "does not exist"),
+        (lambda t, c: [str(c), "--json", str(t)], "--json .*: that is a folder; give the file to write"),
     ],
 )
 def test_bad_input_exits_2_with_message(capsys, tmp_path, linkage_csv, make_args, message):
@@ -168,6 +169,22 @@ def test_bad_input_exits_2_with_message(capsys, tmp_path, linkage_csv, make_args
     assert err.startswith("simbench: error:")
     assert "Traceback" not in err
     assert re.search(message, err), err
+
+
+def test_an_output_that_cannot_be_written_is_refused_before_any_work(capsys, tmp_path, monkeypatch):
+    import simbench.cli.orient as orient_cli
+
+    def never(*args, **kwargs):
+        raise AssertionError("the input was read before the output was checked")
+
+    monkeypatch.setattr(orient_cli, "read_imu", never)
+    for argv, message in (
+        (["orient", "x.hdf5", "--csv", str(tmp_path)], "--csv .*: that is a folder"),
+        (["orient", "x.hdf5", "--csv", str(tmp_path / "no" / "q.csv")], "--csv .*: folder .* does not exist"),
+        (["simulate", "-o", str(tmp_path)], "--output .*: that is a folder"),
+    ):
+        code, _out, err = run(capsys, *argv)
+        assert code == 2 and re.search(message, err), err
 
 
 def test_unknown_units_rejected_by_parser(capsys, linkage_csv):

@@ -11,6 +11,7 @@ import argparse
 import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from calibration import CalibrationError
 from simbench.cli import baseline, calibrate, export, orient, replay, report, scale, simulate, sweep, validate
@@ -53,6 +54,30 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
+#: The options that name a file to write (argparse ``dest``), checked before any work is done.
+FILE_OUTPUTS = ("json", "csv", "output", "trc", "c3d", "sto", "imu_csv", "mjcf", "osim")
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any work, an output file that is a folder or whose folder does not exist
+    (it would otherwise fail only when the result is written).
+
+    Raises:
+        InputError: naming the option and the path.
+    """
+    for dest in FILE_OUTPUTS:
+        value = getattr(args, dest, None)
+        if not isinstance(value, str):
+            continue
+        path = Path(value)
+        flag = "--" + dest.replace("_", "-")
+        if path.is_dir():
+            raise InputError(f"{flag} {value}: that is a folder; give the file to write")
+        folder = path.parent if str(path.parent) else Path(".")
+        if not folder.is_dir():
+            raise InputError(f"{flag} {value}: folder {folder} does not exist")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``simbench`` command (``argv`` defaults to ``sys.argv[1:]``); returns the exit
     status: 0, 1 when ``simbench baseline`` finds a regression, 2 on bad input or any other
@@ -65,6 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         # BLAS on one thread: simbench's products are small (a chunk of frames, a 6 x 6 system),
         # where BLAS's threads cost more than they give (1M x 32 poses from HDF5: 4.5 s on one
         # thread, 7.2 s on two; benchmarks/results/calibration*.json)
+        check_outputs(args)
         with one_blas_thread():
             return int(args.func(args))
     except Terminated:

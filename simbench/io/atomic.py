@@ -58,6 +58,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     folder = dest.parent if str(dest.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"cannot write {dest}: folder {folder} does not exist")
+    if dest.is_dir():
+        raise InputError(f"cannot write {dest}: it is a folder")
     sweep_stale(dest)
     umask = os.umask(0)
     os.umask(umask)
