@@ -178,8 +178,8 @@ def spanning_tree(
     edges = np.stack([mst.row, mst.col], axis=1).astype(np.int64)
     if len(edges) != n - 1:
         raise CalibrationError(
-            "the sensors fall into groups with no fittable pair between them "
-            f"(fewer than 3 common valid frames): {_groups(n, np.stack([i, j], axis=1), labels)}"
+            "the sensors fall into groups with no fittable pair between them (fewer than 3 common "
+            f"valid frames, or too few for the fit asked for): {_groups(n, np.stack([i, j], axis=1), labels)}"
         )
     if root is None:
         root = centre_of_tree(n, edges)

@@ -88,6 +88,7 @@ from calibration.pairs import (
 )
 from calibration.poses import CHUNK_FRAMES, check_poses
 from calibration.robust import LOSSES, RobustJointFit, robust_fit_joint, robust_pair_misfits
+from calibration.robust import MIN_FRAMES as ROBUST_MIN_FRAMES
 from calibration.skeleton import (
     SegmentLength,
     SensorPlacement,
@@ -306,6 +307,11 @@ def calibrate(
         misfits = robust_pair_misfits(
             R_w_s, p_w_s, valid=valid, loss=robust, single_axis_ratio=single_axis_ratio
         )
+        if not np.isfinite(misfits.residual[np.triu_indices(n, k=1)]).any():
+            raise CalibrationError(
+                f"a robust fit ({robust}) needs at least {ROBUST_MIN_FRAMES} frames where both poses of "
+                "a pair are valid; no pair of sensors has them"
+            )
         weights = misfits.weights(hierarchy_method)
         tree = spanning_tree(weights, root=None if root is None else names.index(root), names=names)
     else:

@@ -506,3 +506,12 @@ def test_pair_misfits_bad_inputs():
     assert np.isinf(out.residual).all() and out.inlier_fraction[0, 1] == 0.0
     with pytest.raises(CalibrationInputError, match=r"method must be one of \['misfit', 'mst'\]"):
         out.weights("tree")
+
+
+def test_a_robust_calibration_of_too_few_frames_says_how_many_it_needs():
+    rng = np.random.default_rng(2)
+    R, p = chain(rng, LP, LC, n=MIN_FRAMES - 1)
+    with pytest.raises(CalibrationError, match=f"needs at least {MIN_FRAMES} frames where both poses"):
+        calibrate(R, p, ["a", "b"], robust="huber")
+    R, p = chain(rng, LP, LC, n=MIN_FRAMES + 40)
+    assert calibrate(R, p, ["a", "b"], robust="huber").joints  # enough: it calibrates
