@@ -157,3 +157,16 @@ def test_readings_in_other_units_are_named(tmp_path):
     assert any("accelerometer's median magnitude is 1," in n and "in m/s^2?" in n for n in in_g.notes)
     in_nt = read_broad(_trial(tmp_path / "nt.hdf5", imu_mag=ok.mag[:, 0] * 1000))
     assert any("magnetometer's median magnitude is 4.8e+04" in n and "in uT?" in n for n in in_nt.notes)
+
+
+def test_a_movement_mask_of_numbers_and_a_rate_of_several_values(tmp_path):
+    move = np.ones(600)
+    move[:100] = np.nan  # no sample to score there
+    move[100:150] = 0.0
+    rec = read_broad(_trial(tmp_path / "m.hdf5", movement=move))
+    assert rec.evaluate.dtype == bool and rec.evaluate.sum() == 450 and not rec.evaluate[:150].any()
+    path = _trial(tmp_path / "r.hdf5")
+    with h5py.File(path, "a") as fh:
+        fh.attrs["sampling_rate"] = [100.0, 200.0]
+    with pytest.raises(InputError, match="sampling_rate must be a finite number"):
+        read_broad(path)

@@ -121,13 +121,16 @@ def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
         q = _field(fh, path, "opt_quat", (4,)) if "opt_quat" in fh else None
         if q is not None and q.shape[0] != n:
             raise InputError(f"{path}: opt_quat holds {q.shape[0]} samples, imu_acc {n}")
-        move = _field(fh, path, "movement", ()).astype(bool) if "movement" in fh else None
+        move = _field(fh, path, "movement", ()) if "movement" in fh else None
+        if move is not None and move.dtype != bool:  # 0/1 numbers; NaN marks no sample to score
+            move = np.nan_to_num(move.astype(float), nan=0.0) != 0
         if move is not None and move.shape[0] != n:
             raise InputError(f"{path}: movement holds {move.shape[0]} samples, imu_acc {n}")
         if "sampling_rate" not in fh.attrs:
             raise InputError(f"{path}: missing attribute 'sampling_rate'")
         try:
-            rate = float(np.ravel(fh.attrs["sampling_rate"])[0])
+            given = np.ravel(fh.attrs["sampling_rate"])
+            rate = float(given[0]) if given.size == 1 else math.nan
         except (TypeError, ValueError, IndexError):
             rate = math.nan
         if not (math.isfinite(rate) and rate > 0):
