@@ -215,3 +215,18 @@ def test_follow_refuses_what_the_batch_reader_refuses_and_names_the_line(tmp_pat
         path.write_text("\n".join([header, *rows]) + "\n")
         with pytest.raises(InputError, match=rf"p\.csv: line 3: {message}"):
             _follow_all(path)
+
+
+def test_replay_that_never_calibrates_exits_2_saying_why(tmp_path, capsys):
+    n = 300
+    R = np.tile(np.eye(3), (n, 3, 1, 1))
+    p = np.zeros((n, 3, 3))
+    p[:, 1:, 0] = [0.3, 0.6]
+    valid = np.ones((n, 3), dtype=bool)
+    valid[2:, 2] = False  # the third sensor seen in 2 frames only: never a pair to fit it with
+    path = tmp_path / "blind.csv"
+    write_pose_csv(path, PoseRecording(("a", "b", "c"), np.arange(n) / 100.0, R, p, valid))
+    assert main(["replay", str(path), "--rate", "max", "--refresh", "1"]) == 2
+    captured = capsys.readouterr()
+    assert "waiting" in captured.out  # while frames came in
+    assert "no calibration from its" in captured.err and "simbench final" not in captured.out

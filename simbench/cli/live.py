@@ -140,9 +140,14 @@ class LivePrinter:
             self.table(cal)
 
     def table(self, cal: StreamingCalibrator, final: bool = False) -> None:
+        """The table now; the ``final`` one raises ``CalibrationError`` when there is none."""
         try:
             state = cal.state()
         except CalibrationError as exc:
+            if final:  # the recording is over: what was waited for never came
+                raise CalibrationError(
+                    f"{self.source}: no calibration from its {cal.n_frames} frames: {exc}"
+                ) from None
             self.out(f"simbench live: {self.source}: {cal.n_frames} frames, waiting ({exc})")
             return
         text = live_table(self.source, state, final=final)
