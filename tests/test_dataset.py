@@ -216,3 +216,12 @@ def test_simbench_calibrate_takes_the_chunked_path_for_a_large_dataset(tmp_path,
     assert calls == [h5py.Dataset]
     drop_time = [line for line in whole.splitlines() if "calibrated in" not in line]
     assert drop_time == [line for line in chunked.splitlines() if "calibrated in" not in line]
+
+
+def test_repeated_sensor_names_are_named_before_anything_that_depends_on_them(session):
+    import dataclasses
+
+    names = list(session.sensors)
+    names[1] = names[0]
+    with pytest.raises(InputError, match=rf"sensor names must be unique, repeated: \['{names[0]}'\]"):
+        dataclasses.replace(session, sensors=tuple(names))

@@ -148,6 +148,9 @@ class Dataset:
             raise InputError(
                 f"Expected {f} times and {n} sensor names, got {self.time_s.shape[0]} and {len(self.sensors)}"
             )
+        repeated = sorted({name for name in self.sensors if list(self.sensors).count(name) > 1})
+        if repeated:
+            raise InputError(f"sensor names must be unique, repeated: {repeated}")
         if self.markers is not None:
             if not isinstance(self.markers, MarkerData):
                 raise InputError(
