@@ -159,7 +159,7 @@ def auto_clusters(
     """``{name: [labels]}`` found by :func:`calibration.clusters.find_clusters`, and notes.
 
     Moving clusters first (named by their markers), then still groups (``still``, ``still2``...);
-    the notes say which markers were left out and why.
+    the notes name the markers seen too little to group, then those left out of the groups and why.
     """
     found = find_clusters(xyz, still_deg=still_deg)
     clusters = {_group_name([labels[k] for k in g]): [labels[k] for k in g] for g in found.clusters}
@@ -180,8 +180,14 @@ def auto_clusters(
             f"proven by "
             f"motion, treated as one body: {', '.join(labels[k] for k in g)}"
         )
-    if found.left_out:
-        notes.append("left out: " + "; ".join(f"{labels[k]} ({why})" for k, why in found.left_out.items()))
+    if found.unseen:
+        notes.append(
+            "not seen enough to group, left out: "
+            + "; ".join(f"{labels[k]} ({found.left_out[k]})" for k in found.unseen)
+        )
+    judged = {k: why for k, why in found.left_out.items() if k not in found.unseen}
+    if judged:
+        notes.append("left out: " + "; ".join(f"{labels[k]} ({why})" for k, why in judged.items()))
     return clusters, notes
 
 
