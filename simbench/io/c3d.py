@@ -2,20 +2,21 @@
 
 Markers are read and written with ezc3d (the C3D library of the field's tools); positions are
 converted to metres from the file's ``POINT:UNITS``; samples the file marks invalid (negative
-residual) are missing; a file shorter than its header announces is an error. Markers are grouped
-into rigid clusters -- by a specification naming the markers of each segment (TOML
-``[clusters] thigh_r = ["RTHI1", "RTHI2", "RTHI3"]``), or automatically from the steadiness of
-their mutual distances relative to motion, with groups that barely move set apart as still --
-and each cluster's pose at every frame comes from a least-squares rigid fit
-(:mod:`calibration.clusters`). The resulting :class:`PoseRecording` feeds the calibration like
-any tracker's poses; its notes say what was
-read: clusters, frames, rate, gaps and each cluster's rigidity residual.
+residual) and samples at exactly (0, 0, 0) (an exporter's gap) are missing; a file shorter than
+its header announces is an error. Markers are grouped into rigid clusters -- by a specification
+naming the markers of each segment (TOML ``[clusters] thigh_r = ["RTHI1", "RTHI2", "RTHI3"]``), or
+automatically from the steadiness of their mutual distances relative to motion, with groups that
+barely move set apart as still -- and each cluster's pose at every frame comes from a
+least-squares rigid fit (:mod:`calibration.clusters`). The resulting :class:`PoseRecording`
+feeds the calibration like any tracker's poses; its notes say what was read: clusters, frames,
+rate, gaps (the zeros dropped among them) and each cluster's rigidity residual.
 """
 
 from __future__ import annotations
 
 import os
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 
 import ezc3d
@@ -70,12 +71,34 @@ def _header_frames(path: Path) -> tuple[int, int]:
     return announced, available
 
 
-def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
-    """Marker labels, positions ``(F, M, 3)`` in metres (NaN where invalid) and the rate (Hz).
+@dataclass(frozen=True)
+class C3DMarkers:
+    """The markers of a C3D file, as read by :func:`read_c3d`.
 
-    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``); a sample with a
-    negative residual (C3D's mark for invalid) or a non-finite coordinate is missing; the rate
-    is ``POINT:RATE``. ANALOG parameters without analog channels are fine.
+    Attributes:
+        labels: the ``M`` marker labels (``POINT:LABELS``).
+        xyz_m: ``(F, M, 3)`` positions, m (NaN where missing).
+        rate_hz: ``POINT:RATE``, Hz.
+        units: the unit the file's values were read in (``POINT:UNITS``).
+        notes: what was read as missing beyond NaN and invalid samples, for the recording's notes.
+    """
+
+    labels: list[str]
+    xyz_m: np.ndarray
+    rate_hz: float
+    units: str
+    notes: tuple[str, ...]
+
+
+def read_c3d(path: str | os.PathLike[str]) -> C3DMarkers:
+    """A C3D file's markers in metres (NaN where missing), rate and notes.
+
+    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``); a sample is
+    missing when its residual is negative (C3D's mark for invalid; ezc3d also gives it NaN), a
+    coordinate is not finite, or it is exactly ``(0, 0, 0)``: many exporters write a gap as
+    zeros, and a real marker is never at the origin to the last bit in all three coordinates;
+    the notes say how many such samples were dropped. The rate is ``POINT:RATE``. ANALOG
+    parameters without analog channels are fine.
 
     Raises:
         InputError: unreadable or truncated file (fewer frames than its header announces).
@@ -110,10 +133,32 @@ def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarra
         raise InputError(f"{path}: truncated C3D file: {data.shape[2]} of {announced} frames read")
     if not rate > 0:
         raise InputError(f"{path}: POINT:RATE is {rate}; expected a positive rate in Hz")
-    xyz = np.transpose(data[:3], (2, 1, 0)) * LENGTH_UNITS[units]  # (F, M, 3)
-    bad = (residual[0].T < 0) | ~np.isfinite(xyz).all(axis=2)
-    xyz[bad] = np.nan
-    return labels[: xyz.shape[1]], xyz, rate
+    raw = np.transpose(data[:3], (2, 1, 0))  # (F, M, 3) in the file's unit
+    bad = (residual[0].T < 0) | ~np.isfinite(raw).all(axis=2)
+    zero = ~bad & (raw == 0.0).all(axis=2)
+    notes = []
+    if zero.any():
+        frames = int(zero.any(axis=1).sum())
+        markers = int(zero.any(axis=0).sum())
+        notes.append(
+            f"{int(zero.sum())} sample(s) of {markers} marker(s) in {frames} frame(s) at exactly (0, 0, 0) "
+            "read as missing (many exporters write a gap as zeros)"
+        )
+    xyz = raw * LENGTH_UNITS[units]
+    xyz[bad | zero] = np.nan
+    return C3DMarkers(labels[: xyz.shape[1]], xyz, rate, units, tuple(notes))
+
+
+def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
+    """Marker labels, positions ``(F, M, 3)`` in metres (NaN where missing) and the rate (Hz).
+
+    :func:`read_c3d` without its notes.
+
+    Raises:
+        InputError: unreadable or truncated file (fewer frames than its header announces).
+    """
+    markers = read_c3d(path)
+    return markers.labels, markers.xyz_m, markers.rate_hz
 
 
 def read_cluster_spec(path: str | os.PathLike[str]) -> dict[str, list[str]]:
@@ -201,15 +246,21 @@ def c3d_poses(
         clusters: ``{segment: [labels]}``; ``None`` to find clusters automatically.
         still_deg: automatic grouping: a group rotating less than this is still, degrees.
     """
-    labels, xyz, rate = read_c3d_markers(path)
+    read = read_c3d(path)
+    labels, xyz, rate = read.labels, read.xyz_m, read.rate_hz
     index = {label: k for k, label in enumerate(labels)}
-    notes = []
+    notes: list[str] = []
+    if not np.isfinite(xyz).all(axis=2).any():
+        raise InputError(
+            f"{path}: no marker seen in any of its {xyz.shape[0]} frame(s) ({len(labels)} marker(s))"
+            + "".join(f"; {n}" for n in read.notes)
+        )
     if clusters is None:
         clusters, notes = auto_clusters(labels, xyz, still_deg=still_deg)
         if len(clusters) < 2:
             raise InputError(
                 f"{path}: found {len(clusters)} rigid marker group(s); calibration needs 2 or more. "
-                + " ".join(notes)
+                + "; ".join([*read.notes, *notes])
             )
     missing = sorted({m for ms in clusters.values() for m in ms} - index.keys())
     if missing:
@@ -245,7 +296,7 @@ def c3d_poses(
                 f"high rigidity residual: cluster {name} {residual[k] * 1e3:.2f} mm, more than twice the "
                 f"others' median {np.median(others) * 1e3:.2f} mm: markers moving on skin or not one body"
             )
-    notes.insert(0, f"read {len(labels)} markers, {f} frames at {rate:g} Hz; {len(names)} clusters")
+    notes[:0] = [f"read {len(labels)} markers, {f} frames at {rate:g} Hz; {len(names)} clusters", *read.notes]
     return PoseRecording(
         names=names,
         time_s=np.arange(f) / rate,
