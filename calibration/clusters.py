@@ -149,10 +149,15 @@ class MarkerGroups:
 def distance_spread(markers: np.ndarray) -> np.ndarray:
     """``(M, M)`` standard deviation over frames of every pair's distance, m.
 
-    ``inf`` for a pair seen together in fewer than :data:`MIN_FRAMES` frames.
+    ``inf`` for a pair seen together in fewer than :data:`MIN_FRAMES` frames. Each pair's
+    distances are taken from their value in the first frame that shows both before the spread is
+    computed, so a distance that never changes has a spread of exactly 0, not the rounding of
+    its mean (whose differences of 1e-17 m would otherwise be the gaps the tree is cut at).
     """
     x = np.asarray(markers, dtype=float)
     d = np.linalg.norm(x[:, :, None] - x[:, None, :], axis=3)  # (F, M, M)
+    first = np.argmax(np.isfinite(d), axis=0)  # (M, M) first frame showing both (0 if none)
+    d -= np.take_along_axis(d, first[None], axis=0)
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pairs
         spread = np.nanstd(d, axis=0)

@@ -68,3 +68,15 @@ def test_markers_of_one_cluster_never_seen_together_leave_the_others_grouped():
     found = find_clusters(x)
     assert all(c in found.clusters for c in truth if c != big) and found.still == [static]
     assert not found.unseen
+
+
+def test_markers_that_never_move_are_one_still_group():
+    """One frame repeated: every distance is exactly steady, so every spread is exactly 0.
+
+    The spreads were the rounding of their means (1e-17 m), whose differences the tree was cut
+    at: 17 groups of a file that never moves, one of them called moving.
+    """
+    x, _, _ = simulate_marker_chain(np.random.default_rng(100))
+    found = find_clusters(np.repeat(x[:1], 300, axis=0))
+    assert found.clusters == [] and found.still == [list(range(x.shape[1]))] and not found.left_out
+    assert found.rotation_deg == [0.0]

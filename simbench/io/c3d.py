@@ -213,9 +213,13 @@ def auto_clusters(
         clusters[name] = [labels[k] for k in g]
     rot = found.rotation_deg
     notes = [
-        f"clusters found automatically: {len(found.clusters)} moving (rotating "
-        + ", ".join(f"{a:.0f}" for a in rot[: len(found.clusters)])
-        + f" deg), {len(found.still)} still; cuts on the distance spread at "
+        f"clusters found automatically: {len(found.clusters)} moving"
+        + (
+            f" (rotating {', '.join(f'{a:.0f}' for a in rot[: len(found.clusters)])} deg)"
+            if found.clusters
+            else ""
+        )
+        + f", {len(found.still)} still; cuts on the distance spread at "
         f"{found.cut_m[0] * 1e3:.3g} mm (still/moving groups) and {found.cut_m[1] * 1e3:.3g} mm (segments)"
     ]
     for i, g in enumerate(found.still):
