@@ -14,6 +14,7 @@ from calibration import (
     SlipReport,
     detect_slip,
 )
+from calibration.diagnostics import rotation_ranges
 from calibration.robust import LOSSES
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
@@ -167,6 +168,37 @@ def implausible_lengths(lengths: list, units: str) -> str:
     )
 
 
+def refuse_unlocated(rec: PoseRecording, cal: Calibration, source: str) -> None:
+    """Refuse a calibration in which no joint centre is located (a recording that does not move).
+
+    A joint's centre is located when the motion determines at least 5 of the fit's 6 directions
+    (:mod:`calibration.joint`: 6 for a ball joint, 5 for a single axis); with fewer (the joint
+    turned too little against its noise, e.g. a body or a file that never moves) its numbers are
+    a minimum-norm point, not a measurement. When some joints are located the others are marked
+    ``none`` in the table (their lengths and offsets ``not located``) and named in the warnings;
+    when none is, there is nothing to report.
+
+    Raises:
+        InputError: naming the file, each joint with the directions its motion determines and its
+            range of relative rotation (degrees, along its principal axes).
+    """
+    if not cal.joints or any(j.fit.rank >= 5 for j in cal.joints):
+        return
+    index = {name: k for k, name in enumerate(rec.names)}
+    parent = np.array([index[j.parent] for j in cal.joints])
+    child = np.array([index[j.child] for j in cal.joints])
+    ranges = rotation_ranges(rec.R_w_s, parent, child, valid=rec.valid)
+    joints = "; ".join(
+        f"{j.name}: {j.fit.rank} of 6, rotation range {', '.join(f'{x:.1f}' for x in r)} deg"
+        for j, r in zip(cal.joints, ranges, strict=True)
+    )
+    raise InputError(
+        f"{source}: no joint centre is determined: every joint's motion fixes fewer than 5 of the fit's 6 "
+        f"directions ({joints}); the sensors barely turn against each other. Record the joints moving "
+        "through tens of degrees in two or more directions"
+    )
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
     if args.follow:
@@ -194,6 +226,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(
             f"{args.input}{f' with {args.hierarchy}' if args.hierarchy else ''}: {exc}"
         ) from None
+    refuse_unlocated(rec, cal, args.input)
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
     odd = implausible_lengths(cal.lengths, args.units)
