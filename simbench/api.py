@@ -250,7 +250,7 @@ def export(
     markers: str = "measured",
     orientations: str = "measured",
     trc_units: str = "mm",
-    units: str = "m",
+    units: str | None = None,
     clusters: str | os.PathLike[str] | None = None,
     wide: str | os.PathLike[str] | None = None,
 ) -> dict[str, Path]:

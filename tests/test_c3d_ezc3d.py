@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from simbench.cli import main
 from simbench.errors import InputError
 from simbench.io.c3d import c3d_poses, read_c3d, read_c3d_markers, write_c3d_markers
 from simbench.sim.markers import simulate_marker_chain
@@ -126,3 +127,27 @@ def test_zero_burst_leaves_the_clusters_and_is_noted(tmp_path):
     write_raw(everywhere, np.zeros((20, 4, 3)), "mm", np.zeros((20, 4)))
     with pytest.raises(InputError, match=r"zero\.c3d: no marker seen in any of its 20 frame\(s\)"):
         c3d_poses(everywhere)
+
+
+def test_units_given_override_the_files_with_a_note(tmp_path, capsys):
+    """A file in mm labelled m: --units mm reads it in mm (and says so); without it the file's
+    label is used and the warning says what --units would change."""
+    x, _, _ = simulate_marker_chain(np.random.default_rng(102))
+    path = tmp_path / "mislabelled.c3d"
+    write_raw(path, x * 1000.0, "m", np.zeros(x.shape[:2]))
+    as_labelled = read_c3d(path)
+    assert as_labelled.units == "m" and as_labelled.notes == ()
+    assert_allclose(as_labelled.xyz_m, x * 1000.0, rtol=1e-6)
+    asked = read_c3d(path, units="mm")
+    assert asked.units == "mm"
+    assert asked.notes == ("positions read in mm as asked (--units), not in the file's POINT:UNITS 'm'",)
+    assert_allclose(asked.xyz_m, x, atol=1e-6)
+    assert read_c3d(path, units="m").notes == ()  # the file's own unit: nothing to note
+    with pytest.raises(InputError, match="units to be one of"):
+        read_c3d(path, units="furlong")
+    assert main(["calibrate", str(path), "--units", "mm", "--no-slip"]) == 0
+    out = capsys.readouterr().out
+    assert "positions read in mm as asked (--units)" in out and "limb length(s) outside" not in out
+    assert main(["calibrate", str(path), "--no-slip"]) == 0
+    out = capsys.readouterr().out
+    assert "are the positions really in the file's POINT:UNITS? (--units overrides it)" in out

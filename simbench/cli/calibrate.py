@@ -40,7 +40,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
     cal.add_argument(
-        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of the file (default m)"
+        "--units",
+        choices=sorted(LENGTH_UNITS),
+        default=None,
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
+        "unit given here overrides, with a note)",
     )
     cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
@@ -155,16 +159,21 @@ def _slip_reports(
 LIMB_RANGE_M = (1e-3, 10.0)
 
 
-def implausible_lengths(lengths: list, units: str) -> str:
-    """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``."""
+def implausible_lengths(lengths: list, units: str | None, c3d: bool = False) -> str:
+    """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``.
+
+    ``units``: the ``--units`` given (``None``: the default, metres, or a C3D file's own
+    ``POINT:UNITS``); the warning names the unit the positions were read in and how to change it.
+    """
     lo, hi = LIMB_RANGE_M
     odd = [x for x in lengths if not lo <= x.length <= hi]
     if not odd:
         return ""
     shown = ", ".join(f"{x.segment} {x.length * 1e3:.3g} mm" for x in odd[:4])
-    return (
-        f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): "
-        f"are the positions really in {units} (--units)?"
+    return f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): " + (
+        f"are the positions really in {units or 'm'} (--units)?"
+        if units is not None or not c3d
+        else "are the positions really in the file's POINT:UNITS? (--units overrides it)"
     )
 
 
@@ -229,7 +238,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     refuse_unlocated(rec, cal, args.input)
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
-    odd = implausible_lengths(cal.lengths, args.units)
+    odd = implausible_lengths(cal.lengths, args.units, c3d=str(args.input).lower().endswith(".c3d"))
     if odd:
         print(f"\n  warning: {odd}")
     if args.json:
@@ -246,7 +255,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "sensors": list(rec.names),
                 "frames": rec.n_frames,
                 "rate_hz": rec.rate_hz,
-                "units": args.units,
+                "units": args.units or ("POINT:UNITS" if str(args.input).lower().endswith(".c3d") else "m"),
             },
             notes=(*rec.notes, odd) if odd else rec.notes,
             options={
@@ -292,7 +301,7 @@ def _follow(args: argparse.Namespace) -> int:
     )
     follow_csv(
         args.input,
-        units=args.units,
+        units=args.units or "m",
         rate_hz=args.rate_hz,
         timeout_s=args.timeout,
         refresh_s=args.refresh,

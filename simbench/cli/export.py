@@ -31,7 +31,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "themselves go to --trc and --c3d as read (metres from POINT:UNITS, gaps kept), no clusters needed",
     )
     exp.add_argument(
-        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of a pose CSV (default m)"
+        "--units",
+        choices=sorted(LENGTH_UNITS),
+        default=None,
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
+        "unit given here overrides, with a note)",
     )
     exp.add_argument("--clusters", metavar="SPEC.toml", help="a C3D file's marker clusters (default: found)")
     exp.add_argument("--wide", metavar="SPEC.toml", help="read the recording as a wide tracker export")

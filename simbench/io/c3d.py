@@ -90,10 +90,12 @@ class C3DMarkers:
     notes: tuple[str, ...]
 
 
-def read_c3d(path: str | os.PathLike[str]) -> C3DMarkers:
+def read_c3d(path: str | os.PathLike[str], *, units: str | None = None) -> C3DMarkers:
     """A C3D file's markers in metres (NaN where missing), rate and notes.
 
-    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``); a sample is
+    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``), or ``units``
+    when given: it overrides the file's (an exporter that wrote the wrong label), with a note
+    naming both; a sample is
     missing when its residual is negative (C3D's mark for invalid; ezc3d also gives it NaN), a
     coordinate is not finite, or it is exactly ``(0, 0, 0)``: many exporters write a gap as
     zeros, and a real marker is never at the origin to the last bit in all three coordinates;
@@ -101,9 +103,12 @@ def read_c3d(path: str | os.PathLike[str]) -> C3DMarkers:
     parameters without analog channels are fine.
 
     Raises:
-        InputError: unreadable or truncated file (fewer frames than its header announces).
+        InputError: unreadable or truncated file (fewer frames than its header announces), a
+            unit (given or the file's) not in :data:`simbench.units.LENGTH_UNITS`.
     """
-    path = Path(path)
+    path, units_given = Path(path), units
+    if units is not None and units not in LENGTH_UNITS:
+        raise InputError(f"Expected the units to be one of {sorted(LENGTH_UNITS)}, got {units!r}")
     if path.is_dir():
         raise InputError(f"{path}: expected a file, got a directory")
     if not path.is_file():
@@ -125,8 +130,18 @@ def read_c3d(path: str | os.PathLike[str]) -> C3DMarkers:
         residual = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)  # (1, M, F)
     except Exception as exc:  # ezc3d raises assorted errors on damaged files
         raise InputError(f"{path}: not a readable C3D file ({type(exc).__name__}: {exc})") from None
-    if units not in LENGTH_UNITS:
-        raise InputError(f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(LENGTH_UNITS)}")
+    notes = []
+    if units_given is not None:
+        if units_given != units:
+            notes.append(
+                f"positions read in {units_given} as asked (--units), not in the file's POINT:UNITS {units!r}"
+            )
+        units = units_given
+    elif units not in LENGTH_UNITS:
+        raise InputError(
+            f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(LENGTH_UNITS)} "
+            "(or give the unit: --units)"
+        )
     if data.shape[2] == 0:
         raise InputError(f"{path}: no frames")
     if data.shape[2] < announced:
@@ -136,7 +151,6 @@ def read_c3d(path: str | os.PathLike[str]) -> C3DMarkers:
     raw = np.transpose(data[:3], (2, 1, 0))  # (F, M, 3) in the file's unit
     bad = (residual[0].T < 0) | ~np.isfinite(raw).all(axis=2)
     zero = ~bad & (raw == 0.0).all(axis=2)
-    notes = []
     if zero.any():
         frames = int(zero.any(axis=1).sum())
         markers = int(zero.any(axis=0).sum())
@@ -241,16 +255,22 @@ def auto_clusters(
 
 
 def c3d_poses(
-    path: str | os.PathLike[str], *, clusters: dict[str, list[str]] | None = None, still_deg: float = 10.0
+    path: str | os.PathLike[str],
+    *,
+    clusters: dict[str, list[str]] | None = None,
+    still_deg: float = 10.0,
+    units: str | None = None,
 ) -> PoseRecording:
     """Segment poses from the marker clusters of a C3D file (module docstring).
 
     Args:
         path: the C3D file.
+        units: the positions' unit, overriding the file's ``POINT:UNITS`` (:func:`read_c3d`);
+            ``None``: the file's.
         clusters: ``{segment: [labels]}``; ``None`` to find clusters automatically.
         still_deg: automatic grouping: a group rotating less than this is still, degrees.
     """
-    read = read_c3d(path)
+    read = read_c3d(path, units=units)
     labels, xyz, rate = read.labels, read.xyz_m, read.rate_hz
     index = {label: k for k, label in enumerate(labels)}
     notes: list[str] = []
@@ -300,7 +320,10 @@ def c3d_poses(
                 f"high rigidity residual: cluster {name} {residual[k] * 1e3:.2f} mm, more than twice the "
                 f"others' median {np.median(others) * 1e3:.2f} mm: markers moving on skin or not one body"
             )
-    notes[:0] = [f"read {len(labels)} markers, {f} frames at {rate:g} Hz; {len(names)} clusters", *read.notes]
+    notes[:0] = [
+        f"read {len(labels)} markers in {read.units}, {f} frames at {rate:g} Hz; {len(names)} clusters",
+        *read.notes,
+    ]
     return PoseRecording(
         names=names,
         time_s=np.arange(f) / rate,
