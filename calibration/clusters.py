@@ -11,6 +11,8 @@ markers of a cluster give no pose (marked missing, never interpolated).
 :func:`find_clusters` finds clusters without a specification, from how steady each pair's distance
 stays (its standard deviation over frames) with cuts at the largest gaps of a hierarchical tree
 (no tolerance in metres), and sets apart groups that are steady only because they barely move.
+Markers seen too little to judge (never, or with no other marker in :data:`MIN_FRAMES` frames)
+are left out before the tree is built: they say nothing about rigidity.
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
+
+#: Fewest frames in which two markers are seen together for their distance's spread to be judged
+#: (a standard deviation of fewer than three samples says nothing about how steady it is).
+MIN_FRAMES = 3
 
 
 @dataclass(frozen=True)
@@ -124,6 +130,8 @@ class MarkerGroups:
         still: marker index lists of groups whose distances are steady but which rotate less than
             the still limit: rigidity not proven by motion (the body at rest, lab markers).
         left_out: ``{marker index: reason}`` for markers in no cluster and no still group.
+        unseen: the markers of ``left_out`` seen too little to judge (:func:`unjudged_markers`),
+            set aside before the cuts, sorted.
         residual_m: median rigidity residual of each cluster, then each still group, m.
         rotation_deg: 95th-percentile rotation from the mean orientation, same order, degrees.
         cut_m: ``(still/moving cut, cluster cut)`` on the distance spread, m.
@@ -132,32 +140,46 @@ class MarkerGroups:
     clusters: list[list[int]]
     still: list[list[int]]
     left_out: dict[int, str]
+    unseen: list[int]
     residual_m: list[float]
     rotation_deg: list[float]
     cut_m: tuple[float, float]
 
 
 def distance_spread(markers: np.ndarray) -> np.ndarray:
-    """``(M, M)`` standard deviation over frames of every pair's distance, m (inf if < 3 frames)."""
+    """``(M, M)`` standard deviation over frames of every pair's distance, m.
+
+    ``inf`` for a pair seen together in fewer than :data:`MIN_FRAMES` frames. Each pair's
+    distances are taken from their value in the first frame that shows both before the spread is
+    computed, so a distance that never changes has a spread of exactly 0, not the rounding of
+    its mean (whose differences of 1e-17 m would otherwise be the gaps the tree is cut at).
+    """
     x = np.asarray(markers, dtype=float)
     d = np.linalg.norm(x[:, :, None] - x[:, None, :], axis=3)  # (F, M, M)
+    first = np.argmax(np.isfinite(d), axis=0)  # (M, M) first frame showing both (0 if none)
+    d -= np.take_along_axis(d, first[None], axis=0)
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN pairs
         spread = np.nanstd(d, axis=0)
     seen = np.isfinite(d).sum(axis=0)
-    spread = np.where(seen >= 3, spread, np.inf)
+    spread = np.where(seen >= MIN_FRAMES, spread, np.inf)
     np.fill_diagonal(spread, 0.0)
     return spread
 
 
 def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[np.ndarray], float]:
-    """Complete-linkage tree on the distance spread, cut at its largest ratio gap (unit-free)."""
+    """Complete-linkage tree on the distance spread, cut at its largest ratio gap (unit-free).
+
+    A pair never seen together (``inf``) counts as unsteady as the least steady pair seen: it is
+    joined no earlier than every measured pair, yet makes no gap of its own (a larger stand-in
+    would become the largest gap and cut the tree at the unseen pair instead of at the motion).
+    """
     if len(members) < 2:
         return [members], np.inf
     sub = spread[np.ix_(members, members)]
     finite = np.isfinite(sub)
     top = sub[finite].max() if finite.any() else 1.0
-    sub = np.where(finite, sub, 1e3 * top + 1.0)  # never seen together: apart
+    sub = np.where(finite, sub, top)
     Z = linkage(squareform(sub, checks=False), method="complete")
     h = np.maximum(Z[:, 2], np.finfo(float).tiny)
     if len(h) < 2:
@@ -166,6 +188,32 @@ def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[n
     cut = float(np.sqrt(h[k] * h[k + 1]))
     labels = fcluster(Z, cut, criterion="distance")
     return [members[labels == v] for v in np.unique(labels)], cut
+
+
+def unjudged_markers(markers: np.ndarray) -> dict[int, str]:
+    """``{marker index: reason}`` for markers seen too little to judge how steady their distances are.
+
+    A marker is judged by its distances to the others, so it needs another marker seen in the
+    same frames at least :data:`MIN_FRAMES` times; a marker never seen, or never long enough
+    together with another, cannot be placed in any group (nor called moving).
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+    """
+    seen = np.isfinite(np.asarray(markers, dtype=float)).all(axis=2)  # (F, M)
+    together = seen.T.astype(np.int64) @ seen.astype(np.int64)  # (M, M) frames seen together
+    np.fill_diagonal(together, 0)
+    best = together.max(axis=1) if seen.shape[1] > 1 else np.zeros(seen.shape[1], dtype=np.int64)
+    out = {}
+    for k in np.flatnonzero(best < MIN_FRAMES):
+        alone = int(seen[:, k].sum())
+        out[int(k)] = (
+            "not seen in any frame"
+            if alone == 0
+            else f"seen in {alone} frame(s), together with another marker in at most {int(best[k])}; "
+            f"{MIN_FRAMES} needed to judge its distances"
+        )
+    return out
 
 
 def _rotation_deg(markers: np.ndarray) -> tuple[float, float]:
@@ -192,6 +240,8 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     apart. The second cut, over the markers of the moving groups only, separates the segments
     (skin spread within a cluster, joint motion between clusters). ``still_deg`` defaults to 10
     degrees: below that a joint centre is not determined (DESIGN.md, facts from real recordings).
+    Markers seen too little to judge (:func:`unjudged_markers`) are left out before either cut,
+    with the reason, so that a marker never seen does not decide where the tree is cut.
 
     Args:
         markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
@@ -202,9 +252,11 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     if x.ndim != 3 or x.shape[2] != 3:
         raise CalibrationInputError(f"Expected markers of shape (frames, markers, 3), got {x.shape}")
     spread = distance_spread(x)
-    everyone = np.arange(x.shape[1])
+    left_out = unjudged_markers(x)
+    unseen = sorted(left_out)
+    everyone = np.setdiff1d(np.arange(x.shape[1]), list(left_out))
     first, cut1 = _largest_gap_groups(spread, everyone)
-    still, left_out, stats = [], {}, {}
+    still, stats = [], {}
     for g in first:
         if len(g) < min_size:
             continue
@@ -236,6 +288,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         clusters=clusters,
         still=still,
         left_out=dict(sorted(left_out.items())),
+        unseen=unseen,
         residual_m=[stats[tuple(g)][0] for g in groups],
         rotation_deg=[stats[tuple(g)][1] for g in groups],
         cut_m=(cut1, cut2),

@@ -261,6 +261,18 @@ def _test(
     return float(whitened_norm(d_k, scale)[0]), thr
 
 
+def _excess(z: float, threshold: float) -> float:
+    """``z / threshold``, how far a candidate stands above its threshold (ranks candidates).
+
+    A threshold of 0 comes from a residual with no noise at all (every ``z`` of the noise model
+    0, e.g. a recording that never moves): there a ``z`` of 0 is no evidence (0) and any larger
+    ``z`` is beyond every noise (``inf``); an infinite threshold (too few frames to test) gives 0.
+    """
+    if threshold > 0.0:
+        return z / threshold
+    return float("inf") if z > 0.0 else 0.0
+
+
 def _peak(d: np.ndarray, free: np.ndarray) -> int | None:
     """The frame of ``free`` with the largest whitened ``d``; ``None`` when there is none."""
     zc = np.where(free, whitened_norm(d, robust_scale(d, free)), -np.inf)
@@ -301,7 +313,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
             if k is None:
                 continue
             z, thr = _test(pair, free, cuts, k, i, d)
-            if best is None or z / thr > best[2] / best[3]:
+            if best is None or _excess(z, thr) > _excess(best[2], best[3]):
                 best = (k, i, z, thr)
         if best is None:
             break

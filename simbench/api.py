@@ -26,8 +26,9 @@ from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
 from calibration.orientation import Priors, Skeleton
 from simbench.errors import InputError
+from simbench.io.c3d import read_c3d
 from simbench.io.dataset import Dataset
-from simbench.io.export import export_dataset
+from simbench.io.export import check_outputs, export_c3d_markers, export_dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
@@ -249,7 +250,7 @@ def export(
     markers: str = "measured",
     orientations: str = "measured",
     trc_units: str = "mm",
-    units: str = "m",
+    units: str | None = None,
     clusters: str | os.PathLike[str] | None = None,
     wide: str | os.PathLike[str] | None = None,
 ) -> dict[str, Path]:
@@ -260,8 +261,37 @@ def export(
 
     A file is opened with :func:`read` (``units``, ``clusters``, ``wide`` as there): a simbench
     dataset, or a real recording of poses (pose CSV, wide export, C3D marker clusters), whose
-    orientations and calibrated skeleton can be exported (it has no truth, markers or IMU data).
+    orientations and calibrated skeleton can be exported (it has no truth or IMU data). A C3D file's
+    own markers go to ``trc`` and ``c3d`` as read, without clusters
+    (:func:`simbench.io.export.export_c3d_markers`); its other exports come from its clusters' poses.
     """
+    if (
+        not isinstance(data, Dataset)
+        and wide is None
+        and Path(data).suffix.lower() == ".c3d"
+        and (trc or c3d)
+    ):
+        if calibration is not None and mjcf is None and osim is None:
+            raise InputError("a calibration is used only for the skeleton: give mjcf or osim too")
+        if markers == "truth":
+            raise InputError(
+                f"{data}: a recorded C3D file has measured markers only; their truth comes with a "
+                "simulated dataset (simbench simulate --markers)"
+            )
+        check_outputs({k: Path(v) for k, v in {"trc": trc, "c3d": c3d}.items() if v is not None})
+        recording = read_c3d(data)  # before anything is written: a damaged file writes nothing
+        rest = {"sto": sto, "imu_csv": imu_csv, "mjcf": mjcf, "osim": osim}
+        written = {}
+        if any(v is not None for v in rest.values()):
+            written = export(
+                data,
+                **rest,
+                calibration=calibration,
+                orientations=orientations,
+                units=units,
+                clusters=clusters,
+            )
+        return written | export_c3d_markers(recording, trc=trc, c3d=c3d, trc_units=trc_units)
     ds = data if isinstance(data, Dataset) else read(data, units=units, clusters=clusters, wide=wide)
     if isinstance(ds, ImuRecording):
         raise InputError(

@@ -277,3 +277,46 @@ def test_slip_reported_in_table_and_json(capsys, tmp_path):
     events = slips["upper_arm_r-forearm_r"]["events"]
     assert len(events) == 1 and abs(events[0]["frame"] - 1500) <= 12
     assert all(not s["events"] for name, s in slips.items() if name != "upper_arm_r-forearm_r")
+
+
+def test_recording_that_never_moves_is_refused(capsys, tmp_path, linkage_noisy_module):
+    """Every frame the same: no joint centre can come from it, so no numbers are reported."""
+    cap = linkage_noisy_module
+    n = 300
+    R, p = np.repeat(cap.R_w_s[:1], n, axis=0), np.repeat(cap.p_w_s[:1], n, axis=0)
+    rec = PoseRecording(cap.names, cap.time_s[:n], R, p, np.ones(p.shape[:2], bool))
+    path = tmp_path / "still.csv"
+    write_pose_csv(path, rec)
+    code, out, err = run(capsys, "calibrate", str(path), "--no-slip")
+    assert code == 2 and out == ""
+    assert "still.csv: no joint centre is determined" in err
+    assert len(re.findall(r"\w+-\w+: 3 of 6, rotation range 0\.0, 0\.0, 0\.0 deg", err)) == len(cap.names) - 1
+
+
+def test_joint_that_never_turns_has_no_numbers_in_the_table(capsys, tmp_path, linkage_noisy_module):
+    """The head held fixed on the chest: that joint is not located, the others are reported."""
+    cap = linkage_noisy_module
+    head, chest = cap.names.index("head"), cap.names.index("chest")
+    R, p = cap.R_w_s.copy(), cap.p_w_s.copy()
+    R[:, head] = R[:, chest] @ (R[0, chest].T @ R[0, head])
+    p[:, head] = p[:, chest] + np.einsum("fij,j->fi", R[:, chest], R[0, chest].T @ (p[0, head] - p[0, chest]))
+    rec = PoseRecording(cap.names, cap.time_s, R, p, np.ones(p.shape[:2], bool))
+    path = tmp_path / "stiff.csv"
+    write_pose_csv(path, rec)
+    hier = tmp_path / "h.json"
+    hier.write_text(json.dumps(cap.skeleton.parent_of))
+    code, out, err = run(capsys, "calibrate", str(path), "--hierarchy", str(hier), "--no-slip")
+    assert code == 0, err
+    row = next(line for line in out.splitlines() if "chest -> head" in line)
+    assert row.split()[-2] == "none"
+    offsets = [
+        line
+        for line in out.splitlines()
+        if line.strip().startswith(("head ", "chest ")) and "chest-head" in line
+    ]
+    assert offsets and all("not located" in line for line in offsets)
+    assert "chest-upper_arm_l" in out and "not located" not in next(
+        line
+        for line in out.splitlines()
+        if "chest-upper_arm_l" in line and line.strip().startswith("upper_arm_l")
+    )

@@ -11,8 +11,9 @@ import pytest
 from numpy.testing import assert_allclose
 
 import simbench as sb
+from calibration.rotations import rotvec_to_matrix
 from simbench.cli import main
-from simbench.io.c3d import read_c3d_markers
+from simbench.io.c3d import read_c3d_markers, write_c3d_markers
 from simbench.io.dataset import read_dataset
 from simbench.io.imu_csv import read_imu_csv
 from simbench.io.opensense import read_opensense_sto
@@ -139,3 +140,37 @@ def test_a_real_recording_of_poses_exports_its_orientations_and_calibrated_skele
     assert "no truth to build a skeleton from; give a calibration JSON" in capsys.readouterr().err
     assert main(["export", str(csv), "--units", "mm", "--trc", str(tmp_path / "m.trc")]) == 2
     assert "no markers" in capsys.readouterr().err
+
+
+def test_a_c3d_file_exports_its_markers_as_read(tmp_path, capsys):
+    """A C3D file's markers to TRC and C3D without clusters or a Dataset (it used to say "the
+    dataset has no markers (no /markers group)" of a file holding them); gaps stay gaps, and
+    nothing is written when one output cannot be."""
+    rng = np.random.default_rng(8)
+    frames = 200
+    R = rotvec_to_matrix(np.linspace(0.0, 1.0, frames)[:, None] * rng.normal(size=3))
+    shape = rng.normal(0.0, 0.1, (5, 3))
+    xyz = np.einsum("fij,kj->fki", R, shape) + np.array([0.0, 0.0, 1.0])
+    xyz[50:60, 2] = np.nan
+    src = tmp_path / "in.c3d"
+    write_c3d_markers(src, ["A", "B", "C", "D", "E"], xyz, 150.0)
+    trc, c3d = tmp_path / "out.trc", tmp_path / "out.c3d"
+    assert main(["export", str(src), "--trc", str(trc), "--c3d", str(c3d)]) == 0, capsys.readouterr().err
+    back = read_trc(trc)
+    assert list(back.labels) == ["A", "B", "C", "D", "E"]
+    assert np.array_equal(np.isnan(back.xyz), np.isnan(xyz))
+    assert_allclose(back.xyz[np.isfinite(xyz)], xyz[np.isfinite(xyz)], atol=1e-6)
+    _, again, rate = read_c3d_markers(c3d)
+    assert rate == 150.0 and np.array_equal(np.isnan(again), np.isnan(xyz))
+    refused = [
+        (["--markers", "truth"], "a recorded C3D file has measured markers only"),
+        (["--c3d", str(tmp_path / "no" / "x.c3d")], "folder"),
+    ]
+    for k, (extra, message) in enumerate(refused):
+        out = tmp_path / f"refused{k}"
+        out.mkdir()
+        assert (
+            main(["export", str(src), "--trc", str(out / "x.trc"), "--imu-csv", str(out / "i.csv"), *extra])
+            == 2
+        )
+        assert message in capsys.readouterr().err and not list(out.iterdir())

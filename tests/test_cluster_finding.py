@@ -32,3 +32,51 @@ def test_loose_marker_left_out_with_a_reason():
     found = find_clusters(np.concatenate([x, loose[:, None]], axis=1))
     assert sorted(found.clusters) == truth and found.still == [static]
     assert list(found.left_out) == [x.shape[1]] and "steady with only 0 other" in found.left_out[x.shape[1]]
+
+
+@pytest.mark.parametrize("frames_seen", [0, 2])
+def test_marker_seen_too_little_is_set_aside_not_cut_on(frames_seen):
+    """A marker never seen (or in fewer frames than a spread needs) must not decide the cut.
+
+    It used to stand in as the farthest pair of all, became the largest gap of the tree, and
+    the whole set was cut into {that marker} and everything else.
+    """
+    x, truth, static = simulate_marker_chain(np.random.default_rng(100))
+    dead = np.full((x.shape[0], 1, 3), np.nan)
+    dead[:frames_seen, 0] = x[:frames_seen, 0]
+    m = x.shape[1]
+    found = find_clusters(np.concatenate([x, dead], axis=1))
+    assert sorted(found.clusters) == truth and found.still == [static]
+    assert list(found.left_out) == [m] and found.unseen == [m]
+    why = found.left_out[m]
+    assert ("not seen in any frame" if frames_seen == 0 else f"seen in {frames_seen} frame(s)") in why
+    assert "moves" not in why
+
+
+def test_markers_of_one_cluster_never_seen_together_leave_the_others_grouped():
+    """Two markers of one cluster, one seen only in the first half, the other only in the second.
+
+    Their pair has no spread; it must not become the tree's largest gap (it once cut the whole
+    set in two): every other cluster and the still group are still found.
+    """
+    x, truth, static = simulate_marker_chain(np.random.default_rng(105))
+    big = next(c for c in truth if len(c) == 4)
+    a, b = big[:2]
+    half = x.shape[0] // 2
+    x[half:, a] = np.nan
+    x[:half, b] = np.nan
+    found = find_clusters(x)
+    assert all(c in found.clusters for c in truth if c != big) and found.still == [static]
+    assert not found.unseen
+
+
+def test_markers_that_never_move_are_one_still_group():
+    """One frame repeated: every distance is exactly steady, so every spread is exactly 0.
+
+    The spreads were the rounding of their means (1e-17 m), whose differences the tree was cut
+    at: 17 groups of a file that never moves, one of them called moving.
+    """
+    x, _, _ = simulate_marker_chain(np.random.default_rng(100))
+    found = find_clusters(np.repeat(x[:1], 300, axis=0))
+    assert found.clusters == [] and found.still == [list(range(x.shape[1]))] and not found.left_out
+    assert found.rotation_deg == [0.0]

@@ -13,7 +13,7 @@ from calibration.clusters import group_markers, reference_shape, rigid_fit
 from calibration.errors import CalibrationInputError
 from calibration.rotations import rotvec_to_matrix
 from simbench.errors import InputError
-from simbench.io.c3d import c3d_poses, read_c3d_markers, read_cluster_spec, write_c3d_markers
+from simbench.io.c3d import auto_clusters, c3d_poses, read_c3d_markers, read_cluster_spec, write_c3d_markers
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -132,3 +132,27 @@ def test_functional_hip_centre_on_real_data():
     centre = np.einsum("fij,j->fi", rec.R_w_s[:, 0], hip.fit.joint_in_parent) + rec.p_w_s[:, 0]
     to_asis = np.nanmedian(np.linalg.norm(centre - xyz[:, labels.index("RASIS")], axis=1))
     assert 0.05 < to_asis < 0.15  # anatomically plausible: about 10 cm below and behind the ASIS
+
+
+@pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data not beside the repository")
+@pytest.mark.parametrize("dead", ["HV", "RLM"])
+def test_real_file_with_a_marker_never_seen_keeps_its_clusters(tmp_path, dead):
+    """One marker never seen (all NaN) in the real recording: the same clusters, less that marker.
+
+    It used to become the tree's largest gap: one group found and the marker called "moving".
+    """
+    labels, xyz, rate = read_c3d_markers(SHARED_DATA / "biobuddy_right_hip.c3d")
+    whole, _ = auto_clusters(labels, xyz)
+    xyz[:, labels.index(dead)] = np.nan
+    path = tmp_path / f"allnan_{dead}.c3d"
+    write_c3d_markers(path, labels, xyz, rate)
+    found, notes = auto_clusters(*read_c3d_markers(path)[:2])
+    assert len(whole) == 3
+    assert sorted(sorted(set(g) - {dead}) for g in whole.values()) == sorted(
+        sorted(g) for g in found.values()
+    )
+    assert any(
+        n.startswith("not seen enough to group") and f"{dead} (not seen in any frame)" in n for n in notes
+    )
+    assert not any(f"{dead} (moves" in n for n in notes)
+    assert len(c3d_poses(path).names) == 3

@@ -146,3 +146,18 @@ def test_mismatched_poses_rejected(linkage_noisy):
     R_p, p_p, R_c, p_c = pair_arrays(linkage_noisy, "chest", "head")
     with pytest.raises(CalibrationInputError):
         detect_slip(R_p, p_p[:-1], R_c, p_c, np.zeros(3), np.zeros(3), window=100, rate_hz=120.0)
+
+
+def test_recording_that_never_moves_has_no_event_and_no_error():
+    """Every frame the same, the joint exact: the residual has no noise, so the threshold is 0.
+
+    Ranking the candidates by ``z / threshold`` divided by zero (``simbench calibrate`` on a
+    C3D file of one frame repeated); a ``z`` of 0 against a threshold of 0 is no evidence.
+    """
+    n = 600
+    R = np.broadcast_to(np.eye(3), (n, 3, 3))
+    p_p = np.zeros((n, 3))
+    p_c = np.tile([0.0, 0.0, 0.1], (n, 1))
+    rep = detect_slip(R, p_p, R, p_c, np.array([0.0, 0.0, 0.1]), np.zeros(3), window=100, rate_hz=120.0)
+    assert rep.events == () and rep.intervals == ()
+    assert rep.threshold == 0.0 and rep.noise == 0.0 and rep.min_jump == 0.0

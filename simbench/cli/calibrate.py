@@ -15,6 +15,7 @@ from calibration import (
     SlipReport,
     detect_slip,
 )
+from calibration.diagnostics import rotation_ranges
 from calibration.robust import LOSSES
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
@@ -40,7 +41,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
     cal.add_argument(
-        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of the file (default m)"
+        "--units",
+        choices=sorted(LENGTH_UNITS),
+        default=None,
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
+        "unit given here overrides, with a note)",
     )
     cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
@@ -155,16 +160,52 @@ def _slip_reports(
 LIMB_RANGE_M = (1e-3, 10.0)
 
 
-def implausible_lengths(lengths: list, units: str) -> str:
-    """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``."""
+def implausible_lengths(lengths: list, units: str | None, c3d: bool = False) -> str:
+    """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``.
+
+    ``units``: the ``--units`` given (``None``: the default, metres, or a C3D file's own
+    ``POINT:UNITS``); the warning names the unit the positions were read in and how to change it.
+    """
     lo, hi = LIMB_RANGE_M
     odd = [x for x in lengths if not lo <= x.length <= hi]
     if not odd:
         return ""
     shown = ", ".join(f"{x.segment} {x.length * 1e3:.3g} mm" for x in odd[:4])
-    return (
-        f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): "
-        f"are the positions really in {units} (--units)?"
+    return f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): " + (
+        f"are the positions really in {units or 'm'} (--units)?"
+        if units is not None or not c3d
+        else "are the positions really in the file's POINT:UNITS? (--units overrides it)"
+    )
+
+
+def refuse_unlocated(rec: PoseRecording, cal: Calibration, source: str) -> None:
+    """Refuse a calibration in which no joint centre is located (a recording that does not move).
+
+    A joint's centre is located when the motion determines at least 5 of the fit's 6 directions
+    (:mod:`calibration.joint`: 6 for a ball joint, 5 for a single axis); with fewer (the joint
+    turned too little against its noise, e.g. a body or a file that never moves) its numbers are
+    a minimum-norm point, not a measurement. When some joints are located the others are marked
+    ``none`` in the table (their lengths and offsets ``not located``) and named in the warnings;
+    when none is, there is nothing to report.
+
+    Raises:
+        InputError: naming the file, each joint with the directions its motion determines and its
+            range of relative rotation (degrees, along its principal axes).
+    """
+    if not cal.joints or any(j.fit.rank >= 5 for j in cal.joints):
+        return
+    index = {name: k for k, name in enumerate(rec.names)}
+    parent = np.array([index[j.parent] for j in cal.joints])
+    child = np.array([index[j.child] for j in cal.joints])
+    ranges = rotation_ranges(rec.R_w_s, parent, child, valid=rec.valid)
+    joints = "; ".join(
+        f"{j.name}: {j.fit.rank} of 6, rotation range {', '.join(f'{x:.1f}' for x in r)} deg"
+        for j, r in zip(cal.joints, ranges, strict=True)
+    )
+    raise InputError(
+        f"{source}: no joint centre is determined: every joint's motion fixes fewer than 5 of the fit's 6 "
+        f"directions ({joints}); the sensors barely turn against each other. Record the joints moving "
+        "through tens of degrees in two or more directions"
     )
 
 
@@ -195,9 +236,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(
             f"{args.input}{f' with {args.hierarchy}' if args.hierarchy else ''}: {exc}"
         ) from None
+    refuse_unlocated(rec, cal, args.input)
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
-    odd = implausible_lengths(cal.lengths, args.units)
+    odd = implausible_lengths(cal.lengths, args.units, c3d=str(args.input).lower().endswith(".c3d"))
     if odd:
         print(f"\n  warning: {odd}")
     if args.json:
@@ -214,7 +256,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "sensors": list(rec.names),
                 "frames": rec.n_frames,
                 "rate_hz": rec.rate_hz,
-                "units": args.units,
+                "units": args.units or ("POINT:UNITS" if str(args.input).lower().endswith(".c3d") else "m"),
             },
             notes=(*rec.notes, odd) if odd else rec.notes,
             options={
@@ -266,7 +308,7 @@ def _follow(args: argparse.Namespace) -> int:
     )
     follow_csv(
         args.input,
-        units=args.units,
+        units=args.units or "m",
         rate_hz=args.rate_hz,
         timeout_s=args.timeout,
         refresh_s=args.refresh,

@@ -27,15 +27,28 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="RECORDING",
         help="a simbench dataset (simbench simulate -o), or a real recording of poses: a pose CSV, a wide "
         "export (--wide) or a C3D file of marker clusters (--clusters), whose orientations (--sto) and "
-        "calibrated skeleton (--mjcf, --osim with --calibration) can be exported",
+        "calibrated skeleton (--mjcf, --osim with --calibration) can be exported; a C3D file's markers "
+        "themselves go to --trc and --c3d as read (metres from POINT:UNITS, gaps kept), no clusters needed",
     )
     exp.add_argument(
-        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of a pose CSV (default m)"
+        "--units",
+        choices=sorted(LENGTH_UNITS),
+        default=None,
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
+        "unit given here overrides, with a note)",
     )
     exp.add_argument("--clusters", metavar="SPEC.toml", help="a C3D file's marker clusters (default: found)")
     exp.add_argument("--wide", metavar="SPEC.toml", help="read the recording as a wide tracker export")
-    exp.add_argument("--trc", metavar="OUT.trc", help="markers as TRC text (needs simulate --markers)")
-    exp.add_argument("--c3d", metavar="OUT.c3d", help="markers as C3D, in mm (needs simulate --markers)")
+    exp.add_argument(
+        "--trc",
+        metavar="OUT.trc",
+        help="markers as TRC text (a C3D file, or a dataset of simulate --markers)",
+    )
+    exp.add_argument(
+        "--c3d",
+        metavar="OUT.c3d",
+        help="markers as C3D, in mm (a C3D file, or a dataset of simulate --markers)",
+    )
     exp.add_argument("--sto", metavar="OUT.sto", help="sensor orientations in OpenSense's .sto layout")
     exp.add_argument("--imu-csv", metavar="OUT.csv", help="raw accelerometer, gyroscope, magnetometer")
     exp.add_argument("--mjcf", metavar="OUT.xml", help="the skeleton as an MJCF model MuJoCo loads")

@@ -57,7 +57,12 @@ def add_replay_parser(sub: argparse._SubParsersAction) -> None:
         metavar="1x|10x|max",
         help="speed: a multiple of the capture rate (1x: real time), or max (default 1x)",
     )
-    rep.add_argument("--units", default="m", help="length unit of a CSV's positions (default m)")
+    rep.add_argument(
+        "--units",
+        default=None,
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
+        "unit given here overrides)",
+    )
     _common(rep)
     rep.set_defaults(func=cmd_replay)
 

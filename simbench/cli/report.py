@@ -19,7 +19,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "dataset", help="a simbench dataset (.h5), pose CSV, wide tracker export (--wide) or C3D"
     )
     rep.add_argument(
-        "--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit of a CSV (default m)"
+        "--units",
+        choices=sorted(LENGTH_UNITS),
+        default=None,
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
+        "unit given here overrides, with a note)",
     )
     rep.add_argument("--clusters", metavar="SPEC.toml", help="C3D input: marker clusters (default: found)")
     rep.add_argument(

@@ -26,7 +26,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     scale.add_argument(
         "--distance", type=positive_float, required=True, help="their true distance, in --units"
     )
-    scale.add_argument("--units", choices=sorted(LENGTH_UNITS), default="m", help="length unit (default m)")
+    scale.add_argument(
+        "--units",
+        choices=sorted(LENGTH_UNITS),
+        default=None,
+        help="length unit of the positions and of --distance (default m; a C3D file's positions are "
+        "read in its POINT:UNITS unless this is given)",
+    )
     scale.set_defaults(func=cmd_scale)
 
 
@@ -42,7 +48,7 @@ def cmd_scale(args: argparse.Namespace) -> int:
     both = rec.valid[:, a] & rec.valid[:, b]
     p_w_a = np.where(both[:, None], rec.p_w_s[:, a], np.nan)
     p_w_b = np.where(both[:, None], rec.p_w_s[:, b], np.nan)
-    known = args.distance * metres_per_unit(args.units)
+    known = args.distance * metres_per_unit(args.units or "m")
     try:
         est = unit_scale(p_w_a, p_w_b, known)
     except CalibrationError as exc:  # too few frames with both sensors
@@ -50,7 +56,7 @@ def cmd_scale(args: argparse.Namespace) -> int:
     print(f"simbench scale: {rec.source}, sensors {args.sensors[0]} and {args.sensors[1]}")
     print(f"  frames used         {est.n_frames} of {rec.n_frames}")
     print(f"  known distance      {known * 100:.2f} cm")
-    print(f"  mean reported       {est.mean_reported * 100:.2f} cm (as {args.units} read)")
+    print(f"  mean reported       {est.mean_reported * 100:.2f} cm (as {args.units or 'm'} read)")
     print(f"  scale factor        {est.scale:#.4g}  (multiply reported lengths by this)")
     print(f"  scaled std          {est.scaled_std * 100:.3f} cm")
     steady, noise = rigidity(est.distances)

@@ -11,7 +11,9 @@ from simbench.io.poses import PoseRecording, sample_rate
 
 
 def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str, SlipReport]]) -> str:
-    """A readable summary: joints (mm), limb lengths (cm), sensor offsets (cm), warnings; with
+    """A readable summary: joints (mm), limb lengths (cm), sensor offsets (cm), warnings (a joint
+    whose centre the motion does not locate, fewer than 5 of 6 directions, has axis ``none`` and
+    its lengths and offsets ``not located``); with
     intervals (``calibrate(intervals=True)``) each joint centre's 95 % region (cm) and each limb
     length as ``L ± h`` (cm, the half-width of its 95 % interval).
 
@@ -55,8 +57,13 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
         lines += ["", f"  corrected for rotation noise (deg rms per axis, read off each sensor): {noise}"]
     if any(j.uncertainty is not None for j in cal.joints):
         lines += _interval_lines(cal)
+    # a joint the motion does not locate (fewer than 5 of 6 directions) has no centre to measure from
+    unlocated = {j.name for j in cal.joints if j.fit.rank < 5}
     rows = []
     for k, x in enumerate(cal.lengths):
+        if unlocated & {x.joint_a, x.joint_b}:
+            rows.append([x.segment, x.joint_a, x.joint_b, "not located"])
+            continue
         ci = ""
         if cal.length_uncertainty:
             unc = cal.length_uncertainty[k]
@@ -64,7 +71,9 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
         rows.append([x.segment, x.joint_a, x.joint_b, f"{x.length * 100:.2f}{ci}"])
     lines += ["", *text_table(["limb lengths (cm)", "from joint", "to joint", "length"], rows, "lllr")]
     rows = [
-        [pl.sensor, name, " ".join(f"{v * 100:7.2f}" for v in off), f"{d * 100:.2f}"]
+        [pl.sensor, name, "not located", "-"]
+        if name in unlocated
+        else [pl.sensor, name, " ".join(f"{v * 100:7.2f}" for v in off), f"{d * 100:.2f}"]
         for pl in cal.placements
         for name, off, d in zip(pl.joints, pl.offsets, pl.distances, strict=True)
     ]

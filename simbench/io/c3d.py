@@ -2,20 +2,21 @@
 
 Markers are read and written with ezc3d (the C3D library of the field's tools); positions are
 converted to metres from the file's ``POINT:UNITS``; samples the file marks invalid (negative
-residual) are missing; a file shorter than its header announces is an error. Markers are grouped
-into rigid clusters -- by a specification naming the markers of each segment (TOML
-``[clusters] thigh_r = ["RTHI1", "RTHI2", "RTHI3"]``), or automatically from the steadiness of
-their mutual distances relative to motion, with groups that barely move set apart as still --
-and each cluster's pose at every frame comes from a least-squares rigid fit
-(:mod:`calibration.clusters`). The resulting :class:`PoseRecording` feeds the calibration like
-any tracker's poses; its notes say what was
-read: clusters, frames, rate, gaps and each cluster's rigidity residual.
+residual) and samples at exactly (0, 0, 0) (an exporter's gap) are missing; a file shorter than
+its header announces is an error. Markers are grouped into rigid clusters -- by a specification
+naming the markers of each segment (TOML ``[clusters] thigh_r = ["RTHI1", "RTHI2", "RTHI3"]``), or
+automatically from the steadiness of their mutual distances relative to motion, with groups that
+barely move set apart as still -- and each cluster's pose at every frame comes from a
+least-squares rigid fit (:mod:`calibration.clusters`). The resulting :class:`PoseRecording`
+feeds the calibration like any tracker's poses; its notes say what was read: clusters, frames,
+rate, gaps (the zeros dropped among them) and each cluster's rigidity residual.
 """
 
 from __future__ import annotations
 
 import os
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 
 import ezc3d
@@ -70,17 +71,44 @@ def _header_frames(path: Path) -> tuple[int, int]:
     return announced, available
 
 
-def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
-    """Marker labels, positions ``(F, M, 3)`` in metres (NaN where invalid) and the rate (Hz).
+@dataclass(frozen=True)
+class C3DMarkers:
+    """The markers of a C3D file, as read by :func:`read_c3d`.
 
-    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``); a sample with a
-    negative residual (C3D's mark for invalid) or a non-finite coordinate is missing; the rate
-    is ``POINT:RATE``. ANALOG parameters without analog channels are fine.
+    Attributes:
+        labels: the ``M`` marker labels (``POINT:LABELS``).
+        xyz_m: ``(F, M, 3)`` positions, m (NaN where missing).
+        rate_hz: ``POINT:RATE``, Hz.
+        units: the unit the file's values were read in (``POINT:UNITS``).
+        notes: what was read as missing beyond NaN and invalid samples, for the recording's notes.
+    """
+
+    labels: list[str]
+    xyz_m: np.ndarray
+    rate_hz: float
+    units: str
+    notes: tuple[str, ...]
+
+
+def read_c3d(path: str | os.PathLike[str], *, units: str | None = None) -> C3DMarkers:
+    """A C3D file's markers in metres (NaN where missing), rate and notes.
+
+    Read with ezc3d. Units from ``POINT:UNITS`` (``mm``, ``cm``, ``m``, ``in``), or ``units``
+    when given: it overrides the file's (an exporter that wrote the wrong label), with a note
+    naming both; a sample is
+    missing when its residual is negative (C3D's mark for invalid; ezc3d also gives it NaN), a
+    coordinate is not finite, or it is exactly ``(0, 0, 0)``: many exporters write a gap as
+    zeros, and a real marker is never at the origin to the last bit in all three coordinates;
+    the notes say how many such samples were dropped. The rate is ``POINT:RATE``. ANALOG
+    parameters without analog channels are fine.
 
     Raises:
-        InputError: unreadable or truncated file (fewer frames than its header announces).
+        InputError: unreadable or truncated file (fewer frames than its header announces), a
+            unit (given or the file's) not in :data:`simbench.units.LENGTH_UNITS`.
     """
-    path = Path(path)
+    path, units_given = Path(path), units
+    if units is not None and units not in LENGTH_UNITS:
+        raise InputError(f"Expected the units to be one of {sorted(LENGTH_UNITS)}, got {units!r}")
     if path.is_dir():
         raise InputError(f"{path}: expected a file, got a directory")
     if not path.is_file():
@@ -102,18 +130,49 @@ def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarra
         residual = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)  # (1, M, F)
     except Exception as exc:  # ezc3d raises assorted errors on damaged files
         raise InputError(f"{path}: not a readable C3D file ({type(exc).__name__}: {exc})") from None
-    if units not in LENGTH_UNITS:
-        raise InputError(f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(LENGTH_UNITS)}")
+    notes = []
+    if units_given is not None:
+        if units_given != units:
+            notes.append(
+                f"positions read in {units_given} as asked (--units), not in the file's POINT:UNITS {units!r}"
+            )
+        units = units_given
+    elif units not in LENGTH_UNITS:
+        raise InputError(
+            f"{path}: POINT:UNITS is {units!r}; expected one of {sorted(LENGTH_UNITS)} "
+            "(or give the unit: --units)"
+        )
     if data.shape[2] == 0:
         raise InputError(f"{path}: no frames")
     if data.shape[2] < announced:
         raise InputError(f"{path}: truncated C3D file: {data.shape[2]} of {announced} frames read")
     if not rate > 0:
         raise InputError(f"{path}: POINT:RATE is {rate}; expected a positive rate in Hz")
-    xyz = np.transpose(data[:3], (2, 1, 0)) * LENGTH_UNITS[units]  # (F, M, 3)
-    bad = (residual[0].T < 0) | ~np.isfinite(xyz).all(axis=2)
-    xyz[bad] = np.nan
-    return labels[: xyz.shape[1]], xyz, rate
+    raw = np.transpose(data[:3], (2, 1, 0))  # (F, M, 3) in the file's unit
+    bad = (residual[0].T < 0) | ~np.isfinite(raw).all(axis=2)
+    zero = ~bad & (raw == 0.0).all(axis=2)
+    if zero.any():
+        frames = int(zero.any(axis=1).sum())
+        markers = int(zero.any(axis=0).sum())
+        notes.append(
+            f"{int(zero.sum())} sample(s) of {markers} marker(s) in {frames} frame(s) at exactly (0, 0, 0) "
+            "read as missing (many exporters write a gap as zeros)"
+        )
+    xyz = raw * LENGTH_UNITS[units]
+    xyz[bad | zero] = np.nan
+    return C3DMarkers(labels[: xyz.shape[1]], xyz, rate, units, tuple(notes))
+
+
+def read_c3d_markers(path: str | os.PathLike[str]) -> tuple[list[str], np.ndarray, float]:
+    """Marker labels, positions ``(F, M, 3)`` in metres (NaN where missing) and the rate (Hz).
+
+    :func:`read_c3d` without its notes.
+
+    Raises:
+        InputError: unreadable or truncated file (fewer frames than its header announces).
+    """
+    markers = read_c3d(path)
+    return markers.labels, markers.xyz_m, markers.rate_hz
 
 
 def read_cluster_spec(path: str | os.PathLike[str]) -> dict[str, list[str]]:
@@ -159,7 +218,7 @@ def auto_clusters(
     """``{name: [labels]}`` found by :func:`calibration.clusters.find_clusters`, and notes.
 
     Moving clusters first (named by their markers), then still groups (``still``, ``still2``...);
-    the notes say which markers were left out and why.
+    the notes name the markers seen too little to group, then those left out of the groups and why.
     """
     found = find_clusters(xyz, still_deg=still_deg)
     clusters = {_group_name([labels[k] for k in g]): [labels[k] for k in g] for g in found.clusters}
@@ -168,9 +227,13 @@ def auto_clusters(
         clusters[name] = [labels[k] for k in g]
     rot = found.rotation_deg
     notes = [
-        f"clusters found automatically: {len(found.clusters)} moving (rotating "
-        + ", ".join(f"{a:.0f}" for a in rot[: len(found.clusters)])
-        + f" deg), {len(found.still)} still; cuts on the distance spread at "
+        f"clusters found automatically: {len(found.clusters)} moving"
+        + (
+            f" (rotating {', '.join(f'{a:.0f}' for a in rot[: len(found.clusters)])} deg)"
+            if found.clusters
+            else ""
+        )
+        + f", {len(found.still)} still; cuts on the distance spread at "
         f"{found.cut_m[0] * 1e3:.3g} mm (still/moving groups) and {found.cut_m[1] * 1e3:.3g} mm (segments)"
     ]
     for i, g in enumerate(found.still):
@@ -180,30 +243,48 @@ def auto_clusters(
             f"proven by "
             f"motion, treated as one body: {', '.join(labels[k] for k in g)}"
         )
-    if found.left_out:
-        notes.append("left out: " + "; ".join(f"{labels[k]} ({why})" for k, why in found.left_out.items()))
+    if found.unseen:
+        notes.append(
+            "not seen enough to group, left out: "
+            + "; ".join(f"{labels[k]} ({found.left_out[k]})" for k in found.unseen)
+        )
+    judged = {k: why for k, why in found.left_out.items() if k not in found.unseen}
+    if judged:
+        notes.append("left out: " + "; ".join(f"{labels[k]} ({why})" for k, why in judged.items()))
     return clusters, notes
 
 
 def c3d_poses(
-    path: str | os.PathLike[str], *, clusters: dict[str, list[str]] | None = None, still_deg: float = 10.0
+    path: str | os.PathLike[str],
+    *,
+    clusters: dict[str, list[str]] | None = None,
+    still_deg: float = 10.0,
+    units: str | None = None,
 ) -> PoseRecording:
     """Segment poses from the marker clusters of a C3D file (module docstring).
 
     Args:
         path: the C3D file.
+        units: the positions' unit, overriding the file's ``POINT:UNITS`` (:func:`read_c3d`);
+            ``None``: the file's.
         clusters: ``{segment: [labels]}``; ``None`` to find clusters automatically.
         still_deg: automatic grouping: a group rotating less than this is still, degrees.
     """
-    labels, xyz, rate = read_c3d_markers(path)
+    read = read_c3d(path, units=units)
+    labels, xyz, rate = read.labels, read.xyz_m, read.rate_hz
     index = {label: k for k, label in enumerate(labels)}
-    notes = []
+    notes: list[str] = []
+    if not np.isfinite(xyz).all(axis=2).any():
+        raise InputError(
+            f"{path}: no marker seen in any of its {xyz.shape[0]} frame(s) ({len(labels)} marker(s))"
+            + "".join(f"; {n}" for n in read.notes)
+        )
     if clusters is None:
         clusters, notes = auto_clusters(labels, xyz, still_deg=still_deg)
         if len(clusters) < 2:
             raise InputError(
                 f"{path}: found {len(clusters)} rigid marker group(s); calibration needs 2 or more. "
-                + " ".join(notes)
+                + "; ".join([*read.notes, *notes])
             )
     missing = sorted({m for ms in clusters.values() for m in ms} - index.keys())
     if missing:
@@ -239,7 +320,10 @@ def c3d_poses(
                 f"high rigidity residual: cluster {name} {residual[k] * 1e3:.2f} mm, more than twice the "
                 f"others' median {np.median(others) * 1e3:.2f} mm: markers moving on skin or not one body"
             )
-    notes.insert(0, f"read {len(labels)} markers, {f} frames at {rate:g} Hz; {len(names)} clusters")
+    notes[:0] = [
+        f"read {len(labels)} markers in {read.units}, {f} frames at {rate:g} Hz; {len(names)} clusters",
+        *read.notes,
+    ]
     return PoseRecording(
         names=names,
         time_s=np.arange(f) / rate,

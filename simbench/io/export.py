@@ -2,7 +2,8 @@
 ``.sto``), raw IMU readings (CSV) and the skeleton (MJCF, OpenSim ``.osim``), in one call.
 
 Every requested output is checked before the first file is written (a dataset without markers
-asked for a TRC file fails without writing anything), and each file is written atomically.
+asked for a TRC file fails without writing anything), and each file is written atomically. A C3D
+recording's own markers go to TRC and C3D without a Dataset (:func:`export_c3d_markers`).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
-from simbench.io.c3d import write_c3d_markers
+from simbench.io.c3d import C3DMarkers, write_c3d_markers
 from simbench.io.calibration_json import read_calibration_json
 from simbench.io.dataset import Dataset, truth_calibration_dict
 from simbench.io.imu_csv import imu_csv_text
@@ -43,7 +44,7 @@ def export_markers(ds: Dataset, source: str = "measured") -> tuple[tuple[str, ..
     if ds.markers is None:
         raise InputError(
             f"{_source(ds)}: the dataset has no markers (no /markers group); simulate a dataset with "
-            "markers with `simbench simulate --markers`"
+            "markers with `simbench simulate --markers`, or export a C3D file (its markers as read)"
         )
     if source == "measured":
         return ds.markers.labels, np.array(ds.markers.xyz)
@@ -132,11 +133,7 @@ def export_dataset(
         raise InputError("nothing to export: give at least one of trc, c3d, sto, imu_csv, mjcf, osim")
     if calibration is not None and "mjcf" not in asked and "osim" not in asked:
         raise InputError("a calibration is used only for the skeleton: give mjcf or osim too")
-    for path in asked.values():
-        if path.is_dir():
-            raise InputError(f"cannot write {path}: it is a folder")
-        if not path.resolve().parent.is_dir():
-            raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+    check_outputs(asked)
     texts: dict[str, str] = {}
     rate = float(ds.meta.get("rate_hz") or 0.0) or None
     if "trc" in asked or "c3d" in asked:
@@ -163,4 +160,58 @@ def export_dataset(
     return asked
 
 
-__all__ = ["SOURCES", "export_dataset", "export_markers", "export_orientations"]
+def check_outputs(asked: Mapping[str, Path]) -> None:
+    """Refuse, before anything is written, an output that is a folder or in no folder.
+
+    Raises:
+        InputError: naming the output path.
+    """
+    for path in asked.values():
+        if path.is_dir():
+            raise InputError(f"cannot write {path}: it is a folder")
+        if not path.resolve().parent.is_dir():
+            raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+
+
+def export_c3d_markers(
+    recording: C3DMarkers,
+    *,
+    trc: PathLike | None = None,
+    c3d: PathLike | None = None,
+    trc_units: str = "mm",
+) -> dict[str, Path]:
+    """A C3D recording's markers, as read (:func:`simbench.io.c3d.read_c3d`: metres, gaps and
+    invalid or (0, 0, 0) samples missing), to TRC (in ``trc_units``) and C3D (mm): no clusters
+    or Dataset needed. Times are ``frame / POINT:RATE`` from 0.
+
+    Raises:
+        InputError: no output asked, or one that cannot be written (nothing is written then).
+    """
+    asked = {k: Path(v) for k, v in {"trc": trc, "c3d": c3d}.items() if v is not None}
+    if not asked:
+        raise InputError("nothing to export: give trc or c3d for the markers of a C3D file")
+    check_outputs(asked)
+    if "trc" in asked:
+        time_s = np.arange(recording.xyz_m.shape[0]) / recording.rate_hz
+        text = trc_text(
+            recording.labels,
+            time_s,
+            recording.xyz_m,
+            units=trc_units,
+            rate_hz=recording.rate_hz,
+            name=asked["trc"].name,
+        )
+        atomic_write_text(asked["trc"], text)
+    if "c3d" in asked:
+        write_c3d_markers(asked["c3d"], recording.labels, recording.xyz_m, recording.rate_hz)
+    return asked
+
+
+__all__ = [
+    "SOURCES",
+    "check_outputs",
+    "export_c3d_markers",
+    "export_dataset",
+    "export_markers",
+    "export_orientations",
+]

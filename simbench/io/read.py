@@ -37,7 +37,7 @@ def is_simbench_dataset(path: str | os.PathLike[str]) -> bool:
 
 def read_poses(
     path: str | os.PathLike[str],
-    units: str = "m",
+    units: str | None = None,
     clusters: str | os.PathLike[str] | None = None,
     wide: str | os.PathLike[str] | None = None,
 ) -> PoseRecording:
@@ -45,8 +45,9 @@ def read_poses(
 
     Args:
         path: the file.
-        units: length unit of a CSV's positions (``m``, ``cm``, ``mm``, ``in``); datasets hold
-            metres, C3D files name their own unit.
+        units: length unit of the positions (``m``, ``cm``, ``mm``, ``in``); ``None``: metres for
+            a CSV, the file's ``POINT:UNITS`` for a C3D file (a unit given overrides it, with a
+            note); datasets hold metres.
         clusters: for ``.c3d``: a TOML ``[clusters]`` spec (default: found automatically).
         wide: a wide-export spec TOML: read ``path`` as a wide export.
     """
@@ -112,7 +113,7 @@ def check_plausible(rec: PoseRecording, path: str | os.PathLike[str]) -> PoseRec
 
 def _read_poses(
     path: str | os.PathLike[str],
-    units: str,
+    units: str | None,
     clusters: str | os.PathLike[str] | None,
     wide: str | os.PathLike[str] | None,
 ) -> PoseRecording:
@@ -120,11 +121,11 @@ def _read_poses(
     if wide is not None:
         return read_wide_csv(path, read_wide_spec(wide))
     if suffix == ".c3d":
-        return c3d_poses(path, clusters=read_cluster_spec(clusters) if clusters else None)
+        return c3d_poses(path, clusters=read_cluster_spec(clusters) if clusters else None, units=units)
     if suffix in (".csv", ".txt"):
-        return read_pose_csv(path, units=units)
+        return read_pose_csv(path, units=units or "m")
     if suffix in (".h5", ".hdf5"):
-        if units != "m":
+        if units not in (None, "m"):
             raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
         return read_dataset_poses(path)  # a large file: a chunk of frames at a time
     raise InputError(
@@ -141,7 +142,7 @@ def read_imu(path: str | os.PathLike[str]) -> ImuRecording:
 def read(
     path: str | os.PathLike[str],
     *,
-    units: str = "m",
+    units: str | None = None,
     clusters: str | os.PathLike[str] | None = None,
     wide: str | os.PathLike[str] | None = None,
 ) -> Dataset | ImuRecording:
@@ -149,7 +150,7 @@ def read(
     dataset is returned as it is, a BROAD trial becomes an ImuRecording."""
     suffix = Path(path).suffix.lower()
     if wide is None and suffix in (".h5", ".hdf5"):
-        if units != "m":
+        if units not in (None, "m"):
             raise InputError(f"{path}: HDF5 recordings hold SI units; units={units!r} does not apply")
         return read_dataset(path) if is_simbench_dataset(path) else read_broad(path)
     return dataset_from_poses(read_poses(path, units, clusters, wide))

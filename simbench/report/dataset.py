@@ -55,7 +55,7 @@ class ReportedCalibration:
 
 
 def _read_input(
-    dataset: Path, units: str, clusters: str | None, wide: str | None
+    dataset: Path, units: str | None, clusters: str | None, wide: str | None
 ) -> tuple[Dataset | None, PoseRecording, float]:
     """``(dataset or None, poses, metres per input unit)`` of a simbench dataset or a pose file."""
     if Path(dataset).suffix.lower() in (".h5", ".hdf5"):
@@ -163,7 +163,7 @@ def dataset_report(
     out: Path,
     calibration_file: Path | None = None,
     *,
-    units: str = "m",
+    units: str | None = None,
     clusters: str | None = None,
     wide: str | None = None,
 ) -> dict[str, Path]:
