@@ -283,7 +283,9 @@ class StreamingCalibrator:
         window = round(slip_window_s * rate_hz)
         if slip and window < 2:
             raise CalibrationInputError(
-                f"slip_window_s * rate_hz must give at least 2 frames, got {slip_window_s} s at {rate_hz} Hz"
+                f"the slip window of {slip_window_s:g} s holds {slip_window_s * rate_hz:.3g} frames at "
+                f"{rate_hz:g} Hz; slip detection needs at least 2 (a longer window or no slip detection; "
+                "at so low a rate, are the times in seconds?)"
             )
         # a known hierarchy is checked now, not at the first read
         self._tree_given = (
