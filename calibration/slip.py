@@ -98,6 +98,10 @@ FALSE_ALARMS_PER_HOUR = 1.0
 
 _FRAMES = ("parent", "child")
 
+#: Units in the last place of the largest position below which a jump is rounding, not a jump
+#: (:func:`_resolution`): 1e3 of them, 2e-13 m at 1 m, far below any tracker's noise.
+RESOLUTION_ULPS = 1e3
+
 
 @dataclass(frozen=True)
 class SlipEvent:
@@ -178,6 +182,7 @@ class _Pair:
     window: int
     rate_hz: float
     rate: float
+    resolution: float = 0.0  # m: the residuals' floating-point resolution: no jump is smaller
     _pieces: dict[tuple[int, int], np.ndarray | None] = field(default_factory=dict, repr=False, compare=False)
     _diffs: dict[tuple[int, ...], list[np.ndarray]] = field(default_factory=dict, repr=False, compare=False)
 
@@ -271,6 +276,16 @@ def _excess(z: float, threshold: float) -> float:
     if threshold > 0.0:
         return z / threshold
     return float("inf") if z > 0.0 else 0.0
+
+
+def _resolution(ok: np.ndarray, *positions: np.ndarray) -> float:
+    """The floating-point resolution of a joint residual, m: :data:`RESOLUTION_ULPS` units in the
+    last place of the largest position coordinate over the frames ``ok``. Noise-free poses leave
+    residuals of rounding alone (about 1e-16 m), whose noise model is that rounding: a rounding
+    blip then passes its test, and is kept out as a jump below the resolution (a 0.0 mm
+    "slip")."""
+    top = max((float(np.max(np.abs(p[ok]), initial=0.0)) for p in positions), default=0.0)
+    return RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
 
 
 def _peak(d: np.ndarray, free: np.ndarray) -> int | None:
@@ -367,7 +382,15 @@ def detect_slip(
     _check_options(n, window, rate_hz, false_alarms_per_hour)
     r = joint_residual_vectors(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child)
     ok = np.isfinite(r).all(axis=1)
-    pair = _Pair((R_w_p, p_w_p, R_w_c, p_w_c), ok, r, window, float(rate_hz), float(false_alarms_per_hour))
+    pair = _Pair(
+        (R_w_p, p_w_p, R_w_c, p_w_c),
+        ok,
+        r,
+        window,
+        float(rate_hz),
+        float(false_alarms_per_hour),
+        _resolution(ok, p_w_p, p_w_c),
+    )
     es = pair.frames(r)
     ds = [window_difference(e, ok, window) for e in es]
     valid = np.isfinite(ds[0]).all(axis=1) & np.isfinite(ds[1]).all(axis=1)
@@ -388,7 +411,8 @@ def detect_slip(
         min_jump = thr_all * noise / np.sqrt(3.0)
         # an event smaller than the recording's smallest detectable jump passed only because
         # the events found before it took the heaviest part of the tail out of its noise model
-        kept = [f for f, ev in zip(found, events, strict=True) if ev.jump >= min_jump]
+        # and a jump within the numbers' resolution is rounding, not a jump
+        kept = [f for f, ev in zip(found, events, strict=True) if ev.jump >= max(min_jump, pair.resolution)]
         if len(kept) == len(found):
             break
         found = kept

@@ -161,3 +161,27 @@ def test_recording_that_never_moves_has_no_event_and_no_error():
     rep = detect_slip(R, p_p, R, p_c, np.array([0.0, 0.0, 0.1]), np.zeros(3), window=100, rate_hz=120.0)
     assert rep.events == () and rep.intervals == ()
     assert rep.threshold == 0.0 and rep.noise == 0.0 and rep.min_jump == 0.0
+
+
+def test_noise_free_poses_give_no_rounding_slip_and_keep_a_real_one():
+    """Exact poses (no noise): the residual is rounding alone. At a window of 2 frames (a rate
+    label 1000x too low: times in ms) a rounding blip was a "slip" of 0.0 mm; a jump below the
+    positions' resolution is no jump. A real 3 cm slip in exact poses stays found."""
+    rounding = []
+    for seed in (2, 8):  # each gave 1-3 such "slips" of 5e-16 to 8e-16 m
+        cap = simulate_motion(linkage(), n_frames=600, rate_hz=0.12, rng=np.random.default_rng(seed))
+        cal = calibrate(cap.R_w_s, cap.p_w_s, cap.names)
+        for j in cal.joints:
+            R_p, p_p, R_c, p_c = pair_arrays(cap, j.parent, j.child)
+            rep = detect_slip(
+                R_p, p_p, R_c, p_c, j.fit.joint_in_parent, j.fit.joint_in_child, window=2, rate_hz=0.12
+            )
+            rounding += [ev for ev in rep.events if ev.jump < 1e-9]
+    assert rounding == []
+    slip = Slip("forearm_l", 500, (0.0, 0.03, 0.0))
+    cap = simulate_motion(linkage(), n_frames=1000, rate_hz=120.0, rng=np.random.default_rng(3), slips=[slip])
+    R_p, p_p, R_c, p_c = pair_arrays(cap, "upper_arm_l", "forearm_l")
+    fit = calibrate(cap.R_w_s, cap.p_w_s, cap.names).joints
+    fit = next(j.fit for j in fit if j.child == "forearm_l")
+    rep = detect_slip(R_p, p_p, R_c, p_c, fit.joint_in_parent, fit.joint_in_child, window=240, rate_hz=120.0)
+    assert any(ev.frame == 500 and 0.02 < ev.jump < 0.04 for ev in rep.events), rep.events
