@@ -320,3 +320,19 @@ def test_joint_that_never_turns_has_no_numbers_in_the_table(capsys, tmp_path, li
         for line in out.splitlines()
         if "chest-upper_arm_l" in line and line.strip().startswith("upper_arm_l")
     )
+
+
+def test_report_warns_of_limb_lengths_a_unit_off(tmp_path, capsys, linkage_noisy_module):
+    cap = linkage_noisy_module
+    path = tmp_path / "in_mm.csv"
+    rec = PoseRecording(
+        cap.names, cap.time_s, cap.R_w_s, cap.p_w_s * 1000, np.ones(cap.p_w_s.shape[:2], bool)
+    )
+    write_pose_csv(path, rec)  # millimetres, read as metres
+    code, _out, err = run(capsys, "report", str(path), "--out", str(tmp_path / "rep"))
+    assert code == 0, err
+    text = (tmp_path / "rep" / "index.md").read_text()
+    assert "## Warnings" in text and "limb length(s) outside 1 mm - 10 m" in text and "(--units)?" in text
+    code, _out, err = run(capsys, "report", str(path), "--units", "mm", "--out", str(tmp_path / "ok"))
+    assert code == 0, err
+    assert "limb length(s) outside" not in (tmp_path / "ok" / "index.md").read_text()

@@ -28,7 +28,7 @@ from simbench.io.hierarchy_json import read_hierarchy_json
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read_poses
 from simbench.orient import skeleton_of
-from simbench.units import LENGTH_UNITS
+from simbench.units import LENGTH_UNITS, implausible_lengths
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -156,28 +156,6 @@ def _slip_reports(
     return out
 
 
-#: Plausible limb lengths, metres: a body segment or a linkage piece.
-LIMB_RANGE_M = (1e-3, 10.0)
-
-
-def implausible_lengths(lengths: list, units: str | None, c3d: bool = False) -> str:
-    """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``.
-
-    ``units``: the ``--units`` given (``None``: the default, metres, or a C3D file's own
-    ``POINT:UNITS``); the warning names the unit the positions were read in and how to change it.
-    """
-    lo, hi = LIMB_RANGE_M
-    odd = [x for x in lengths if not lo <= x.length <= hi]
-    if not odd:
-        return ""
-    shown = ", ".join(f"{x.segment} {x.length * 1e3:.3g} mm" for x in odd[:4])
-    return f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): " + (
-        f"are the positions really in {units or 'm'} (--units)?"
-        if units is not None or not c3d
-        else "are the positions really in the file's POINT:UNITS? (--units overrides it)"
-    )
-
-
 def refuse_unlocated(rec: PoseRecording, cal: Calibration, source: str) -> None:
     """Refuse a calibration in which no joint centre is located (a recording that does not move).
 
@@ -239,7 +217,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     refuse_unlocated(rec, cal, args.input)
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
-    odd = implausible_lengths(cal.lengths, args.units, c3d=str(args.input).lower().endswith(".c3d"))
+    odd = implausible_lengths(
+        cal.lengths,
+        args.units,
+        c3d=str(args.input).lower().endswith(".c3d"),
+        hdf5=str(args.input).lower().endswith((".h5", ".hdf5")) and not args.wide,
+    )
     if odd:
         print(f"\n  warning: {odd}")
     if args.json:

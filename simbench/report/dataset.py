@@ -28,6 +28,7 @@ from simbench.report.markdown import markdown_table
 from simbench.report.output import write_report_files
 from simbench.report.plots import plot_residual_histograms
 from simbench.score import compare_trees, estimated_lengths, length_of, truth_lengths
+from simbench.units import implausible_lengths
 from simbench.versions import software_versions
 
 #: Metadata of a simbench dataset that the report repeats.
@@ -190,6 +191,13 @@ def dataset_report(
         cal = _calibrated_here(rec) if calibration_file is None else _from_file(rec, calibration_file)
     except CalibrationError as exc:  # what the data (or the file's hierarchy) cannot give
         raise InputError(f"{calibration_file or dataset}: {exc}") from None
+    odd = implausible_lengths(
+        list(cal.lengths),
+        units,
+        c3d=Path(dataset).suffix.lower() == ".c3d",
+        hdf5=Path(dataset).suffix.lower() in (".h5", ".hdf5") and wide is None,
+    )
+    warnings = [*cal.warnings, *([odd] if odd else [])]
     out.mkdir(parents=True, exist_ok=True)
     plot_residual_histograms(cal.joints, out / "residual_histograms.png", scale)
     residuals_mm = [j.fit.rms_residual * scale * 1e3 for j in cal.joints]
@@ -206,7 +214,7 @@ def dataset_report(
         "versions": software_versions(),
         "meta": {} if ds is None else {k: ds.meta.get(k) for k in META_KEYS},
         "read": list(rec.notes),
-        "warnings": list(cal.warnings),
+        "warnings": warnings,
     }
     lines = [
         f"# simbench report: {dataset}",
@@ -221,8 +229,8 @@ def dataset_report(
     ]
     if rec.notes:
         lines += ["What was read:", "", *[f"- {note}" for note in rec.notes], ""]
-    if cal.warnings:
-        lines += ["## Warnings", "", *[f"- {w}" for w in cal.warnings], ""]
+    if warnings:
+        lines += ["## Warnings", "", *[f"- {w}" for w in warnings], ""]
     lines += _lengths(cal, ds, scale, results)
     lines += ["## Residual norms per joint", "", "![residual norms](residual_histograms.png)", ""]
     return write_report_files(out, "\n".join(lines), results)
