@@ -157,6 +157,10 @@ def test_readings_in_other_units_are_named(tmp_path):
     assert any("accelerometer's median magnitude is 1," in n and "in m/s^2?" in n for n in in_g.notes)
     in_nt = read_broad(_trial(tmp_path / "nt.hdf5", imu_mag=ok.mag[:, 0] * 1000))
     assert any("magnetometer's median magnitude is 4.8e+04" in n and "in uT?" in n for n in in_nt.notes)
+    fast = np.tile([0.0, 0.0, 20.0], (600, 1))  # 20 rad/s, a fast turn: fine
+    assert not [n for n in read_broad(_trial(tmp_path / "f.hdf5", imu_gyr=fast)).notes if "gyroscope" in n]
+    in_deg = read_broad(_trial(tmp_path / "d.hdf5", imu_gyr=np.rad2deg(fast)))
+    assert any("99th-percentile rate is 1146" in n and "in rad/s?" in n for n in in_deg.notes)
 
 
 def test_a_movement_mask_of_numbers_and_a_rate_of_several_values(tmp_path):

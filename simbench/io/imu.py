@@ -81,11 +81,23 @@ def _field(fh: h5py.File, path: Path, name: str, shape_tail: tuple[int, ...]) ->
 ACC_RANGE_MS2 = (9.81 / 2, 9.81 * 2)
 MAG_RANGE_UT = (10.0, 200.0)
 
+#: The common full range of MEMS gyroscopes, 2000 deg/s, in rad/s: a 99th-percentile rate above
+#: it is most likely in deg/s (the 22 BROAD trials: at most 18.8 rad/s, fast rotation).
+GYRO_TOP_RADS = np.deg2rad(2000.0)
 
-def unit_notes(acc: np.ndarray, mag: np.ndarray) -> list[str]:
-    """Notes on magnitudes that suggest other units than m/s^2 and uT, from the median magnitudes
-    of ``acc`` and ``mag`` ``(F, 3)`` (finite samples)."""
+
+def unit_notes(acc: np.ndarray, mag: np.ndarray, gyro: np.ndarray | None = None) -> list[str]:
+    """Notes on magnitudes that suggest other units than m/s^2, uT and rad/s, from the median
+    magnitudes of ``acc`` and ``mag`` and the 99th percentile of ``gyro``'s, each ``(F, 3)``
+    (finite samples)."""
     out = []
+    if gyro is not None and gyro.shape[0]:
+        w = float(np.percentile(np.linalg.norm(gyro, axis=1), 99))
+        if w > GYRO_TOP_RADS:
+            out.append(
+                f"the gyroscope's 99th-percentile rate is {w:.4g}, above 2000 deg/s ({GYRO_TOP_RADS:.1f} "
+                "rad/s), the full range of common MEMS gyroscopes: is it in rad/s? (deg/s gives 57x)"
+            )
     if acc.shape[0]:
         a = float(np.median(np.linalg.norm(acc, axis=1)))
         if not ACC_RANGE_MS2[0] <= a <= ACC_RANGE_MS2[1]:
@@ -151,7 +163,7 @@ def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
     finite &= ~zero
     if q is not None and np.any(none := np.isfinite(q).all(axis=1) & ~np.any(q != 0, axis=1)):
         notes.append(f"{int(none.sum())} reference quaternions of zero (no rotation): not scored")
-    notes.extend(unit_notes(acc[finite], mag[finite]))
+    notes.extend(unit_notes(acc[finite], mag[finite], gyro[np.isfinite(gyro).all(axis=1)]))
     turned = np.isfinite(gyro).all(axis=1)
     if not turned.all():
         notes.append(
