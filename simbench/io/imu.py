@@ -90,28 +90,36 @@ def unit_notes(acc: np.ndarray, mag: np.ndarray, gyro: np.ndarray | None = None)
     """Notes on magnitudes that suggest other units than m/s^2, uT and rad/s, from the median
     magnitudes of ``acc`` and ``mag`` and the 99th percentile of ``gyro``'s, each ``(F, 3)``
     (finite samples)."""
+    checks = (
+        (
+            acc,
+            50,
+            ACC_RANGE_MS2,
+            "the accelerometer's median magnitude is {:.4g}, where gravity gives about "
+            "9.81 m/s^2: is it in m/s^2? (g gives about 1, mg about 1000)",
+        ),
+        (
+            mag,
+            50,
+            MAG_RANGE_UT,
+            "the magnetometer's median magnitude is {:.4g}, where the earth's field is "
+            "25-65 uT: is it in uT? (nT gives tens of thousands, gauss below 1)",
+        ),
+        (
+            gyro,
+            99,
+            (0.0, GYRO_TOP_RADS),
+            "the gyroscope's 99th-percentile rate is {:.4g}, above 2000 deg/s "
+            f"({GYRO_TOP_RADS:.1f} rad/s), the full range of common MEMS gyroscopes: is it in rad/s? (deg/s "
+            "gives 57x)",
+        ),
+    )
     out = []
-    if gyro is not None and gyro.shape[0]:
-        w = float(np.percentile(np.linalg.norm(gyro, axis=1), 99))
-        if w > GYRO_TOP_RADS:
-            out.append(
-                f"the gyroscope's 99th-percentile rate is {w:.4g}, above 2000 deg/s ({GYRO_TOP_RADS:.1f} "
-                "rad/s), the full range of common MEMS gyroscopes: is it in rad/s? (deg/s gives 57x)"
-            )
-    if acc.shape[0]:
-        a = float(np.median(np.linalg.norm(acc, axis=1)))
-        if not ACC_RANGE_MS2[0] <= a <= ACC_RANGE_MS2[1]:
-            out.append(
-                f"the accelerometer's median magnitude is {a:.4g}, where gravity gives about 9.81 m/s^2: "
-                "is it in m/s^2? (g gives about 1, mg about 1000)"
-            )
-    if mag.shape[0]:
-        m = float(np.median(np.linalg.norm(mag, axis=1)))
-        if not MAG_RANGE_UT[0] <= m <= MAG_RANGE_UT[1]:
-            out.append(
-                f"the magnetometer's median magnitude is {m:.4g}, where the earth's field is 25-65 uT: is it "
-                "in uT? (nT gives tens of thousands, gauss below 1)"
-            )
+    for x, percentile, (lo, hi), text in checks:
+        if x is not None and x.shape[0]:
+            value = float(np.percentile(np.linalg.norm(x, axis=1), percentile))
+            if not lo <= value <= hi:
+                out.append(text.format(value))
     return out
 
 
