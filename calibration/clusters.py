@@ -11,6 +11,10 @@ markers of a cluster give no pose (marked missing, never interpolated).
 :func:`find_clusters` finds clusters without a specification, from how steady each pair's distance
 stays (its standard deviation over frames) with cuts at the largest gaps of a hierarchical tree
 (no tolerance in metres), and sets apart groups that are steady only because they barely move.
+Each group the cut gives is then tested for being one rigid body (:func:`rigid_parts`): a union of
+two parts is kept only if fitting it as one body misfits the markers no more than the parts' own
+misfit allows (an F test at a stated false-alarm rate), so two segments whose distances happen to
+be as steady as a segment's own (a segment that lost a marker) are not merged.
 Markers seen too little to judge (never, or with no other marker in :data:`MIN_FRAMES` frames)
 are left out before the tree is built: they say nothing about rigidity.
 """
@@ -18,17 +22,23 @@ are left out before the tree is built: they say nothing about rigidity.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.quantiles import f_ppf
 
 #: Fewest frames in which two markers are seen together for their distance's spread to be judged
 #: (a standard deviation of fewer than three samples says nothing about how steady it is).
 MIN_FRAMES = 3
+
+#: False-alarm rate of the rigidity test (:func:`rigid_parts`): two parts are split when the median
+#: frame's misfit ratio is beyond what one rigid body with independent marker noise exceeds in one
+#: frame in a thousand.
+RIGID_FALSE_ALARM = 1e-3
 
 
 @dataclass(frozen=True)
@@ -135,6 +145,9 @@ class MarkerGroups:
         residual_m: median rigidity residual of each cluster, then each still group, m.
         rotation_deg: 95th-percentile rotation from the mean orientation, same order, degrees.
         cut_m: ``(still/moving cut, cluster cut)`` on the distance spread, m.
+        splits: ``(part, other part, F, limit)`` for each union the rigidity test refused
+            (:func:`rigid_parts`): marker index lists, the median frame's misfit ratio and the
+            F quantile it exceeded.
     """
 
     clusters: list[list[int]]
@@ -144,6 +157,7 @@ class MarkerGroups:
     residual_m: list[float]
     rotation_deg: list[float]
     cut_m: tuple[float, float]
+    splits: list[tuple[list[int], list[int], float, float]] = field(default_factory=list)
 
 
 def distance_spread(markers: np.ndarray) -> np.ndarray:
@@ -188,6 +202,125 @@ def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[n
     cut = float(np.sqrt(h[k] * h[k + 1]))
     labels = fcluster(Z, cut, criterion="distance")
     return [members[labels == v] for v in np.unique(labels)], cut
+
+
+def _pose_dof(n: int) -> int:
+    """Degrees of freedom of the pose of ``n`` markers (one point: 3; two: 5, no roll; more: 6)."""
+    return 3 if n == 1 else 5 if n == 2 else 6
+
+
+def _misfit(markers: np.ndarray) -> np.ndarray:
+    """``(F,)`` sum of squared distances of the markers from their best rigid fit, each frame.
+
+    Args:
+        markers: ``(F, K, 3)`` marker positions seen in every frame, any length unit.
+
+    One marker fits exactly; two fit all but their distance's change from its mean
+    (``(d - mean d)^2 / 2``); three or more: the rigid fit of their reference shape.
+    """
+    k = markers.shape[1]
+    if k == 1:
+        return np.zeros(len(markers))
+    if k == 2:
+        d = np.linalg.norm(markers[:, 0] - markers[:, 1], axis=1)
+        return (d - d.mean()) ** 2 / 2.0
+    fit = rigid_fit(reference_shape(markers), markers)
+    return fit.rms_residual**2 * k
+
+
+def union_misfit_ratio(
+    markers: np.ndarray, a: np.ndarray, b: np.ndarray, *, false_alarm: float = RIGID_FALSE_ALARM
+) -> tuple[float, float] | None:
+    """How much worse markers ``a`` and ``b`` fit as one rigid body than as two: ``(F, limit)``.
+
+    In each frame that shows them all, the misfit added by fitting the union as one body, per
+    degree of freedom given up, over the parts' own misfit per degree of freedom left:
+    ``F = ((S_ab - S_a - S_b) / d1) / ((S_a + S_b) / d2)``, ``d1 = p_a + p_b - p_ab`` and
+    ``d2 = 3 n_a - p_a + 3 n_b - p_b`` (``p`` the pose's degrees of freedom, :func:`_pose_dof`).
+    For one rigid body with independent, equal, isotropic marker noise each frame's ``F`` follows
+    F(d1, d2); skin noise is neither, so the test is on the median frame, against the quantile one
+    body's frame exceeds with probability ``false_alarm``: a ratio of squared lengths, the same in
+    any unit, with the noise scale taken from the parts themselves.
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        a, b: marker indices of the two parts (disjoint).
+        false_alarm: probability that one rigid body's frame exceeds the limit.
+
+    Returns:
+        ``(median F, limit)``, or ``None`` when it cannot be judged: fewer than
+        :data:`MIN_FRAMES` frames show every marker, no degree of freedom is left in the parts
+        (two single markers) or none is given up, or the union has no frame to define its shape.
+    """
+    both = np.concatenate([a, b])
+    x = np.asarray(markers, dtype=float)[:, both]
+    x = x[np.isfinite(x).all(axis=(1, 2))]
+    n_a, n_b = len(a), len(b)
+    d1 = _pose_dof(n_a) + _pose_dof(n_b) - _pose_dof(n_a + n_b)
+    d2 = 3 * n_a - _pose_dof(n_a) + 3 * n_b - _pose_dof(n_b)
+    if len(x) < MIN_FRAMES or d1 < 1 or d2 < 1:
+        return None
+    try:
+        whole = _misfit(x)
+        parts = _misfit(x[:, :n_a]) + _misfit(x[:, n_a:])
+    except CalibrationError:
+        return None
+    # positions exact to rounding misfit by ~1e-16 of their size: not noise to scale the test by
+    floor = (1e3 * np.finfo(float).eps * np.abs(x).max()) ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = ((whole - parts) / d1) / np.maximum(parts / d2, floor)
+    return float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2))
+
+
+def rigid_parts(
+    markers: np.ndarray, spread: np.ndarray, members: np.ndarray, *, false_alarm: float = RIGID_FALSE_ALARM
+) -> tuple[list[np.ndarray], list[tuple[list[int], list[int], float, float]]]:
+    """A group split into the largest parts that each move as one rigid body.
+
+    The group's complete-linkage tree on the distance spread is walked from its leaves up: two
+    branches are joined only when each is one body and :func:`union_misfit_ratio` finds their
+    union no worse a rigid body than the two apart (median frame's F below its ``false_alarm``
+    quantile; a union that cannot be judged is joined, as the distances alone joined it). The
+    branches refused are the parts: a segment that lost markers is not merged into the next one
+    because the distances between them are as steady as its own.
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        spread: ``(M, M)`` distance spread (:func:`distance_spread`).
+        members: marker indices of the group, sorted.
+        false_alarm: the rigidity test's false-alarm rate per frame.
+
+    Returns:
+        The parts (sorted index arrays, in the tree's order) and, for each union refused,
+        ``(part, other part, median F, limit)``.
+    """
+    if len(members) < 2:
+        return [members], []
+    sub = spread[np.ix_(members, members)]
+    finite = np.isfinite(sub)
+    sub = np.where(finite, sub, sub[finite].max() if finite.any() else 1.0)
+    Z = linkage(squareform(sub, checks=False), method="complete")
+    m = len(members)
+    nodes: list[np.ndarray] = [members[[i]] for i in range(m)]
+    whole: list[bool] = [True] * m  # each node one rigid body
+    splits = []
+    for left, right, _, _ in Z:
+        i, j = int(left), int(right)
+        a, b = nodes[i], nodes[j]
+        ok = whole[i] and whole[j]
+        if ok:
+            test = union_misfit_ratio(markers, a, b, false_alarm=false_alarm)
+            if test is not None and not test[0] <= test[1]:
+                ok = False
+                splits.append(([int(k) for k in a], [int(k) for k in b], *test))
+        nodes.append(np.sort(np.concatenate([a, b])))
+        whole.append(ok)
+    # the parts: the rigid nodes whose parent is not (or the root, if rigid)
+    parent = np.full(len(nodes), -1)
+    for row, (left, right, _, _) in enumerate(Z):
+        parent[int(left)] = parent[int(right)] = m + row
+    parts = [nodes[n] for n in range(len(nodes)) if whole[n] and (parent[n] < 0 or not whole[parent[n]])]
+    return parts, splits
 
 
 def unjudged_markers(markers: np.ndarray) -> dict[int, str]:
@@ -238,7 +371,10 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     (95th percentile from its mean orientation) is *still*: its distances are steady because it
     barely moves, so its rigidity is not proven (a body at rest, lab markers); it is reported
     apart. The second cut, over the markers of the moving groups only, separates the segments
-    (skin spread within a cluster, joint motion between clusters). ``still_deg`` defaults to 10
+    (skin spread within a cluster, joint motion between clusters); each group it gives is then
+    split into the parts that are each one rigid body (:func:`rigid_parts`), so that a segment
+    whose distances to the next are as steady as its own (one that lost a marker) is not merged
+    into it: a part too small to be a cluster is left out, named. ``still_deg`` defaults to 10
     degrees: below that a joint centre is not determined (DESIGN.md, facts from real recordings).
     Markers seen too little to judge (:func:`unjudged_markers`) are left out before either cut,
     with the reason, so that a marker never seen does not decide where the tree is cut.
@@ -268,11 +404,23 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
             still.append(g)
     pool = np.setdiff1d(everyone, np.concatenate(still)) if still else everyone
     second, cut2 = _largest_gap_groups(spread, pool) if len(pool) >= 2 * min_size else ([pool], np.inf)
-    clusters = []
+    clusters, splits, split_off = [], [], set()
+    rigid = []
     for g in second:
+        parts, refused = rigid_parts(x, spread, g) if len(g) >= min_size else ([g], [])
+        rigid += parts
+        splits += refused
+        if len(parts) > 1:
+            split_off.update(tuple(p) for p in parts)
+    for g in rigid:
         if len(g) < min_size:
             for k in g:
-                left_out[int(k)] = f"moves, but steady with only {len(g) - 1} other marker(s)"
+                left_out[int(k)] = (
+                    f"moves; its group is not one rigid body, and the rigid part it is in has only "
+                    f"{len(g) - 1} other marker(s)"
+                    if tuple(g) in split_off
+                    else f"moves, but steady with only {len(g) - 1} other marker(s)"
+                )
             continue
         try:
             stats[tuple(g)] = _rotation_deg(x[:, g])
@@ -292,6 +440,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         residual_m=[stats[tuple(g)][0] for g in groups],
         rotation_deg=[stats[tuple(g)][1] for g in groups],
         cut_m=(cut1, cut2),
+        splits=splits,
     )
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.clusters import find_clusters
+from calibration.clusters import distance_spread, find_clusters, rigid_parts, union_misfit_ratio
+from calibration.rotations import rotvec_to_matrix
 from simbench.sim.markers import simulate_marker_chain, smooth_noise
 
 
@@ -80,3 +81,54 @@ def test_markers_that_never_move_are_one_still_group():
     found = find_clusters(np.repeat(x[:1], 300, axis=0))
     assert found.clusters == [] and found.still == [list(range(x.shape[1]))] and not found.left_out
     assert found.rotation_deg == [0.0]
+
+
+def _hinged_bodies(bend_rad: float, scale: float = 1.0) -> np.ndarray:
+    """``(1000, 8, 3)`` markers: six on a swinging body, two on a second hinged to it, 1 mm noise.
+
+    The second body (two markers, as a three-marker cluster that lost one) bends ``bend_rad`` at
+    most about a hinge 25 cm from the first's centre; ``bend_rad = 0`` makes them one body.
+    """
+    rng = np.random.default_rng(7)
+    t = np.arange(1000) / 100.0
+    swing = np.stack(
+        [0.6 * np.sin(2 * np.pi * 0.3 * t), 0.4 * np.cos(2 * np.pi * 0.2 * t), 0.2 * np.sin(t)], 1
+    )
+    R = rotvec_to_matrix(swing)
+    bend = rotvec_to_matrix(np.stack([bend_rad * np.sin(2 * np.pi * 0.7 * t), 0 * t, 0 * t], 1))
+    a = rng.normal(0, 0.15, (6, 3))
+    hinge = np.array([0.0, 0.0, -0.25])
+    b = np.array([[0.03, 0.0, -0.45], [0.0, 0.04, -0.50]]) - hinge
+    xa = np.einsum("fij,kj->fki", R, a)
+    xb = np.einsum("fij,fjk,lk->fli", R, bend, b) + np.einsum("fij,j->fi", R, hinge)[:, None]
+    return scale * (np.concatenate([xa, xb], axis=1) + rng.normal(0, 0.001, (1000, 8, 3)))
+
+
+def test_two_hinged_bodies_are_split_into_their_rigid_parts_in_any_unit():
+    """A two-marker body bending against a six-marker one is not one rigid body; unbent, it is.
+
+    The test's ratio is of squared lengths, so metres and millimetres give the same verdict.
+    """
+    for scale in (1.0, 1000.0):
+        x = _hinged_bodies(0.2, scale)
+        f, limit = union_misfit_ratio(x, np.arange(6), np.array([6, 7]))
+        assert f > 5 * limit
+        parts, splits = rigid_parts(x, distance_spread(x), np.arange(8))
+        assert sorted(p.tolist() for p in parts) == [[0, 1, 2, 3, 4, 5], [6, 7]]
+        assert len(splits) == 1 and splits[0][2] > splits[0][3]
+        x = _hinged_bodies(0.0, scale)
+        f, limit = union_misfit_ratio(x, np.arange(6), np.array([6, 7]))
+        assert f < limit / 2
+        parts, splits = rigid_parts(x, distance_spread(x), np.arange(8))
+        assert [p.tolist() for p in parts] == [list(range(8))] and not splits
+
+
+def test_rigidity_test_cannot_judge_two_single_markers_and_keeps_exact_bodies_whole():
+    """Two single markers leave no degree of freedom to scale the test by: not judged (joined).
+
+    Exact positions misfit only by rounding, which is no noise to judge a union against.
+    """
+    x = _hinged_bodies(0.2)
+    assert union_misfit_ratio(x, np.array([0]), np.array([6])) is None
+    exact = np.repeat(x[:1], 50, axis=0)  # one frame repeated: every part fits exactly
+    assert rigid_parts(exact, distance_spread(exact), np.arange(8))[0][0].tolist() == list(range(8))

@@ -156,3 +156,30 @@ def test_real_file_with_a_marker_never_seen_keeps_its_clusters(tmp_path, dead):
     )
     assert not any(f"{dead} (moves" in n for n in notes)
     assert len(c3d_poses(path).names) == 3
+
+
+@pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data not beside the repository")
+@pytest.mark.parametrize("dead", ["RTHI1", "RTHI2", "RTHI3"])
+def test_real_file_thigh_marker_lost_is_not_merged_into_the_shank(tmp_path, dead):
+    """A thigh marker never seen: its two others are left out, named, not merged into the shank.
+
+    The thigh pair's distances to the shank are as steady as the shank's own, so the segment cut
+    once gave one moving group RGT+12 (rigidity residual 9.84 mm): one body, no hip-knee chain.
+    """
+    labels, xyz, rate = read_c3d_markers(SHARED_DATA / "biobuddy_right_hip.c3d")
+    whole, _ = auto_clusters(labels, xyz)
+    thigh = ["RTHI1", "RTHI2", "RTHI3"]
+    xyz[:, labels.index(dead)] = np.nan
+    path = tmp_path / f"allnan_{dead}.c3d"
+    write_c3d_markers(path, labels, xyz, rate)
+    found, notes = auto_clusters(*read_c3d_markers(path)[:2])
+    moving = {name: g for name, g in found.items() if not name.startswith("still")}
+    assert list(moving.values()) == [whole["RLM+7"]]  # the shank, whole and alone
+    assert found["still"] == whole["still"]
+    left = next(n for n in notes if n.startswith("left out:"))
+    assert all(f"{m} (moves" in left for m in thigh if m != dead)  # named, with the reason
+    # RTHI1 lost: the segment cut merged the thigh pair into the shank; the rigidity test split it
+    assert any(n.startswith("not one rigid body, split: RTHI2+RTHI3 and RLM+7") for n in notes) == (
+        dead == "RTHI1"
+    )
+    assert c3d_poses(path).names == ("RLM+7", "still")

@@ -22,7 +22,7 @@ from pathlib import Path
 import ezc3d
 import numpy as np
 
-from calibration.clusters import find_clusters, reference_shape, rigid_fit
+from calibration.clusters import RIGID_FALSE_ALARM, find_clusters, reference_shape, rigid_fit
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_path
@@ -242,6 +242,12 @@ def auto_clusters(
             f"but which rotate only {rot[len(found.clusters) + i]:.1f} deg (< {still_deg:g}): rigidity not "
             f"proven by "
             f"motion, treated as one body: {', '.join(labels[k] for k in g)}"
+        )
+    for a, b, f, limit in found.splits:
+        notes.append(
+            f"not one rigid body, split: {_group_name([labels[k] for k in a])} and "
+            f"{_group_name([labels[k] for k in b])} move against each other (median frame's misfit ratio "
+            f"F {f:.3g} > {limit:.3g}, exceeded by one rigid body in 1 frame in {1 / RIGID_FALSE_ALARM:.0f})"
         )
     if found.unseen:
         notes.append(
