@@ -19,6 +19,7 @@ alignment (an output in NED is converted after scoring).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from dataclasses import dataclass
 
@@ -112,6 +113,10 @@ def estimate(
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
+    if not (isinstance(rec.rate_hz, int | float) and math.isfinite(rec.rate_hz) and rec.rate_hz > 0):
+        raise InputError(
+            f"{rec.source}: expected a sample rate of a finite number of Hz > 0, got {rec.rate_hz!r}"
+        )
     if skeleton is not None and method != "skeleton":
         raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
     if priors is not None and method != "skeleton":
@@ -181,6 +186,9 @@ def vqf_offline(
     Returns:
         The orientations ``R_w_s`` as ``(F, N, 4)`` scalar-first quaternions.
     """
+    if not (isinstance(rate_hz, int | float) and math.isfinite(rate_hz) and rate_hz > 0):
+        # VQF asserts it in C++, which ends the process
+        raise InputError(f"Expected rate_hz a finite number of Hz > 0, got {rate_hz!r}")
     acc, gyro, mag = (np.asarray(x, dtype=float) for x in (acc, gyro, mag))
     if not (acc.shape == gyro.shape == mag.shape and acc.ndim == 3 and acc.shape[-1] == 3):
         raise InputError(

@@ -174,3 +174,30 @@ def test_a_movement_mask_of_numbers_and_a_rate_of_several_values(tmp_path):
         fh.attrs["sampling_rate"] = [100.0, 200.0]
     with pytest.raises(InputError, match="sampling_rate must be a finite number"):
         read_broad(path)
+
+
+def test_a_dataset_s_imu_is_valid_where_its_readings_are_and_its_rate_is_checked():
+    import dataclasses
+
+    import simbench as sb
+    from simbench.orient import vqf_offline
+
+    ds = sb.simulate(
+        model="linkage", motion="exercise", duration_s=2.0, rate_hz=120.0, sensors="mems-industrial", seed=1
+    )
+    # every tracker pose lost: the IMU's samples are still good
+    blind = dataclasses.replace(
+        ds, measured=dataclasses.replace(ds.measured, valid=np.zeros_like(ds.measured.valid))
+    )
+    rec = blind.imu()
+    assert rec.valid.all() and estimate(rec, "triad").ok.all()
+    for bad in (float("nan"), -5.0, 0.0, "abc"):
+        with pytest.raises(InputError, match="sample rate"):
+            dataclasses.replace(ds, meta={**ds.meta, "rate_hz": bad}).imu()
+    with pytest.raises(InputError, match="time stamps step at 120 Hz"):
+        dataclasses.replace(ds, meta={**ds.meta, "rate_hz": 1e9}).imu()
+    good = ds.imu()
+    with pytest.raises(InputError, match="sample rate of a finite number"):
+        estimate(dataclasses.replace(good, rate_hz=float("nan")), "vqf")
+    with pytest.raises(InputError, match="rate_hz a finite number"):  # VQF's C++ assert would end the process
+        vqf_offline(good.acc, good.gyro, good.mag, -1.0)

@@ -178,8 +178,13 @@ class Dataset:
         with an accelerometer axis at the configured range (within one step of its resolution:
         the clipped value is quantised) are marked saturated, and not valid."""
         m = self.measured
-        valid = np.array(m.valid)
-        notes = list(_pose_notes(self.position_unit_scale, int((~m.valid).sum())))
+        # the inertial samples' own validity: a tracker dropout loses a pose, not the IMU's sample
+        valid = np.isfinite(m.acc).all(axis=-1) & np.isfinite(m.mag).all(axis=-1)
+        notes = []
+        if not valid.all():
+            notes.append(
+                f"{int((~valid).sum())} sensor samples with NaN accelerometer or magnetometer values"
+            )
         imu = self.meta.get("sensor_config", {}).get("imu", {})
         acc_range = float(imu.get("accel_range", 0.0) or 0.0)
         saturated = None
@@ -193,7 +198,7 @@ class Dataset:
                     f"(+-{acc_range:g} m/s^2): not valid; the skeleton method uses them"
                 )
             valid &= ~at_range
-        rate = float(self.meta.get("rate_hz", 1.0 / np.median(np.diff(self.time_s))))
+        rate = self._imu_rate()
         return ImuRecording(
             names=self.sensors,
             time_s=np.array(self.time_s),
@@ -208,6 +213,40 @@ class Dataset:
             notes=tuple(notes),
             saturated=saturated,
         )
+
+    def _imu_rate(self) -> float:
+        """The sample rate, Hz: ``meta.rate_hz``, checked against the time stamps' median step
+        (agreeing to 0.1 %); the time stamps' where the meta has none.
+
+        Raises:
+            InputError: a rate that is not a finite number > 0, or one the time stamps contradict.
+        """
+        steps = np.diff(np.asarray(self.time_s, dtype=float))
+        from_times = 1.0 / float(np.median(steps)) if steps.size and np.median(steps) > 0 else math.nan
+        given = self.meta.get("rate_hz")
+        if given is None:
+            rate = from_times
+        else:
+            try:
+                rate = float(given)
+            except (TypeError, ValueError):
+                rate = math.nan
+            if (
+                math.isfinite(rate)
+                and rate > 0
+                and math.isfinite(from_times)
+                and abs(rate / from_times - 1) > 1e-3
+            ):
+                raise InputError(
+                    f"{self.meta.get('source', 'dataset')}: meta rate_hz {rate:g} Hz, but the time stamps "
+                    f"step at {from_times:g} Hz"
+                )
+        if not (math.isfinite(rate) and rate > 0):
+            raise InputError(
+                f"{self.meta.get('source', 'dataset')}: expected a sample rate (meta rate_hz or time stamps) "
+                f"of a finite number of Hz > 0, got {given!r}"
+            )
+        return rate
 
     def to_pandas(self, *, layout: str = "long", source: str = "measured") -> Any:
         """The data as a ``pandas.DataFrame``: ``layout`` ``"long"`` (one row per sample and sensor,
