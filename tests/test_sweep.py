@@ -410,3 +410,38 @@ def test_figures_of_many_panels_wrap_into_rows(tmp_path):
     assert width <= 2000 and height >= 2 * 350  # 5 pictures: 4 and 1
     with pytest.raises(ValueError, match="2 pictures, 1 titles"):
         plot_pictures([np.zeros((4, 4, 3), np.uint8)] * 2, ["one"], tmp_path / "bad.png")
+
+
+def test_a_study_names_a_parameter_once_and_fingerprints_the_files_it_names(tmp_path):
+    path = study_file(tmp_path, values="[0.0]")
+    text = path.read_text()
+    twice = text + '[[parameter]]\nname = "sensors.tracker.position_noise_m"\nunit = "mm"\nvalues = [1.0]\n'
+    path.write_text(twice)
+    with pytest.raises(
+        InputError, match=r"parameter\(s\) \['sensors.tracker.position_noise_m'\] declared more"
+    ):
+        st.load_study(path)
+    # the base's sensors from a TOML file: editing the file changes the study
+    sensors = tmp_path / "mysensors.toml"
+    sensors.write_text("[tracker]\nposition_noise_m = 0.001\n")
+    path.write_text(text.replace('sensors = "ascension-flock"', f'sensors = "{sensors}"'))
+    before = st.study_fingerprint(st.load_study(path))
+    assert st.study_fingerprint(st.load_study(path)) == before
+    sensors.write_text("[tracker]\nposition_noise_m = 0.002\n")
+    assert st.study_fingerprint(st.load_study(path)) != before
+
+
+def test_a_trial_that_fails_is_named_with_its_values(tmp_path):
+    """A tracker that drops 99.5 % of its poses: no pair to fit; the error names the trial, its
+    cell and its value."""
+    path = tmp_path / "drop.toml"
+    path.write_text(
+        STUDY.format(duration=1.0, values="[0.995]")
+        .replace("sensors.tracker.position_noise_m", "sensors.tracker.dropout_rate")
+        .replace('unit = "mm"', 'unit = "1"')
+        .replace("seeds_per_cell = 2", "seeds_per_cell = 1")
+    )
+    with pytest.raises(
+        Exception, match=r"trial c00000-r000 \(cell 0: sensors.tracker.dropout_rate = 0.995\): "
+    ):
+        sw.run_study(st.load_study(path), tmp_path / "out")

@@ -318,6 +318,10 @@ def load_study(path: str | os.PathLike[str]) -> Study:
     params = tuple(
         _parse_parameter(p, f"{path}, parameter[{k}]", kind, base_sensors) for k, p in enumerate(raw)
     )
+    names = [p.name for p in params]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise InputError(f"{path}: parameter(s) {repeated} declared more than once; each is varied once")
     cells = math.prod(len(p.values) for p in params) if kind == "grid" else samples
     if cells * seeds > MAX_TRIALS:
         raise InputError(
@@ -409,10 +413,17 @@ def trial_config(study: Study, trial: Trial) -> SessionConfig:
 
 def study_fingerprint(study: Study) -> str:
     """A fingerprint of the study: SHA-256 of every parsed value (the base session, the sensors,
-    the parameters, seeds and estimators) and simbench's version. Two files that parse to the same
-    study share it; any changed value, or another simbench version, gives another."""
+    the parameters, seeds and estimators), the contents of the files the base names (a sensor
+    TOML, a model or motion file) and simbench's version. Two files that parse to the same study
+    share it; any changed value or named file, or another simbench version, gives another."""
     values = dataclasses.asdict(study)
     del values["source"]  # where the file lies is not what it asks
+    # a base value naming a file (a sensor TOML, an MJCF model, a motion TOML): what it holds
+    values["file_contents"] = {
+        key: hashlib.sha256(Path(value).read_bytes()).hexdigest()
+        for key, value in study.base.items()
+        if isinstance(value, str) and Path(value).is_file()
+    }
     doc = json.dumps(values, sort_keys=True, default=repr)
     return hashlib.sha256(f"simbench {__version__}\n{doc}".encode()).hexdigest()
 

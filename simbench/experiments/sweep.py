@@ -24,6 +24,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from calibration.errors import CalibrationError
 from simbench.errors import InputError, optional_module
 from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
 from simbench.experiments.pool import one_blas_thread, worker_pool
@@ -48,9 +49,17 @@ def run_trial(study: Study, trial: Trial) -> dict[str, Any]:
 
     A trial uses one core (BLAS limited to one thread): parallelism comes from running trials
     side by side, which scales; threads inside one small trial do not.
+
+    Raises:
+        InputError, CalibrationError: what the trial's session or estimates could not do, the
+            message headed by the trial's id, cell and parameter values.
     """
     with one_blas_thread():
-        return _run_trial(study, trial)
+        try:
+            return _run_trial(study, trial)
+        except (InputError, CalibrationError) as exc:  # which trial, and its values
+            values = ", ".join(f"{name} = {value:g}" for name, value in trial.params)
+            raise type(exc)(f"trial {trial.trial_id} (cell {trial.cell}: {values}): {exc}") from exc
 
 
 def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
