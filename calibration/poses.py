@@ -28,6 +28,11 @@ def check_poses(R_w_s: Any, p_w_s: Any, valid: Any = None) -> tuple[int, int]:
     Returns:
         ``(frames, sensors)``.
     """
+    for name, x in (("R_w_s", R_w_s), ("p_w_s", p_w_s), ("valid", valid)):
+        if x is not None and not hasattr(x, "shape"):
+            raise CalibrationInputError(
+                f"Expected {name} as an array (ndarray, h5py dataset, memmap), got a {type(x).__name__}"
+            )
     R_shape, p_shape = tuple(R_w_s.shape), tuple(p_w_s.shape)
     if len(R_shape) != 4 or R_shape[2:] != (3, 3):
         raise CalibrationInputError(f"Expected R_w_s to have shape (frames, sensors, 3, 3), got {R_shape}")
@@ -37,7 +42,39 @@ def check_poses(R_w_s: Any, p_w_s: Any, valid: Any = None) -> tuple[int, int]:
         )
     if valid is not None and tuple(valid.shape) != R_shape[:2]:
         raise CalibrationInputError(f"Expected valid to have shape {R_shape[:2]}, got {tuple(valid.shape)}")
+    _check_rotations(R_w_s, valid)
     return R_shape[0], R_shape[1]
+
+
+#: Frames sampled by :func:`_check_rotations` (evenly spaced; a pose array may be larger than
+#: memory) and how far from orthonormal with determinant +1 a matrix may be and count as a rotation
+#: (a tracker's matrices stored in single precision, or rounded in a file, are within 1e-6).
+ROTATION_SAMPLE_FRAMES = 64
+ROTATION_TOLERANCE = 1e-2
+
+
+def _check_rotations(R_w_s: Any, valid: Any) -> None:
+    """Refuse rotations that are mostly not rotations (all zeros, a scaled matrix, a reflection,
+    a mix-up of fields), judged on :data:`ROTATION_SAMPLE_FRAMES` evenly spaced frames' finite,
+    valid matrices: when more than half of them are not."""
+    n_frames = R_w_s.shape[0]
+    if n_frames == 0:
+        return
+    idx = np.unique(np.linspace(0, n_frames - 1, min(ROTATION_SAMPLE_FRAMES, n_frames)).astype(int))
+    R = np.asarray(R_w_s[idx], dtype=float).reshape(-1, 3, 3)
+    use = np.isfinite(R).all(axis=(1, 2))
+    if valid is not None:
+        use &= np.asarray(valid[idx], dtype=bool).reshape(-1)
+    R = R[use]
+    if R.shape[0] == 0:
+        return
+    off = np.abs(np.einsum("kji,kjl->kil", R, R) - np.eye(3)).max(axis=(1, 2))
+    bad = (off > ROTATION_TOLERANCE) | (np.linalg.det(R) < 0)
+    if bad.sum() * 2 > R.shape[0]:
+        raise CalibrationInputError(
+            f"Expected R_w_s to hold rotation matrices (orthonormal, determinant +1), but {int(bad.sum())} "
+            f"of {R.shape[0]} sampled poses are not (largest |R^T R - I| {off.max():.3g})"
+        )
 
 
 def iter_chunks(

@@ -515,3 +515,22 @@ def test_a_robust_calibration_of_too_few_frames_says_how_many_it_needs():
         calibrate(R, p, ["a", "b"], robust="huber")
     R, p = chain(rng, LP, LC, n=MIN_FRAMES + 40)
     assert calibrate(R, p, ["a", "b"], robust="huber").joints  # enough: it calibrates
+
+
+def test_calibration_refuses_poses_that_are_not_rotations_or_not_arrays():
+    rng = np.random.default_rng(4)
+    R, p = chain(rng, LP, LC, n=200)
+    names = ["a", "b"]
+    for bad in (0 * R, 2 * R, -R):  # zeros, scaled, reflected
+        with pytest.raises(CalibrationInputError, match=r"hold rotation matrices .* 128 of 128 sampled"):
+            calibrate(bad, p, names)
+    noisy = R.copy()
+    noisy[:, :, 0, 0] += 1e-7  # a tracker's single-precision matrices: rotations still
+    assert calibrate(noisy, p, names).joints
+    half = R.copy()
+    half[::3] = 0.0  # a third of the frames zero but marked invalid: judged on the valid ones
+    valid = np.ones((200, 2), dtype=bool)
+    valid[::3] = False
+    assert calibrate(half, p, names, valid=valid).joints
+    with pytest.raises(CalibrationInputError, match=r"Expected R_w_s as an array .* got a list"):
+        calibrate(R.tolist(), p, names)
