@@ -291,6 +291,10 @@ def test_recording_that_never_moves_is_refused(capsys, tmp_path, linkage_noisy_m
     assert code == 2 and out == ""
     assert "still.csv: no joint centre is determined" in err
     assert len(re.findall(r"\w+-\w+: 3 of 6, rotation range 0\.0, 0\.0, 0\.0 deg", err)) == len(cap.names) - 1
+    # the report of the same file, as calibrate: refused, nothing written
+    code, out, err = run(capsys, "report", str(path), "--out", str(tmp_path / "rep"))
+    assert code == 2 and "still.csv: no joint centre is determined" in err
+    assert not (tmp_path / "rep" / "index.md").exists()
 
 
 def test_joint_that_never_turns_has_no_numbers_in_the_table(capsys, tmp_path, linkage_noisy_module):

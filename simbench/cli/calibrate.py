@@ -15,7 +15,6 @@ from calibration import (
     SlipReport,
     detect_slip,
 )
-from calibration.diagnostics import rotation_ranges
 from calibration.robust import LOSSES
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from simbench.api import calibrate
@@ -26,7 +25,7 @@ from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
 from simbench.io.hierarchy_json import read_hierarchy_json
 from simbench.io.poses import PoseRecording
-from simbench.io.read import read_poses
+from simbench.io.read import read_poses, refuse_unlocated
 from simbench.orient import skeleton_of
 from simbench.units import LENGTH_UNITS, implausible_lengths
 
@@ -154,37 +153,6 @@ def _slip_reports(
         )
         out.append((j.name, report))
     return out
-
-
-def refuse_unlocated(rec: PoseRecording, cal: Calibration, source: str) -> None:
-    """Refuse a calibration in which no joint centre is located (a recording that does not move).
-
-    A joint's centre is located when the motion determines at least 5 of the fit's 6 directions
-    (:mod:`calibration.joint`: 6 for a ball joint, 5 for a single axis); with fewer (the joint
-    turned too little against its noise, e.g. a body or a file that never moves) its numbers are
-    a minimum-norm point, not a measurement. When some joints are located the others are marked
-    ``none`` in the table (their lengths and offsets ``not located``) and named in the warnings;
-    when none is, there is nothing to report.
-
-    Raises:
-        InputError: naming the file, each joint with the directions its motion determines and its
-            range of relative rotation (degrees, along its principal axes).
-    """
-    if not cal.joints or any(j.fit.rank >= 5 for j in cal.joints):
-        return
-    index = {name: k for k, name in enumerate(rec.names)}
-    parent = np.array([index[j.parent] for j in cal.joints])
-    child = np.array([index[j.child] for j in cal.joints])
-    ranges = rotation_ranges(rec.R_w_s, parent, child, valid=rec.valid)
-    joints = "; ".join(
-        f"{j.name}: {j.fit.rank} of 6, rotation range {', '.join(f'{x:.1f}' for x in r)} deg"
-        for j, r in zip(cal.joints, ranges, strict=True)
-    )
-    raise InputError(
-        f"{source}: no joint centre is determined: every joint's motion fixes fewer than 5 of the fit's 6 "
-        f"directions ({joints}); the sensors barely turn against each other. Record the joints moving "
-        "through tens of degrees in two or more directions"
-    )
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:

@@ -13,9 +13,12 @@ from __future__ import annotations
 import dataclasses
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from calibration import Calibration
+from calibration.diagnostics import rotation_ranges
 from calibration.poses import CHUNK_FRAMES
 from simbench.errors import InputError
 from simbench.io.c3d import c3d_poses, read_cluster_spec
@@ -154,3 +157,35 @@ def read(
             raise InputError(f"{path}: HDF5 recordings hold SI units; units={units!r} does not apply")
         return read_dataset(path) if is_simbench_dataset(path) else read_broad(path)
     return dataset_from_poses(read_poses(path, units, clusters, wide))
+
+
+def refuse_unlocated(rec: PoseRecording, cal: Calibration | Any, source: str) -> None:
+    """Refuse a calibration (anything with its ``joints``) in which no joint centre is located (a
+    recording that does not move).
+
+    A joint's centre is located when the motion determines at least 5 of the fit's 6 directions
+    (:mod:`calibration.joint`: 6 for a ball joint, 5 for a single axis); with fewer (the joint
+    turned too little against its noise, e.g. a body or a file that never moves) its numbers are
+    a minimum-norm point, not a measurement. When some joints are located the others are marked
+    ``none`` in the table (their lengths and offsets ``not located``) and named in the warnings;
+    when none is, there is nothing to report.
+
+    Raises:
+        InputError: naming the file, each joint with the directions its motion determines and its
+            range of relative rotation (degrees, along its principal axes).
+    """
+    if not cal.joints or any(j.fit.rank >= 5 for j in cal.joints):
+        return
+    index = {name: k for k, name in enumerate(rec.names)}
+    parent = np.array([index[j.parent] for j in cal.joints])
+    child = np.array([index[j.child] for j in cal.joints])
+    ranges = rotation_ranges(rec.R_w_s, parent, child, valid=rec.valid)
+    joints = "; ".join(
+        f"{j.name}: {j.fit.rank} of 6, rotation range {', '.join(f'{x:.1f}' for x in r)} deg"
+        for j, r in zip(cal.joints, ranges, strict=True)
+    )
+    raise InputError(
+        f"{source}: no joint centre is determined: every joint's motion fixes fewer than 5 of the fit's 6 "
+        f"directions ({joints}); the sensors barely turn against each other. Record the joints moving "
+        "through tens of degrees in two or more directions"
+    )

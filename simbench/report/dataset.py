@@ -23,7 +23,7 @@ from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_joints, read_calibration_json
 from simbench.io.dataset import Dataset, read_dataset
 from simbench.io.poses import PoseRecording
-from simbench.io.read import check_plausible, read_poses
+from simbench.io.read import check_plausible, read_poses, refuse_unlocated
 from simbench.report.markdown import markdown_table
 from simbench.report.output import write_report_files
 from simbench.report.plots import plot_residual_histograms
@@ -191,6 +191,8 @@ def dataset_report(
         cal = _calibrated_here(rec) if calibration_file is None else _from_file(rec, calibration_file)
     except CalibrationError as exc:  # what the data (or the file's hierarchy) cannot give
         raise InputError(f"{calibration_file or dataset}: {exc}") from None
+    if calibration_file is None:  # as simbench calibrate: a recording that locates no joint centre
+        refuse_unlocated(rec, cal, str(dataset))
     odd = implausible_lengths(
         list(cal.lengths),
         units,
