@@ -445,3 +445,27 @@ def test_a_trial_that_fails_is_named_with_its_values(tmp_path):
         Exception, match=r"trial c00000-r000 \(cell 0: sensors.tracker.dropout_rate = 0.995\): "
     ):
         sw.run_study(st.load_study(path), tmp_path / "out")
+
+
+def test_compound_and_degree_fields_take_their_own_units(tmp_path):
+    """A stiffness in N/m is a plain number (a length unit for it was accepted and divided it by
+    1000); an inclination held in degrees takes deg (or rad, converted to degrees)."""
+    path = tmp_path / "s.toml"
+    base = STUDY.format(duration=1.0, values="[0.0]")
+    for name, unit, values, expect in (
+        ("sensors.skin.mount_stiffness_n_per_m", None, "[2000.0]", (2000.0,)),
+        ("sensors.magnetic.inclination_deg", "deg", "[60.0]", (60.0,)),
+        ("sensors.magnetic.inclination_deg", "rad", "[1.0]", (np.rad2deg(1.0),)),
+    ):
+        text = base.replace("sensors.tracker.position_noise_m", name).replace(
+            "values = [0.0]", f"values = {values}"
+        )
+        text = text.replace('unit = "mm"\n', "" if unit is None else f'unit = "{unit}"\n')
+        path.write_text(text)
+        (param,) = st.load_study(path).parameters
+        assert param.values == pytest.approx(expect), name
+        _label, factor = study_report.parameter_display(param)
+        assert param.values[0] * factor == pytest.approx(float(values.strip("[]")))  # shown as given
+    path.write_text(base.replace("sensors.tracker.position_noise_m", "sensors.skin.mount_stiffness_n_per_m"))
+    with pytest.raises(InputError, match=r"unit 'mm' does not fit: the field is in 1"):
+        st.load_study(path)

@@ -127,7 +127,13 @@ def _is_number(value: Any) -> bool:
 
 
 def _field_unit(field: str) -> str:
-    """SI unit of a field from its name's suffix (``1`` for a plain number)."""
+    """SI unit of a field from its name's suffix (``1`` for a plain number, and for a compound
+    unit such as ``_n_per_m`` or ``_nm_per_rad``, whose values are given in it as they are);
+    ``deg`` for a field held in degrees (``_deg``)."""
+    if "_per_" in field:
+        return "1"
+    if field.endswith("_deg"):
+        return "deg"
     return next((u for suffix, u in SUFFIX_UNIT.items() if field.endswith(suffix)), "1")
 
 
@@ -170,14 +176,22 @@ def _parse_parameter(p: Any, where: str, kind: str, base_sensors: SensorConfig) 
     except InputError as exc:
         raise InputError(f"{where}, key name: {exc}") from None
     where = f"{where} ({name})"
-    unit = p.get("unit", "1")
+    field_unit = _field_unit(name.split(".")[-1])
+    unit = p.get("unit", "deg" if field_unit == "deg" else "1")
     if not isinstance(unit, str) or unit.lower() not in UNITS:
         raise InputError(f"{where}, key unit: unknown unit {unit!r}; expected one of {sorted(UNITS)}")
     unit = unit.lower()
     si, factor = UNITS[unit]
-    field_unit = _field_unit(name.split(".")[-1])
-    if si != field_unit:
-        raise InputError(f"{where}, key unit: unit {unit!r} does not fit (the field is in {field_unit})")
+    if field_unit == "deg":  # held in degrees: an angle in any unit, converted to degrees
+        if si != "rad":
+            raise InputError(f"{where}, key unit: unit {unit!r} does not fit (the field is an angle in deg)")
+        factor /= UNITS["deg"][1]
+    elif si != field_unit:
+        given = f"unit {unit!r}" if "unit" in p else "no unit (a plain number)"
+        raise InputError(
+            f"{where}, key unit: {given} does not fit: the field is in {field_unit}; give its unit "
+            f'(e.g. unit = "{field_unit}")'
+        )
     if kind == "grid":
         values = p.get("values")
         if (

@@ -74,6 +74,8 @@ def parameter_display(p: StudyParameter) -> tuple[str, float]:
     unit = p.unit
     factor = UNITS[unit][1]
     short = p.name.split(".")[-1]
+    if short.endswith("_deg"):  # a field held in degrees: its values are degrees, not SI
+        factor /= UNITS["deg"][1]
     return (short if unit == "1" else f"{short} ({unit})"), 1.0 / factor
 
 
