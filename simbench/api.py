@@ -86,6 +86,24 @@ def simulate(
         raise InputError(
             f"Expected markers to be True, False or a MarkerConfig, got {type(markers).__name__}"
         )
+    for name, value in (("model", model), ("motion", motion)):
+        if not isinstance(value, str):
+            raise InputError(
+                f"Expected {name} to be a name or a file path (a string), got {type(value).__name__}"
+            )
+    if not isinstance(sensors, str | SensorConfig):
+        raise InputError(
+            "Expected sensors to be a preset name, a TOML path or a SensorConfig, got "
+            f"{type(sensors).__name__}"
+        )
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise InputError(f"Expected seed to be an integer, got {seed!r}")
+    for name, shift in (placement or {}).items():
+        v = np.asarray(shift, dtype=float) if np.ndim(shift) == 1 else None
+        if v is None or v.shape != (3,) or not np.isfinite(v).all():
+            raise InputError(
+                f"placement {name!r}: expected a finite shift (dx, dy, dz) in metres, got {shift!r}"
+            )
     config = SessionConfig(
         model=model,
         motion=motion,
@@ -157,6 +175,13 @@ def score(cal: Calibration, ds: Dataset, *, scale: float | None = None) -> Calib
     """A calibration against the truth of the session it came from: limb lengths, joint centres
     (both sensor frames), the hierarchy (wrong edges named), in metres (``scale`` metres per
     tracker unit; default the dataset's ``position_unit_scale``)."""
+    if scale is not None and not (isinstance(scale, int | float) and np.isfinite(scale) and scale > 0):
+        raise InputError(f"Expected scale (metres per tracker unit) to be a finite number > 0, got {scale!r}")
+    if set(cal.names) != set(ds.sensors):
+        raise InputError(
+            f"the calibration's sensors ({', '.join(cal.names)}) are not the dataset's "
+            f"({', '.join(ds.sensors)}): a calibration of another recording?"
+        )
     return score_calibration(cal, ds, scale=scale)
 
 

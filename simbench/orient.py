@@ -83,6 +83,30 @@ class OrientationRun:
     inclination_deg: float
 
 
+def check_recording(rec: ImuRecording) -> None:
+    """Refuse a recording whose arrays do not agree: ``acc``, ``gyro``, ``mag`` ``(F, N, 3)``,
+    ``valid`` ``(F, N)``, ``time_s`` ``(F,)`` and ``N`` distinct names (``q_true`` ``(F, N, 4)``
+    when given).
+
+    Raises:
+        InputError: naming each array's expected and actual shape.
+    """
+    n, f = len(rec.names), np.shape(rec.time_s)[0] if np.ndim(rec.time_s) == 1 else -1
+    if len(set(rec.names)) != n:
+        raise InputError(f"{rec.source}: sensor names must be unique, got {list(rec.names)}")
+    expected = {"acc": (f, n, 3), "gyro": (f, n, 3), "mag": (f, n, 3), "valid": (f, n)}
+    if rec.q_true is not None:
+        expected["q_true"] = (f, n, 4)
+    for name, shape in expected.items():
+        x = getattr(rec, name)
+        if not isinstance(x, np.ndarray) or x.shape != shape or f < 0:
+            got = x.shape if isinstance(x, np.ndarray) else type(x).__name__
+            raise InputError(
+                f"{rec.source}: expected {name} as an array of shape {shape} ({f} samples of time_s, "
+                f"{n} names), got {got}"
+            )
+
+
 def estimate(
     rec: ImuRecording,
     method: str = DEFAULT_METHOD,
@@ -113,6 +137,7 @@ def estimate(
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
+    check_recording(rec)
     if not (isinstance(rec.rate_hz, int | float) and math.isfinite(rec.rate_hz) and rec.rate_hz > 0):
         raise InputError(
             f"{rec.source}: expected a sample rate of a finite number of Hz > 0, got {rec.rate_hz!r}"
@@ -312,6 +337,7 @@ def calibrate_magnetometers(
         The recording with the calibrated magnetometers (a sensor whose fit does not apply keeps
         its raw samples), and per sensor its fit or why there is none.
     """
+    check_recording(rec)
     mag = np.array(rec.mag, dtype=float)
     valid = magnetometer_valid(rec)
     fits: dict[str, MagnetometerCalibration | str] = {}

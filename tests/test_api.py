@@ -124,3 +124,35 @@ def test_read_real_recordings():
     assert sb.orient(broad, method="triad").score.per_sensor["imu"]["samples"] > 10_000
     hip = sb.read(SHARED_DATA / "biobuddy_right_hip.c3d", clusters=ROOT / "studies" / "hip_c3d.toml")
     assert isinstance(hip, sb.Dataset) and len(hip.sensors) >= 3
+
+
+def test_api_arguments_of_the_wrong_kind_are_named(flock):
+    import dataclasses
+
+    from simbench.errors import InputError
+
+    for kwargs, message in (
+        ({"placement": {"chest": (0.0, 0.0)}}, r"placement 'chest': expected a finite shift \(dx, dy, dz\)"),
+        ({"placement": {"chest": (0.0, float("nan"), 0.0)}}, "placement 'chest': expected a finite shift"),
+        ({"model": None}, "Expected model to be a name or a file path"),
+        ({"sensors": {"tracker": {}}}, "Expected sensors to be a preset name, a TOML path or a SensorConfig"),
+        ({"seed": 1.7}, "Expected seed to be an integer, got 1.7"),
+    ):
+        with pytest.raises(InputError, match=message):
+            sb.simulate(duration_s=0.5, **kwargs)
+    cal = sb.calibrate(flock)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(InputError, match=r"scale .* finite number > 0"):
+            sb.score(cal, flock, scale=bad)
+    other = sb.simulate(model="humanoid", duration_s=0.5, seed=2)
+    with pytest.raises(InputError, match=r"are not the dataset's .* a calibration of another recording"):
+        sb.score(cal, other)
+    rec = sb.simulate(model="linkage", duration_s=1.0, sensors="mems-industrial", seed=1).imu()
+    for change, message in (
+        ({"acc": rec.acc.transpose(1, 0, 2)}, r"expected acc as an array of shape \(120, \d+, 3\)"),
+        ({"names": rec.names[:-1]}, "expected acc as an array of shape"),
+        ({"names": (rec.names[0],) * len(rec.names)}, "sensor names must be unique"),
+        ({"mag": rec.mag.tolist()}, r"expected mag as an array of shape .* got list"),
+    ):
+        with pytest.raises(InputError, match=message):
+            sb.orient(dataclasses.replace(rec, **change), method="triad")
