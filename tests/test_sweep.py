@@ -469,3 +469,16 @@ def test_compound_and_degree_fields_take_their_own_units(tmp_path):
     path.write_text(base.replace("sensors.tracker.position_noise_m", "sensors.skin.mount_stiffness_n_per_m"))
     with pytest.raises(InputError, match=r"unit 'mm' does not fit: the field is in 1"):
         st.load_study(path)
+
+
+def test_only_the_study_s_trial_files_count_and_a_broken_one_is_named(tmp_path):
+    path = study_file(tmp_path, duration=1.0, values="[0.0]")
+    out = tmp_path / "out"
+    study = st.load_study(path)
+    assert sw.run_study(study, out).num_rows == 2
+    stray = out / "trials" / "notes.parquet"
+    stray.write_bytes((out / "trials" / "c00000-r000.parquet").read_bytes())  # a copy under another name
+    assert sw.run_study(study, out).num_rows == 2  # not counted, not gathered
+    (out / "trials" / "c00000-r001.parquet").write_bytes(b"PAR1 cut short")
+    with pytest.raises(InputError, match=r"c00000-r001.parquet: not a readable trial file .* delete it"):
+        sw.run_study(study, out)

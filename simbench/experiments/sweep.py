@@ -133,11 +133,25 @@ def finished(out: Path) -> set[str]:
     return {p.stem for p in folder.glob("*.parquet")} if folder.is_dir() else set()
 
 
-def gather(out: Path) -> Any:
+def gather(out: Path, ids: set[str] | None = None) -> Any:
     """All finished trials as one ``pyarrow.Table``, sorted by trial id, also written to
-    ``out/results.parquet`` (not written when no trial has finished)."""
+    ``out/results.parquet`` (not written when no trial has finished); with ``ids``, only those
+    trials' files (another file there is not the study's).
+
+    Raises:
+        InputError: a trial file that cannot be read, named (delete it to run that trial again).
+    """
     pa, pq = _optional("pyarrow"), _optional("pyarrow.parquet")
-    tables = [pq.read_table(p) for p in sorted((out / "trials").glob("*.parquet"))]
+    tables = []
+    for path in sorted((out / "trials").glob("*.parquet")):
+        if ids is not None and path.stem not in ids:
+            continue
+        try:
+            tables.append(pq.read_table(path))
+        except (OSError, pa.ArrowException) as exc:
+            raise InputError(
+                f"{path}: not a readable trial file ({exc}); delete it to run that trial again"
+            ) from None
     if not tables:
         return pa.table({})
     table = pa.concat_tables(tables, promote_options="default").sort_by("trial")
@@ -215,7 +229,8 @@ def run_study(
     check_study(study)
     _claim(out, study, force)
     every = trials(study)
-    done = finished(out)
+    ids = {t.trial_id for t in every}
+    done = finished(out) & ids  # another file there is not one of the study's trials
     todo = [t for t in every if t.trial_id not in done][:limit]
     count = len(done)
     with worker_pool(workers) if executor is None else nullcontext(executor) as pool:
@@ -233,4 +248,4 @@ def run_study(
                 for fut in futures:
                     fut.cancel()
             raise
-    return gather(out)
+    return gather(out, ids)
