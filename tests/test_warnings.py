@@ -12,6 +12,7 @@ from calibration import calibrate
 from calibration.diagnostics import block_jackknife, residual_outliers, rotation_ranges
 from calibration.rotations import rotvec_to_matrix
 from simbench.cli.table import format_table
+from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_to_dict
 from simbench.io.poses import PoseRecording, write_pose_csv
 from simbench.report.dataset import dataset_report
@@ -167,6 +168,21 @@ def test_warnings_reach_the_table_the_json_and_the_report(tmp_path):
     assert warning in calibration_to_dict(cal)["warnings"]
     path = tmp_path / "poses.csv"
     write_pose_csv(path, rec)
+    # its one joint not located: the report is refused (as calibrate refuses it), saying why
+    with pytest.raises(InputError, match=r"no joint centre is determined.*pelvis-thigh: 3 of 6"):
+        dataset_report(path, tmp_path / "refused")
+    # with a trunk that turns well on the same pelvis (same parent motion), the report is written
+    # and the thigh's warning reaches it
+    R2, p2, _, _ = two_segments(40.0, seed=2)
+    assert np.array_equal(R2[:, 0], R[:, 0]) and np.array_equal(p2[:, 0], p[:, 0])
+    three = PoseRecording(
+        ("pelvis", "thigh", "trunk"),
+        rec.time_s,
+        np.concatenate([R, R2[:, 1:]], axis=1),
+        np.concatenate([p, p2[:, 1:]], axis=1),
+        np.ones((R.shape[0], 3), bool),
+    )
+    write_pose_csv(path, three)
     paths = dataset_report(path, tmp_path / "report")
     assert "## Warnings" in paths["md"].read_text() and UNDETERMINED in paths["md"].read_text()
     assert any(UNDETERMINED in w for w in json.loads(paths["json"].read_text())["warnings"])
