@@ -47,6 +47,20 @@ def study_file(tmp_path: Path, duration: float = 3.0, values: str = "[0.0, 8.0]"
     return path
 
 
+def parameter_study(
+    tmp_path: Path, name: str, unit: str, values: str, *, duration: float = 1.0, seeds: int = 2
+) -> Path:
+    """The small study varying ``name`` (in ``unit``) over ``values`` instead of the noise."""
+    path = tmp_path / "p.toml"
+    path.write_text(
+        STUDY.format(duration=duration, values=values)
+        .replace("sensors.tracker.position_noise_m", name)
+        .replace('unit = "mm"', f'unit = "{unit}"')
+        .replace("seeds_per_cell = 2", f"seeds_per_cell = {seeds}")
+    )
+    return path
+
+
 def sweep_command(path: Path, out: Path, workers: int) -> list[str]:
     """``simbench sweep`` as a subprocess command line."""
     command = [sys.executable, "-m", "simbench", "sweep", str(path), "--out", str(out)]
@@ -143,13 +157,7 @@ def test_placement_parameter_moves_the_sensor(tmp_path):
     assert np.allclose(shifted.truth.p_b_s[k] - base.truth.p_b_s[k], [0.05, -0.02, 0.0], atol=1e-12)
     others = [i for i in range(len(base.sensors)) if i != k]
     assert np.array_equal(shifted.truth.p_b_s[others], base.truth.p_b_s[others])
-    path = tmp_path / "p.toml"
-    path.write_text(
-        STUDY.format(duration=2.0, values="[0.0]")
-        .replace("sensors.tracker.position_noise_m", "placement.forearm_l.x_m")
-        .replace('unit = "mm"', 'unit = "cm"')
-        .replace("values = [0.0]", "values = [-5.0, 5.0]")
-    )
+    path = parameter_study(tmp_path, "placement.forearm_l.x_m", "cm", "[-5.0, 5.0]", duration=2.0)
     study = st.load_study(path)
     assert [t.params for t in st.trials(study)][::2] == [
         (("placement.forearm_l.x_m", -0.05),),
@@ -434,13 +442,7 @@ def test_a_study_names_a_parameter_once_and_fingerprints_the_files_it_names(tmp_
 def test_a_trial_that_fails_is_named_with_its_values(tmp_path):
     """A tracker that drops 99.5 % of its poses: no pair to fit; the error names the trial, its
     cell and its value."""
-    path = tmp_path / "drop.toml"
-    path.write_text(
-        STUDY.format(duration=1.0, values="[0.995]")
-        .replace("sensors.tracker.position_noise_m", "sensors.tracker.dropout_rate")
-        .replace('unit = "mm"', 'unit = "1"')
-        .replace("seeds_per_cell = 2", "seeds_per_cell = 1")
-    )
+    path = parameter_study(tmp_path, "sensors.tracker.dropout_rate", "1", "[0.995]", seeds=1)
     with pytest.raises(
         Exception, match=r"trial c00000-r000 \(cell 0: sensors.tracker.dropout_rate = 0.995\): "
     ):
