@@ -484,3 +484,27 @@ def test_only_the_study_s_trial_files_count_and_a_broken_one_is_named(tmp_path):
     (out / "trials" / "c00000-r001.parquet").write_bytes(b"PAR1 cut short")
     with pytest.raises(InputError, match=r"c00000-r001.parquet: not a readable trial file .* delete it"):
         sw.run_study(study, out)
+
+
+def test_a_sensor_file_beside_the_study_is_found_from_anywhere(tmp_path, monkeypatch):
+    folder = tmp_path / "study"
+    folder.mkdir()
+    (folder / "mysensors.toml").write_text("[tracker]\ndropout_rate = 0.01\n")
+    path = study_file(folder, values="[0.0]")
+    path.write_text(path.read_text().replace('sensors = "ascension-flock"', 'sensors = "mysensors.toml"'))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # the working directory holds no mysensors.toml
+    study = st.load_study(path)
+    config = st.trial_config(study, st.trials(study)[0])
+    assert config.sensors.tracker.dropout_rate == 0.01  # the file beside the study was read
+
+
+def test_a_metric_with_no_value_in_a_cell_is_nan_without_a_warning():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isnan(study_report.mean_of_known(np.array([np.nan, np.nan])))
+        assert study_report.mean_of_known(np.array([1.0, np.nan, 3.0])) == 2.0
+        assert np.isnan(study_report.mean_of_known(np.array([])))

@@ -224,6 +224,15 @@ def _parse_parameter(p: Any, where: str, kind: str, base_sensors: SensorConfig) 
     return Parameter(name, low=float(low) * factor, high=float(high) * factor, log=log, unit=unit)
 
 
+def _beside(value: Any, folder: Path) -> Any:
+    """A base value naming a file (a sensor TOML, a model or motion file) as a path from
+    ``folder`` (the study file's) when it lies there, else as written (a preset name, or a path
+    from the working directory)."""
+    if isinstance(value, str) and not Path(value).is_absolute() and (folder / value).is_file():
+        return str(folder / value)
+    return value
+
+
 def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], SensorConfig]:
     """``[base]`` as written (``sensors`` filled in from SessionConfig's default) and its sensors."""
     base = doc.get("base", {})
@@ -241,7 +250,7 @@ def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], Sensor
         if not numeric and not (isinstance(value, str) and value.strip()):
             raise InputError(f"{path}, key base.{key}: expected a string (a name), got {value!r}")
     try:
-        base_sensors = load_sensor_config(base["sensors"])
+        base_sensors = load_sensor_config(_beside(base["sensors"], path.parent))
     except InputError as exc:
         raise InputError(f"{path}, key base.sensors: {exc}") from None
     return base, base_sensors
@@ -390,12 +399,14 @@ def trials(study: Study) -> list[Trial]:
 
 
 def base_session(study: Study) -> SessionConfig:
-    """The study's base session: ``[base]``'s keys, :class:`SessionConfig`'s defaults for the rest.
+    """The study's base session: ``[base]``'s keys, :class:`SessionConfig`'s defaults for the rest;
+    a file it names is looked up beside the study file first, then from the working directory.
 
     Raises:
         InputError: a base value SessionConfig refuses (duration or rate not > 0).
     """
-    given = {k: study.base[k] for k in ("model", "motion", "sensors") if k in study.base}
+    folder = Path(study.source).parent if study.source else Path(".")
+    given = {k: _beside(study.base[k], folder) for k in ("model", "motion", "sensors") if k in study.base}
     given.update({k: float(study.base[k]) for k in ("duration_s", "rate_hz") if k in study.base})
     return SessionConfig(**given)
 
@@ -433,9 +444,11 @@ def study_fingerprint(study: Study) -> str:
     values = dataclasses.asdict(study)
     del values["source"]  # where the file lies is not what it asks
     # a base value naming a file (a sensor TOML, an MJCF model, a motion TOML): what it holds
+    folder = Path(study.source).parent if study.source else Path(".")
+    named = {key: _beside(value, folder) for key, value in study.base.items()}
     values["file_contents"] = {
         key: hashlib.sha256(Path(value).read_bytes()).hexdigest()
-        for key, value in study.base.items()
+        for key, value in named.items()
         if isinstance(value, str) and Path(value).is_file()
     }
     doc = json.dumps(values, sort_keys=True, default=repr)

@@ -69,6 +69,14 @@ def metric_display(metric: str) -> tuple[str, float, bool]:
     return metric, 1.0, False
 
 
+def mean_of_known(x: np.ndarray) -> float:
+    """The mean of the values of ``x`` that are not NaN (``numpy.nanmean``); NaN, and no warning,
+    when there is none."""
+    x = np.asarray(x, dtype=float)
+    known = ~np.isnan(x)
+    return float(x[known].mean()) if known.any() else float("nan")
+
+
 def parameter_display(p: StudyParameter) -> tuple[str, float]:
     """``(axis label, factor from SI)`` of a parameter: in the unit the study gave it in."""
     unit = p.unit
@@ -142,7 +150,7 @@ def _plot_heatmap(
     xa, xb = np.array(data[a.name]), np.array(data[b.name])
     label, factor, _ = metric_display(metric)
     y = np.array(data[metric], dtype=float) * factor
-    grid = np.array([[np.nanmean(y[(xa == va) & (xb == vb)]) for vb in b.values] for va in a.values])
+    grid = np.array([[mean_of_known(y[(xa == va) & (xb == vb)]) for vb in b.values] for va in a.values])
     (a_label, a_factor), (b_label, b_factor) = parameter_display(a), parameter_display(b)
     (ax,), fig = figure_axes(5, 4)
     im = ax.imshow(grid, origin="lower", aspect="auto", cmap=SEQUENTIAL_CMAP)
@@ -201,7 +209,7 @@ def _cell_means(study: StudyDescription, data: Mapping[str, list], metrics: list
         first = int(np.flatnonzero(sel)[0])
         vals = [f"{data[p.name][first] * f:.4g}" for p, (_, f) in zip(study.parameters, shown, strict=True)]
         vals += [
-            f"{np.nanmean(np.array(data[m], dtype=float)[sel]) * f:.4g}"
+            f"{mean_of_known(np.array(data[m], dtype=float)[sel]) * f:.4g}"
             for m, (_, f, _) in zip(metrics, metric_shown, strict=True)
         ]
         lines.append("| " + " | ".join(vals) + " |")
@@ -231,7 +239,10 @@ def _joint_centre_findings(study: StudyDescription, data: Mapping[str, list], na
         for n in names:
             r = spearmanr(np.array(data[n], dtype=float)[ok], err[ok]).statistic
             lines.append(f"| {n} | {r:+.2f} |")
-    best = int(np.nanargmin([np.nanmean(err[cell_arr == c]) for c in cells]))
+    means = np.array([mean_of_known(err[cell_arr == c]) for c in cells])
+    if not np.isfinite(means).any():  # no trial gave a joint-centre error
+        return lines
+    best = int(np.nanargmin(means))
     pick = int(np.flatnonzero(cell_arr == cells[best])[0])
     best_cell = ", ".join(
         f"{p.name} = {data[p.name][pick] * parameter_display(p)[1]:.4g}"
