@@ -439,14 +439,24 @@ def test_a_study_names_a_parameter_once_and_fingerprints_the_files_it_names(tmp_
     assert st.study_fingerprint(st.load_study(path)) != before
 
 
-def test_a_trial_that_fails_is_named_with_its_values(tmp_path):
-    """A tracker that drops 99.5 % of its poses: no pair to fit; the error names the trial, its
-    cell and its value."""
-    path = parameter_study(tmp_path, "sensors.tracker.dropout_rate", "1", "[0.995]", seeds=1)
-    with pytest.raises(
-        Exception, match=r"trial c00000-r000 \(cell 0: sensors.tracker.dropout_rate = 0.995\): "
-    ):
-        sw.run_study(st.load_study(path), tmp_path / "out")
+def test_a_trial_that_fails_is_a_row_named_with_its_values_and_the_study_goes_on(tmp_path, capsys):
+    """A tracker that drops 99.5 % of its poses: no pair to fit. That trial is a row without
+    metrics, its error naming the trial, cell and value; the other cell's trials run; the summary
+    counts it. A study where every trial fails still finishes, with no plot."""
+    path = parameter_study(tmp_path, "sensors.tracker.dropout_rate", "1", "[0.0, 0.995]", seeds=1)
+    table = sw.run_study(st.load_study(path), tmp_path / "out")
+    data = rows(table)
+    assert [r["trial"] for r in data] == ["c00000-r000", "c00001-r000"]
+    assert data[0].get("error") is None and data[0]["joint_centre_error_m"] is not None
+    assert data[1]["error"].startswith("trial c00001-r000 (cell 1: sensors.tracker.dropout_rate = 0.995): ")
+    assert data[1]["joint_centre_error_m"] is None
+    assert main(["sweep", str(path), "--out", str(tmp_path / "cli"), "--no-progress"]) == 0
+    assert "2 of 2 trials" in capsys.readouterr().out
+    summary = (tmp_path / "cli" / "summary.md").read_text()
+    assert "1 of 2 trials gave no metrics" in summary and "c00001-r000" in summary
+    only = parameter_study(tmp_path, "sensors.tracker.dropout_rate", "1", "[0.995]", seeds=1)
+    assert main(["sweep", str(only), "--out", str(tmp_path / "all"), "--no-progress"]) == 0
+    assert "1 of 1 trials gave no metrics" in (tmp_path / "all" / "summary.md").read_text()
 
 
 def test_compound_and_degree_fields_take_their_own_units(tmp_path):

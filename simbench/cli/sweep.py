@@ -61,6 +61,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         bar.close()
     plots = plot_study(study, table, out)
     atomic_write_text(out / "summary.md", summary_markdown(study, table, plots))
-    print(f"simbench sweep {study.name}: {table.num_rows} of {total} trials in {out}")
+    failed = sum(1 for e in table.to_pydict().get("error", []) if e)
+    without = f" ({failed} without metrics: see summary.md)" if failed else ""
+    print(f"simbench sweep {study.name}: {table.num_rows} of {total} trials in {out}{without}")
     print(f"  wrote {out / 'results.parquet'}, {out / 'summary.md'} and {len(plots)} plot(s)")
     return 0

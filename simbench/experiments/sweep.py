@@ -50,22 +50,25 @@ def run_trial(study: Study, trial: Trial) -> dict[str, Any]:
     A trial uses one core (BLAS limited to one thread): parallelism comes from running trials
     side by side, which scales; threads inside one small trial do not.
 
-    Raises:
-        InputError, CalibrationError: what the trial's session or estimates could not do, the
-            message headed by the trial's id, cell and parameter values.
+    A trial whose session or estimates cannot be made from its values (an ``InputError`` or
+    ``CalibrationError``: e.g. a tracker that drops nearly every pose) is a row too, without
+    metrics, its ``error`` the reason headed by the trial's id, cell and values: the study goes
+    on and the summary counts it. Any other error stops the study.
     """
+    t0 = time.perf_counter()
     with one_blas_thread():
         try:
             return _run_trial(study, trial)
-        except (InputError, CalibrationError) as exc:  # which trial, and its values
+        except (InputError, CalibrationError) as exc:  # what the trial's data could not give
             values = ", ".join(f"{name} = {value:g}" for name, value in trial.params)
-            raise type(exc)(f"trial {trial.trial_id} (cell {trial.cell}: {values}): {exc}") from exc
+            row = _ids(trial)
+            row["error"] = f"trial {trial.trial_id} (cell {trial.cell}: {values}): {exc}"
+            row["run_time_s"] = time.perf_counter() - t0
+            return row
 
 
-def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
-    t0 = time.perf_counter()
-    config = trial_config(study, trial)
-    ds = run_session(config, load_session_model(config))
+def _ids(trial: Trial) -> dict[str, Any]:
+    """The columns naming a trial: id, cell, replicate, seed, then its parameter values (SI)."""
     row: dict[str, Any] = {
         "trial": trial.trial_id,
         "cell": trial.cell,
@@ -73,6 +76,14 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
         "seed": trial.seed,
     }
     row.update(dict(trial.params))
+    return row
+
+
+def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    config = trial_config(study, trial)
+    ds = run_session(config, load_session_model(config))
+    row = _ids(trial)
     several = sum(e.startswith("orientation:") for e in study.estimators) > 1
     for est in study.estimators:
         if est == "calibration":
@@ -208,7 +219,8 @@ def run_study(
     edited one, another simbench version) is refused unless ``force``, which removes its trials
     and starts over.
 
-    Interrupted (Ctrl-C, SIGTERM) or stopped by a failed trial, it runs nothing more: the default
+    A trial its values cannot make is written as a row with its ``error`` (:func:`run_trial`).
+    Interrupted (Ctrl-C, SIGTERM) or stopped by an internal error, it runs nothing more: the default
     pool's workers are killed at once, no file is left half-written, and the trials written so
     far are kept for the next call.
 

@@ -175,7 +175,9 @@ def plot_study(study: StudyDescription, table: Any, out: Path) -> list[Path]:
     """
     data = table.to_pydict()
     metrics = metric_columns(study, data)
-    written = []
+    written: list[Path] = []
+    if not metrics:  # no trial gave one
+        return written
     for p in study.parameters:
         path = out / f"vs_{p.name.replace('.', '_')}.png"
         _plot_parameter(study, data, p.name, metrics, path)
@@ -252,6 +254,27 @@ def _joint_centre_findings(study: StudyDescription, data: Mapping[str, list], na
     return [*lines, "", f"Smallest mean joint-centre error: {best_cell}."]
 
 
+def _failures(data: Mapping[str, list]) -> list[str]:
+    """Lines on the trials whose values could not make a session or an estimate (their
+    ``error``), each named; none when every trial ran."""
+    errors = [e for e in data.get("error", []) if e]
+    if not errors:
+        return []
+    shown = [f"- {e}" for e in errors[:10]]
+    more = (
+        [f"- ... and {len(errors) - 10} more (the `error` column of results.parquet)"]
+        if len(errors) > 10
+        else []
+    )
+    return [
+        f"{len(errors)} of {len(data.get('trial', []))} trials gave no metrics (left out of the means):",
+        "",
+        *shown,
+        *more,
+        "",
+    ]
+
+
 def summary_markdown(study: StudyDescription, table: Any, plots: list[Path]) -> str:
     """A short Markdown summary (``summary.md`` beside the plots): the study, mean metrics per
     cell, what predicts the joint-centre error (when the table has it), the plots.
@@ -270,6 +293,7 @@ def summary_markdown(study: StudyDescription, table: Any, plots: list[Path]) -> 
         f"{len(data.get('trial', []))} trials: {study.kind} over {', '.join(names)}, {study.seeds_per_cell} "
         f"seed(s) per cell, study seed {study.seed}, base {study.base}.",
         "",
+        *_failures(data),
         *_cell_means(study, data, metrics),
     ]
     if "condition" in data and "joint_centre_error_m" in data:
