@@ -181,20 +181,23 @@ def distance_spread(markers: np.ndarray) -> np.ndarray:
     return spread
 
 
-def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[np.ndarray], float]:
-    """Complete-linkage tree on the distance spread, cut at its largest ratio gap (unit-free).
-
-    A pair never seen together (``inf``) counts as unsteady as the least steady pair seen: it is
-    joined no earlier than every measured pair, yet makes no gap of its own (a larger stand-in
-    would become the largest gap and cut the tree at the unseen pair instead of at the motion).
-    """
-    if len(members) < 2:
-        return [members], np.inf
+def _spread_tree(spread: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """The complete-linkage tree (scipy's ``Z``) of ``members`` (two or more) on the distance
+    spread. A pair never seen together (``inf``) counts as unsteady as the least steady pair
+    seen: it is joined no earlier than every measured pair, yet makes no gap of its own (a larger
+    stand-in would become the largest gap and cut the tree at the unseen pair instead of at the
+    motion)."""
     sub = spread[np.ix_(members, members)]
     finite = np.isfinite(sub)
     top = sub[finite].max() if finite.any() else 1.0
-    sub = np.where(finite, sub, top)
-    Z = linkage(squareform(sub, checks=False), method="complete")
+    return linkage(squareform(np.where(finite, sub, top), checks=False), method="complete")
+
+
+def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[np.ndarray], float]:
+    """The spread's tree (:func:`_spread_tree`) cut at its largest ratio gap (unit-free)."""
+    if len(members) < 2:
+        return [members], np.inf
+    Z = _spread_tree(spread, members)
     h = np.maximum(Z[:, 2], np.finfo(float).tiny)
     if len(h) < 2:
         return [members], np.inf
@@ -296,10 +299,7 @@ def rigid_parts(
     """
     if len(members) < 2:
         return [members], []
-    sub = spread[np.ix_(members, members)]
-    finite = np.isfinite(sub)
-    sub = np.where(finite, sub, sub[finite].max() if finite.any() else 1.0)
-    Z = linkage(squareform(sub, checks=False), method="complete")
+    Z = _spread_tree(spread, members)
     m = len(members)
     nodes: list[np.ndarray] = [members[[i]] for i in range(m)]
     whole: list[bool] = [True] * m  # each node one rigid body

@@ -86,7 +86,7 @@ from calibration.pairs import (
     rms_needs_data,
     solve_pairs,
 )
-from calibration.poses import CHUNK_FRAMES, check_poses
+from calibration.poses import CHUNK_FRAMES, check_poses, check_rotations
 from calibration.robust import LOSSES, RobustJointFit, robust_fit_joint, robust_pair_misfits
 from calibration.robust import MIN_FRAMES as ROBUST_MIN_FRAMES
 from calibration.skeleton import (
@@ -279,6 +279,7 @@ def calibrate(
     """
     t0 = time.perf_counter()
     n_frames, n = check_poses(R_w_s, p_w_s, valid)
+    check_rotations(R_w_s, valid)
     names = checked_names(names, n)
     if keep_frame_residuals is None:
         keep_frame_residuals = default_keep_frame_residuals(R_w_s, n_frames, n - 1)

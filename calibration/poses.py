@@ -42,21 +42,25 @@ def check_poses(R_w_s: Any, p_w_s: Any, valid: Any = None) -> tuple[int, int]:
         )
     if valid is not None and tuple(valid.shape) != R_shape[:2]:
         raise CalibrationInputError(f"Expected valid to have shape {R_shape[:2]}, got {tuple(valid.shape)}")
-    _check_rotations(R_w_s, valid)
     return R_shape[0], R_shape[1]
 
 
-#: Frames sampled by :func:`_check_rotations` (evenly spaced; a pose array may be larger than
+#: Frames sampled by :func:`check_rotations` (evenly spaced; a pose array may be larger than
 #: memory) and how far from orthonormal with determinant +1 a matrix may be and count as a rotation
 #: (a tracker's matrices stored in single precision, or rounded in a file, are within 1e-6).
 ROTATION_SAMPLE_FRAMES = 64
 ROTATION_TOLERANCE = 1e-2
 
 
-def _check_rotations(R_w_s: Any, valid: Any) -> None:
+def check_rotations(R_w_s: Any, valid: Any = None) -> None:
     """Refuse rotations that are mostly not rotations (all zeros, a scaled matrix, a reflection,
     a mix-up of fields), judged on :data:`ROTATION_SAMPLE_FRAMES` evenly spaced frames' finite,
-    valid matrices: when more than half of them are not."""
+    valid matrices: when more than half of them are not. Once per recording, at the entry
+    (:func:`calibration.pipeline.calibrate`), after :func:`check_poses`; not on every pass.
+
+    Raises:
+        CalibrationInputError: naming how many of the sampled matrices are not rotations.
+    """
     n_frames = R_w_s.shape[0]
     if n_frames == 0:
         return

@@ -63,3 +63,17 @@ def unit_scale(p_w_a: np.ndarray, p_w_b: np.ndarray, known_distance: float) -> S
         distances=d,
         n_frames=int(np.count_nonzero(ok)),
     )
+
+
+def rigidity(d: np.ndarray) -> tuple[float, float]:
+    """``(spread, noise)`` of a distance series ``(frames,)`` (NaN where unknown), in its unit:
+    its robust spread about the median (1.4826 MAD) and that of its frame-to-frame changes over
+    sqrt(2) -- equal, to sampling error, for a fixed distance measured with white noise; a
+    distance that changes (a loose mount, a distorted field) spreads far more than its noise."""
+    d = d[np.isfinite(d)]
+    if d.size < 3:
+        return 0.0, 0.0
+    spread = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+    step = np.diff(d)
+    noise = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / np.sqrt(2.0)
+    return spread, noise

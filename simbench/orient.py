@@ -86,11 +86,15 @@ class OrientationRun:
 def check_recording(rec: ImuRecording) -> None:
     """Refuse a recording whose arrays do not agree: ``acc``, ``gyro``, ``mag`` ``(F, N, 3)``,
     ``valid`` ``(F, N)``, ``time_s`` ``(F,)`` and ``N`` distinct names (``q_true`` ``(F, N, 4)``
-    when given).
+    when given); or whose rate is not a finite number of Hz > 0.
 
     Raises:
-        InputError: naming each array's expected and actual shape.
+        InputError: naming each array's expected and actual shape, or the rate.
     """
+    if not (isinstance(rec.rate_hz, int | float) and math.isfinite(rec.rate_hz) and rec.rate_hz > 0):
+        raise InputError(
+            f"{rec.source}: expected a sample rate of a finite number of Hz > 0, got {rec.rate_hz!r}"
+        )
     n, f = len(rec.names), np.shape(rec.time_s)[0] if np.ndim(rec.time_s) == 1 else -1
     if len(set(rec.names)) != n:
         raise InputError(f"{rec.source}: sensor names must be unique, got {list(rec.names)}")
@@ -138,10 +142,6 @@ def estimate(
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
     check_recording(rec)
-    if not (isinstance(rec.rate_hz, int | float) and math.isfinite(rec.rate_hz) and rec.rate_hz > 0):
-        raise InputError(
-            f"{rec.source}: expected a sample rate of a finite number of Hz > 0, got {rec.rate_hz!r}"
-        )
     if skeleton is not None and method != "skeleton":
         raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
     if priors is not None and method != "skeleton":

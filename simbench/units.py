@@ -7,6 +7,8 @@ seconds. Inside simbench everything is SI (DESIGN.md).
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 
 from simbench.errors import InputError
 
@@ -40,22 +42,26 @@ def metres_per_unit(units: str) -> float:
 LIMB_RANGE_M = (1e-3, 10.0)
 
 
-def implausible_lengths(lengths: list, units: str | None, c3d: bool = False, hdf5: bool = False) -> str:
+def implausible_lengths(
+    lengths: list, units: str | None, source: str | os.PathLike[str], wide: bool = False
+) -> str:
     """A warning naming the limb lengths outside :data:`LIMB_RANGE_M` (metres), or ``""``.
 
     ``units``: the ``--units`` given (``None``: the default, metres, or a C3D file's own
-    ``POINT:UNITS``); the warning names the unit the positions were read in and how to change it
-    (an HDF5 dataset holds metres: no option changes that).
+    ``POINT:UNITS``); ``source``: the file read (its suffix says its kind), ``wide`` when it was
+    read as a wide export. The warning names the unit the positions were read in and how to
+    change it (an HDF5 dataset holds metres: no option changes that).
     """
     lo, hi = LIMB_RANGE_M
     odd = [x for x in lengths if not lo <= x.length <= hi]
     if not odd:
         return ""
+    suffix = "" if wide else Path(source).suffix.lower()
     shown = ", ".join(f"{x.segment} {x.length * 1e3:.3g} mm" for x in odd[:4])
     return f"{len(odd)} limb length(s) outside 1 mm - 10 m ({shown}{', ...' if len(odd) > 4 else ''}): " + (
         "a dataset's positions are in metres: were they written in another unit?"
-        if hdf5
+        if suffix in (".h5", ".hdf5")
         else f"are the positions really in {units or 'm'} (--units)?"
-        if units is not None or not c3d
+        if units is not None or suffix != ".c3d"
         else "are the positions really in the file's POINT:UNITS? (--units overrides it)"
     )

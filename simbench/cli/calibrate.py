@@ -185,12 +185,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     refuse_unlocated(rec, cal, args.input)
     slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
     print(format_table(rec, cal, slips))
-    odd = implausible_lengths(
-        cal.lengths,
-        args.units,
-        c3d=str(args.input).lower().endswith(".c3d"),
-        hdf5=str(args.input).lower().endswith((".h5", ".hdf5")) and not args.wide,
-    )
+    odd = implausible_lengths(cal.lengths, args.units, args.input, wide=bool(args.wide))
     if odd:
         print(f"\n  warning: {odd}")
     if args.json:

@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from calibration import CalibrationError, unit_scale
+from calibration.scale import rigidity
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
 from simbench.io.read import read_poses
@@ -67,17 +68,3 @@ def cmd_scale(args: argparse.Namespace) -> int:
             "rigidly mounted, or is the field distorted where they moved?"
         )
     return 0
-
-
-def rigidity(d: np.ndarray) -> tuple[float, float]:
-    """``(spread, noise)`` of a distance series ``(frames,)`` (NaN where unknown), in its unit:
-    its robust spread about the median (1.4826 MAD) and that of its frame-to-frame changes over
-    sqrt(2) -- equal, to sampling error, for a fixed distance measured with white noise; a
-    distance that changes (a loose mount, a distorted field) spreads far more than its noise."""
-    d = d[np.isfinite(d)]
-    if d.size < 3:
-        return 0.0, 0.0
-    spread = 1.4826 * float(np.median(np.abs(d - np.median(d))))
-    step = np.diff(d)
-    noise = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / np.sqrt(2.0)
-    return spread, noise

@@ -233,6 +233,12 @@ def _beside(value: Any, folder: Path) -> Any:
     return value
 
 
+def _base_files(study: Study) -> dict[str, Any]:
+    """The study's ``[base]`` with every file it names as found (:func:`_beside` the study file)."""
+    folder = Path(study.source).parent if study.source else Path(".")
+    return {key: _beside(value, folder) for key, value in study.base.items()}
+
+
 def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], SensorConfig]:
     """``[base]`` as written (``sensors`` filled in from SessionConfig's default) and its sensors."""
     base = doc.get("base", {})
@@ -405,8 +411,8 @@ def base_session(study: Study) -> SessionConfig:
     Raises:
         InputError: a base value SessionConfig refuses (duration or rate not > 0).
     """
-    folder = Path(study.source).parent if study.source else Path(".")
-    given = {k: _beside(study.base[k], folder) for k in ("model", "motion", "sensors") if k in study.base}
+    base = _base_files(study)
+    given = {k: base[k] for k in ("model", "motion", "sensors") if k in base}
     given.update({k: float(study.base[k]) for k in ("duration_s", "rate_hz") if k in study.base})
     return SessionConfig(**given)
 
@@ -444,8 +450,7 @@ def study_fingerprint(study: Study) -> str:
     values = dataclasses.asdict(study)
     del values["source"]  # where the file lies is not what it asks
     # a base value naming a file (a sensor TOML, an MJCF model, a motion TOML): what it holds
-    folder = Path(study.source).parent if study.source else Path(".")
-    named = {key: _beside(value, folder) for key, value in study.base.items()}
+    named = _base_files(study)
     values["file_contents"] = {
         key: hashlib.sha256(Path(value).read_bytes()).hexdigest()
         for key, value in named.items()

@@ -47,12 +47,12 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
         fh.write(text)
 
 
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """A temporary path beside ``path`` that replaces it when the ``with`` block succeeds.
+def check_writable(path: str | os.PathLike[str]) -> Path:
+    """``path`` as a ``Path``, refused when it is a folder or its folder does not exist (before
+    anything is computed for it, or written).
 
-    For writers that need a file name rather than a file object (HDF5). On error the temporary
-    file is removed and ``path`` is left as it was.
+    Raises:
+        InputError: naming the path and what is wrong.
     """
     dest = Path(path)
     folder = dest.parent if str(dest.parent) else Path(".")
@@ -60,6 +60,18 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         raise InputError(f"cannot write {dest}: folder {folder} does not exist")
     if dest.is_dir():
         raise InputError(f"cannot write {dest}: it is a folder")
+    return dest
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary path beside ``path`` that replaces it when the ``with`` block succeeds.
+
+    For writers that need a file name rather than a file object (HDF5). On error the temporary
+    file is removed and ``path`` is left as it was.
+    """
+    dest = check_writable(path)
+    folder = dest.parent if str(dest.parent) else Path(".")
     sweep_stale(dest)
     umask = os.umask(0)
     os.umask(umask)

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from simbench.errors import InputError
-from simbench.io.atomic import atomic_write_text
+from simbench.io.atomic import atomic_write_text, check_writable
 from simbench.io.c3d import C3DMarkers, write_c3d_markers
 from simbench.io.calibration_json import read_calibration_json
 from simbench.io.dataset import Dataset, truth_calibration_dict
@@ -167,10 +167,7 @@ def check_outputs(asked: Mapping[str, Path]) -> None:
         InputError: naming the output path.
     """
     for path in asked.values():
-        if path.is_dir():
-            raise InputError(f"cannot write {path}: it is a folder")
-        if not path.resolve().parent.is_dir():
-            raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
+        check_writable(path)
 
 
 def export_c3d_markers(

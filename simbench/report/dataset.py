@@ -193,12 +193,7 @@ def dataset_report(
         raise InputError(f"{calibration_file or dataset}: {exc}") from None
     if calibration_file is None:  # as simbench calibrate: a recording that locates no joint centre
         refuse_unlocated(rec, cal, str(dataset))
-    odd = implausible_lengths(
-        list(cal.lengths),
-        units,
-        c3d=Path(dataset).suffix.lower() == ".c3d",
-        hdf5=Path(dataset).suffix.lower() in (".h5", ".hdf5") and wide is None,
-    )
+    odd = implausible_lengths(list(cal.lengths), units, dataset, wide=wide is not None)
     warnings = [*cal.warnings, *([odd] if odd else [])]
     out.mkdir(parents=True, exist_ok=True)
     plot_residual_histograms(cal.joints, out / "residual_histograms.png", scale)
