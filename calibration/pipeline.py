@@ -65,6 +65,7 @@ from calibration.diagnostics import (
 )
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.frame_noise import noisy_frames
 from calibration.hierarchy import (
     HIERARCHY_METHODS,
     LOOP_FACTOR,
@@ -174,6 +175,8 @@ class Calibration:
             centres coincide); empty without intervals.
         rotation_noise_rad2: ``{sensor: sigma^2}`` the rotation noise (rad^2, per component) the
             joints were corrected for (``correct_rotation_noise``), or ``None``.
+        noisy_frames: ``(F, N)`` True where a valid pose was left out for its noise
+            (``drop_noisy_frames``, :mod:`calibration.frame_noise`), or ``None`` when none was.
     """
 
     names: tuple[str, ...]
@@ -192,6 +195,7 @@ class Calibration:
     robust: str | None = None
     length_uncertainty: tuple[LengthUncertainty | None, ...] = ()
     rotation_noise_rad2: dict[str, float] | None = None
+    noisy_frames: np.ndarray | None = None
 
     @property
     def root(self) -> str:
@@ -233,6 +237,7 @@ def calibrate(
     robust: str | None = None,
     intervals: bool = False,
     correct_rotation_noise: bool = False,
+    drop_noisy_frames: bool = False,
 ) -> Calibration:
     """Estimate joints, hierarchy, limb lengths and sensor placement from sensor poses.
 
@@ -270,6 +275,9 @@ def calibrate(
         correct_rotation_noise: refit the tree's joints corrected for the rotations' noise
             (module docstring); a joint whose motion is too small for its noise keeps the plain
             fit, with a warning.
+        drop_noisy_frames: leave out each sensor's frames whose position noise drowns its
+            others (:mod:`calibration.frame_noise`: a magnetic tracker far from its
+            transmitter), with a warning; False keeps every valid frame.
 
     Raises:
         CalibrationInputError: malformed arrays or options.
@@ -294,10 +302,20 @@ def calibrate(
         raise CalibrationInputError(
             "robust and correct_rotation_noise cannot be combined: the correction is for least squares"
         )
+    noisy = None
+    if drop_noisy_frames:
+        base = np.ones((n_frames, n), dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+        noisy = noisy_frames(p_w_s, base, chunk_frames)
+        if noisy.mask.any():
+            valid = base & ~noisy.mask
+        else:
+            noisy = None
     noise_needed = parent_of is None and robust is None and hierarchy_method == "misfit"
     stats, missing = _pair_statistics(
         R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=noise_needed
     )
+    if noisy is not None:  # a pose left out for its noise is not missing
+        missing = missing - noisy.mask.sum(axis=0)
     t1 = time.perf_counter()
 
     every_pair = solve_pairs(stats, *np.triu_indices(n, k=1), single_axis_ratio=single_axis_ratio)
@@ -360,7 +378,9 @@ def calibrate(
     loops = tuple(
         (names[a], names[b], r) for a, b, r in loop_candidates(residual, tree, loop_factor=loop_factor)
     )
-    warnings = fit_warnings(joints, names, missing, loops, n_frames) + refit_warnings
+    warnings = fit_warnings(joints, names, missing, loops, n_frames, noisy=noisy is not None) + refit_warnings
+    if noisy is not None:
+        warnings += noisy.warnings(names)
     warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames)
     lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
     if refit:
@@ -391,6 +411,7 @@ def calibrate(
         robust=robust,
         length_uncertainty=length_unc,
         rotation_noise_rad2=noise or None,
+        noisy_frames=None if noisy is None else noisy.mask,
     )
 
 
@@ -704,6 +725,8 @@ def fit_warnings(
     missing: np.ndarray,
     loops: Sequence[tuple[str, str, float]],
     n_frames: int,
+    *,
+    noisy: bool = False,
 ) -> list[str]:
     """Plain-language notes that the joint fits and statistics alone give (no pass over the data;
     the batch and the streaming calibration share them): single-axis joints, dropped frames,
@@ -715,8 +738,10 @@ def fit_warnings(
         missing: ``(N,)`` frames each sensor's pose was missing in.
         loops: ``(sensor a, sensor b, rms residual m)`` pairs left out of the tree that fit as well.
         n_frames: frames in the recording.
+        noisy: frames were left out for their noise too (:mod:`calibration.frame_noise`).
     """
     warnings: list[str] = []
+    why = "a pose missing or not finite" + (", or left out for its noise" if noisy else "")
     for joint in joints:
         fit = joint.fit
         if fit.single_axis:
@@ -726,10 +751,7 @@ def fit_warnings(
                 "minimum-norm point, not a measured one"
             )
         if fit.n_dropped:
-            warnings.append(
-                f"joint {joint.name}: {fit.n_dropped} of {n_frames} frames dropped "
-                "(a pose missing or not finite)"
-            )
+            warnings.append(f"joint {joint.name}: {fit.n_dropped} of {n_frames} frames dropped ({why})")
     for k in np.flatnonzero(missing):
         warnings.append(f"sensor {names[k]}: pose missing or not finite in {missing[k]} of {n_frames} frames")
     for a, b, r in loops:

@@ -132,6 +132,7 @@ def calibrate(
     robust: str | None = None,
     intervals: bool = False,
     correct_rotation_noise: bool = False,
+    drop_noisy_frames: bool = False,
 ) -> Calibration:
     """Joint centres, hierarchy, limb lengths and sensor placement from a recording's poses
     (O'Brien et al. 2000; :func:`calibration.calibrate` does the same on bare arrays).
@@ -149,6 +150,9 @@ def calibrate(
             interval (:mod:`calibration.uncertainty`; for robust fits, conditional on the inliers).
         correct_rotation_noise: correct the joints for the noise on the rotations
             (:mod:`calibration.eiv`; not with ``robust``).
+        drop_noisy_frames: leave out each sensor's frames whose position noise drowns its others
+            (:mod:`calibration.frame_noise`: a magnetic tracker far from its transmitter), with a
+            warning; False keeps every valid frame.
 
     Returns:
         The calibration, lengths in the recording's position units (the tracker's).
@@ -168,6 +172,7 @@ def calibrate(
         robust=robust,
         intervals=intervals,
         correct_rotation_noise=correct_rotation_noise,
+        drop_noisy_frames=drop_noisy_frames,
     )
 
 

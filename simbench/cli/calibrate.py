@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -83,6 +84,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "rotations (it biases least squares where a joint moved little); not with --robust"
         ),
     )
+    cal.add_argument(
+        "--drop-noisy-frames",
+        action="store_true",
+        help=(
+            "leave out each sensor's frames whose position noise (read off its own poses) drowns its "
+            "others, where that makes the fit's expected error at least 2 times smaller: a magnetic "
+            "tracker far from its transmitter; the warnings say how many"
+        ),
+    )
     cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
     cal.add_argument(
         "--clusters",
@@ -132,10 +142,19 @@ def _slip_reports(
 ) -> list[tuple[str, SlipReport]]:
     """Slip detection on every calibrated joint; ``[]`` when the recording is too short.
 
-    The window of ``window_s`` seconds becomes frames at the recording's rate (at least 2, at
+    Frames the calibration left out for their noise are left out here too. The window of
+    ``window_s`` seconds becomes frames at the recording's rate (at least 2, at
     most half the recording; 0 when the rate is unknown, which skips detection). The detector's
     threshold is set for ``false_alarms_per_hour`` per joint (:mod:`calibration.slip`).
     """
+    if cal.noisy_frames is not None:  # the frames the calibration left out for their noise
+        out = cal.noisy_frames
+        rec = dataclasses.replace(
+            rec,
+            R_w_s=np.where(out[..., None, None], np.nan, rec.R_w_s),
+            p_w_s=np.where(out[..., None], np.nan, rec.p_w_s),
+            valid=rec.valid & ~out,
+        )
     window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
     window = min(max(window, 2), rec.n_frames // 2)
     if window < 2:
@@ -177,6 +196,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             robust=args.robust,
             intervals=args.intervals,
             correct_rotation_noise=args.correct_rotation_noise,
+            drop_noisy_frames=args.drop_noisy_frames,
         )
     except CalibrationError as exc:  # the data (or the hierarchy given) cannot be calibrated
         raise InputError(
@@ -213,6 +233,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "robust": args.robust,
                 "intervals": args.intervals,
                 "correct_rotation_noise": args.correct_rotation_noise,
+                "drop_noisy_frames": args.drop_noisy_frames,
                 "slip_window_s": None if args.no_slip else args.slip_window,
                 "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,
             },
@@ -231,6 +252,7 @@ def _follow(args: argparse.Namespace) -> int:
             ("--robust", args.robust),
             ("--intervals", args.intervals),
             ("--correct-rotation-noise", args.correct_rotation_noise),
+            ("--drop-noisy-frames", args.drop_noisy_frames),
             ("--clusters", args.clusters),
             ("--wide", args.wide),
         )
