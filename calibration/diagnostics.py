@@ -30,6 +30,15 @@ others' median by :data:`RATIO_FLOOR` or more. Residuals below :data:`NOISE_FREE
 the sensors' median distance count as that much (noise-free data: 1e-15 m and 1e-13 m are both
 exact, not a hundred times apart). With fewer than three other joints there is no spread to
 measure; then a residual :data:`FEW_JOINTS_RATIO` times the largest other one is reported.
+
+**A joint that explains nothing.** No joint at all (``x = 0``) leaves the sensors' own distance as
+the residual, so a least-squares joint's rms residual never exceeds the sensors' rms distance.
+One above :data:`UNEXPLAINED_FRACTION` of it (the joint explains less than three quarters of the
+squared distance) is no joint of a body: skin and noise leave millimetres to centimetres on
+segments of decimetres. It is noise beyond anything the sensors' spec allows, where every joint
+is hit alike and none stands out from the others: a magnetic tracker metres from its
+transmitter (its noise grows as the fourth power of the range; ``drop_noisy_frames`` leaves out
+the frames that carry it, :mod:`calibration.frame_noise`), or poses that are not of one body.
 """
 
 from __future__ import annotations
@@ -53,6 +62,9 @@ RATIO_FLOOR = 3.0
 
 #: With fewer than three other joints: ratio to the largest other residual that is reported.
 FEW_JOINTS_RATIO = 10.0
+
+#: Report a joint whose rms residual exceeds this fraction of its sensors' rms distance.
+UNEXPLAINED_FRACTION = 0.5
 
 #: Contiguous blocks of frames of the jackknife that measures a centre's standard error.
 JACKKNIFE_BLOCKS = 20
@@ -382,4 +394,29 @@ def outlier_warnings(
             "hierarchy, or a sensor between them that is missing), or one of them moved on the body "
             "(see the slip events)"
         )
+    return out
+
+
+def unexplained_warnings(
+    names: tuple[str, ...], pairs: list[tuple[int, int]], rms_residual: np.ndarray, separation: np.ndarray
+) -> list[str]:
+    """Warnings for joints that explain little of their sensors' distance (module docstring).
+
+    Args:
+        names: sensor names.
+        pairs: ``(parent, child)`` sensor indices of the joints.
+        rms_residual: ``(J,)`` their rms residuals, metres.
+        separation: ``(J,)`` the rms distance between each joint's sensors, metres.
+    """
+    out = []
+    for k, (p, c) in enumerate(pairs):
+        if separation[k] > 0 and rms_residual[k] > UNEXPLAINED_FRACTION * separation[k]:
+            out.append(
+                f"joint {names[p]}-{names[c]}: residual {rms_residual[k] * 1e3:.3g} mm rms is "
+                f"{rms_residual[k] / separation[k]:.2g} of the sensors' own rms distance "
+                f"({separation[k] * 1e3:.3g} mm): the joint explains almost nothing of their motion. "
+                "These poses are far noisier than any tracker's spec (a magnetic tracker metres from "
+                "its transmitter: leave out the noisiest frames, --drop-noisy-frames) or are not of "
+                "one body"
+            )
     return out

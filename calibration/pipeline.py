@@ -62,6 +62,7 @@ from calibration.diagnostics import (
     jackknife_block_sums,
     motion_warnings,
     outlier_warnings,
+    unexplained_warnings,
 )
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
@@ -792,4 +793,9 @@ def _diagnostic_warnings(  # positional: one private caller
         chunk_frames=chunk_frames,
         block_sums=block_sums,
     )
-    return warnings + outlier_warnings(names, pairs, np.array([f.rms_residual for f in fits]), separation)
+    rms = np.array([f.rms_residual for f in fits])
+    return (
+        warnings
+        + outlier_warnings(names, pairs, rms, separation)
+        + unexplained_warnings(names, pairs, rms, separation)
+    )

@@ -179,3 +179,32 @@ def test_cli_option(tmp_path, capsys):
     assert doc["options"]["drop_noisy_frames"] is True
     assert main(["calibrate", str(path), "--follow", "--drop-noisy-frames"]) == 2
     assert "does not take --drop-noisy-frames" in capsys.readouterr().err
+
+
+def test_a_joint_that_explains_nothing_is_named():
+    """No joint at all leaves the sensors' distance as the residual: a joint whose residual is most
+    of it explains nothing (far noise); the plain fit of the far capture says so for every joint,
+    the fit without the far frames for none, and the steady capture never."""
+    cap, _ = _far(9)
+    plain = calibrate(cap.R_w_s, cap.p_w_s, cap.names)
+    named = [w for w in plain.warnings if "explains almost nothing" in w]
+    assert len(named) == len(plain.joints)
+    assert all("--drop-noisy-frames" in w for w in named)
+    dropped = calibrate(cap.R_w_s, cap.p_w_s, cap.names, drop_noisy_frames=True)
+    assert not any("explains almost nothing" in w for w in dropped.warnings)
+    steady = _capture(9, 0.01)
+    assert not any(
+        "explains almost nothing" in w for w in calibrate(steady.R_w_s, steady.p_w_s, steady.names).warnings
+    )
+
+
+def test_unexplained_fraction_is_of_the_sensors_distance():
+    from calibration.diagnostics import UNEXPLAINED_FRACTION, unexplained_warnings
+
+    names = ("a", "b", "c")
+    pairs = [(0, 1), (1, 2)]
+    sep = np.array([0.3, 0.3])
+    below = unexplained_warnings(names, pairs, np.array([0.99, 1.0]) * UNEXPLAINED_FRACTION * sep, sep)
+    assert below == []
+    above = unexplained_warnings(names, pairs, np.array([1.01, 0.2]) * UNEXPLAINED_FRACTION * sep, sep)
+    assert len(above) == 1 and above[0].startswith("joint a-b: residual 152 mm rms is 0.51")
