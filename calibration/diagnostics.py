@@ -1,5 +1,6 @@
-"""Checks of a calibration that a user can act on: joints the motion hardly determines, and
-joints whose residual stands far above the others' (sensors that are probably not neighbours).
+"""Checks of a calibration that a user can act on: joints the motion hardly determines, joints
+whose residual stands far above the others' (sensors that are probably not neighbours), and
+joints that explain almost nothing of their sensors' motion (noise beyond any tracker's spec).
 
 Both decisions are unit-free: the same recording in mm, cm, m or inches gives the same verdicts.
 
@@ -370,16 +371,17 @@ def motion_warnings(
     return out
 
 
-def outlier_warnings(
+def residual_warnings(
     names: tuple[str, ...], pairs: list[tuple[int, int]], rms_residual: np.ndarray, separation: np.ndarray
 ) -> list[str]:
-    """Warnings for joints whose residual stands far above the others' (module docstring).
+    """Warnings for joints whose residual stands far above the others', and for joints that
+    explain little of their sensors' distance (module docstring).
 
     Args:
         names: sensor names.
         pairs: ``(parent, child)`` sensor indices of the joints.
         rms_residual: ``(J,)`` their rms residuals, metres.
-        separation: ``(J,)`` typical distance between each joint's sensors, metres.
+        separation: ``(J,)`` the rms distance between each joint's sensors, metres.
     """
     out = []
     floor = NOISE_FREE_FRACTION * float(np.nanmedian(separation)) if np.size(separation) else 0.0
@@ -394,21 +396,6 @@ def outlier_warnings(
             "hierarchy, or a sensor between them that is missing), or one of them moved on the body "
             "(see the slip events)"
         )
-    return out
-
-
-def unexplained_warnings(
-    names: tuple[str, ...], pairs: list[tuple[int, int]], rms_residual: np.ndarray, separation: np.ndarray
-) -> list[str]:
-    """Warnings for joints that explain little of their sensors' distance (module docstring).
-
-    Args:
-        names: sensor names.
-        pairs: ``(parent, child)`` sensor indices of the joints.
-        rms_residual: ``(J,)`` their rms residuals, metres.
-        separation: ``(J,)`` the rms distance between each joint's sensors, metres.
-    """
-    out = []
     for k, (p, c) in enumerate(pairs):
         if separation[k] > 0 and rms_residual[k] > UNEXPLAINED_FRACTION * separation[k]:
             out.append(

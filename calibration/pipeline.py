@@ -61,8 +61,7 @@ from calibration.diagnostics import (
     JACKKNIFE_BLOCKS,
     jackknife_block_sums,
     motion_warnings,
-    outlier_warnings,
-    unexplained_warnings,
+    residual_warnings,
 )
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
@@ -794,8 +793,4 @@ def _diagnostic_warnings(  # positional: one private caller
         block_sums=block_sums,
     )
     rms = np.array([f.rms_residual for f in fits])
-    return (
-        warnings
-        + outlier_warnings(names, pairs, rms, separation)
-        + unexplained_warnings(names, pairs, rms, separation)
-    )
+    return warnings + residual_warnings(names, pairs, rms, separation)

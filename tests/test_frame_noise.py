@@ -199,12 +199,12 @@ def test_a_joint_that_explains_nothing_is_named():
 
 
 def test_unexplained_fraction_is_of_the_sensors_distance():
-    from calibration.diagnostics import UNEXPLAINED_FRACTION, unexplained_warnings
+    from calibration.diagnostics import UNEXPLAINED_FRACTION, residual_warnings
 
     names = ("a", "b", "c")
     pairs = [(0, 1), (1, 2)]
     sep = np.array([0.3, 0.3])
-    below = unexplained_warnings(names, pairs, np.array([0.99, 1.0]) * UNEXPLAINED_FRACTION * sep, sep)
+    below = residual_warnings(names, pairs, np.array([0.99, 1.0]) * UNEXPLAINED_FRACTION * sep, sep)
     assert below == []
-    above = unexplained_warnings(names, pairs, np.array([1.01, 0.2]) * UNEXPLAINED_FRACTION * sep, sep)
+    above = residual_warnings(names, pairs, np.array([1.01, 0.2]) * UNEXPLAINED_FRACTION * sep, sep)
     assert len(above) == 1 and above[0].startswith("joint a-b: residual 152 mm rms is 0.51")
