@@ -281,3 +281,23 @@ def test_times_in_milliseconds_are_named(tmp_path):
     assert not [n for n in read_poses(stamped_csv(tmp_path, times)).notes if "in seconds" in n]
     rec = read_poses(stamped_csv(tmp_path, 1000 * times))
     assert any("time steps of 8.333 s" in n and "milliseconds" in n for n in rec.notes)
+
+
+def test_a_last_line_cut_short_is_noted(linkage_exact, tmp_path):
+    """A writer stopped in the middle of the last line leaves a number cut short, which reads as a
+    shorter number: the file not ending with a line end is the one sign, and it is noted."""
+    cap = linkage_exact
+    path = tmp_path / "poses.csv"
+    write_pose_csv(
+        path, PoseRecording(cap.names, cap.time_s, cap.R_w_s, cap.p_w_s, np.ones(cap.p_w_s.shape[:2], bool))
+    )
+    whole = read_pose_csv(path)
+    assert not any("line end" in n for n in whole.notes)
+    text = path.read_bytes()
+    assert text.endswith(b"\n")
+    path.write_bytes(text[:-4])  # the last quaternion component cut short
+    cut = read_pose_csv(path)
+    assert any("does not end with a line end: its last line may be cut short" in n for n in cut.notes)
+    assert cut.n_frames == whole.n_frames
+    path.write_bytes(text.replace(b"\n", b"\r\n"))  # Windows line ends end the file too
+    assert not any("line end" in n for n in read_pose_csv(path).notes)

@@ -359,7 +359,30 @@ def _arrange(path: Path, blocks: Blocks, scale: float, in_memory: bool | None) -
         rows = state[start : start + (1 << 16)]
         rows[rows == NOT_FINITE] = ABSENT
     valid = state.view(bool)
+    cut = cut_short_note(path)
+    if cut:
+        notes.append(cut)
     return PoseTable(names=names, time_s=frame_times, R_w_s=R, p_w_s=p, valid=valid, notes=tuple(notes))
+
+
+def cut_short_note(path: Path) -> str | None:
+    """A note when the file's last line has no line end: a writer stopped in the middle of it (a
+    number cut short reads as a shorter number, which no check can tell), or one that never ends
+    its lines; ``None`` for a file that ends with one (or is empty)."""
+    try:
+        with path.open("rb") as fh:
+            if fh.seek(0, os.SEEK_END) == 0:
+                return None
+            fh.seek(-1, os.SEEK_END)
+            last = fh.read(1)
+    except OSError:
+        return None
+    if last in (b"\n", b"\r"):
+        return None
+    return (
+        "the file does not end with a line end: its last line may be cut short (a writer stopped "
+        "in the middle of it) and was read as it stands; check its numbers, or leave it out"
+    )
 
 
 def _frames_and_names(path: Path, blocks: Blocks) -> tuple[tuple[str, ...], np.ndarray]:
