@@ -208,3 +208,25 @@ def test_unexplained_fraction_is_of_the_sensors_distance():
     assert below == []
     above = residual_warnings(names, pairs, np.array([1.01, 0.2]) * UNEXPLAINED_FRACTION * sep, sep)
     assert len(above) == 1 and above[0].startswith("joint a-b: residual 152 mm rms is 0.51")
+
+
+def test_the_choice_is_unit_free():
+    """Millimetres or metres: the same frames go (every threshold is a ratio of the data's own)."""
+    cap, _ = _far(10)
+    metres = noisy_frames(cap.p_w_s, _valid(cap))
+    millimetres = noisy_frames(cap.p_w_s * 1000.0, _valid(cap))
+    assert np.array_equal(metres.mask, millimetres.mask)
+    assert np.allclose(metres.quiet_m * 1000.0, millimetres.quiet_m, rtol=1e-9)
+    assert np.allclose(metres.gain, millimetres.gain, rtol=1e-9)
+
+
+def test_out_of_core_poses(tmp_path):
+    """Poses in an HDF5 file (sliced along frames, never read whole) give the same choice."""
+    import h5py
+
+    cap, _ = _far(11)
+    with h5py.File(tmp_path / "p.h5", "w") as fh:
+        fh["p"] = cap.p_w_s
+    with h5py.File(tmp_path / "p.h5", "r") as fh:
+        on_disk = noisy_frames(fh["p"], _valid(cap), chunk_frames=500)
+    assert np.array_equal(on_disk.mask, noisy_frames(cap.p_w_s, _valid(cap)).mask)
