@@ -403,7 +403,7 @@ def residual_warnings(
                 f"{rms_residual[k] / separation[k]:.2g} of the sensors' own rms distance "
                 f"({separation[k] * 1e3:.3g} mm): the joint explains almost nothing of their motion. "
                 "These poses are far noisier than any tracker's spec (a magnetic tracker metres from "
-                "its transmitter: leave out the noisiest frames, --drop-noisy-frames) or are not of "
-                "one body"
+                "its transmitter: leave out the noisiest frames, --drop-noisy-frames, or "
+                "drop_noisy_frames=True in Python) or are not of one body"
             )
     return out
