@@ -21,7 +21,17 @@ sensor keeps the ``n`` quietest of its frames that minimise that sum (the rest a
 missing), but only frames whose noise is beyond :data:`QUIET_RATIO` times its quietest tenth (the
 window's estimate of a constant noise varies by far less: no frame of a steady tracker goes) and
 above :data:`NOISE_FLOOR` of the body's size (noise-free data, whose third differences are the
-motion's own, loses nothing).
+motion's own, loses nothing). The candidates' third differences, pooled, must also correlate as
+white noise does from one frame to the next (:data:`WHITE_RATIO`): heel strikes and other
+impacts of an exact walk raise the estimate without being noise. And frames go only where that
+makes the expected error at least :data:`MIN_GAIN` times smaller.
+
+**Off by default.** The sum above gives every frame the same leverage; a joint fit does not. The
+farthest poses of an exercise in front of a transmitter are its noisiest and also its most
+informative, and a field distortion is not white noise: turned on for the validation, the
+paper-table linkage's worst length error went from 0.91 to 1.17 cm. On a walk that leaves the
+tracker's range it pays: the humanoid's 30 s walk with the Flock of Birds, 16.6 -> 4.2 mm rms
+centre error; a gait 5 m from a Polhemus source, 12 -> 2 wrong joints of 15.
 """
 
 from __future__ import annotations
