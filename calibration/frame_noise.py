@@ -111,11 +111,15 @@ class NoisyFrames:
                     f"sensor {name}: {count} of {n_frames} frames left out for their position noise "
                     f"(median {_mm(self.dropped_median_m[k])} against {_mm(self.quiet_m[k])} in its "
                     f"quietest tenth; kept up to {_mm(self.kept_max_m[k])}; they made the fit's "
-                    f"expected error {self.gain[k]:.3g} times larger): noise that varies this much is a "
+                    f"expected error {_larger(self.gain[k])}): noise that varies this much is a "
                     "tracker beyond its range (a magnetic tracker far from its transmitter) or a "
                     "disturbed field"
                 )
         return out
+
+
+def _larger(x: float) -> str:
+    return "infinitely larger, the other frames being exact" if np.isinf(x) else f"{x:.3g} times larger"
 
 
 def _mm(x: float) -> str:
@@ -219,7 +223,10 @@ def noisy_frames(p_w_s: Any, valid: np.ndarray, chunk_frames: int = CHUNK_FRAMES
         with np.errstate(invalid="ignore", divide="ignore"):
             expected = np.where(count > 0, cum / np.maximum(count, 1) ** 2, np.inf)
         keep = int(np.argmin(expected))
-        gain[k] = float(np.sqrt(expected[-1] / expected[keep])) if expected[keep] > 0 else 1.0
+        if expected[keep] > 0:
+            gain[k] = float(np.sqrt(expected[-1] / expected[keep]))
+        elif expected[-1] > 0:  # exact poses but for a few noisy frames: leaving them out is exact
+            gain[k] = np.inf
         if keep < order.size and gain[k] >= MIN_GAIN:
             mask[order[keep:], k] = True
             dropped[k] = float(np.sqrt(np.median(x[order[keep:]]) / 3.0))
