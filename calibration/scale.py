@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.quantiles import mad_std
 
 
 @dataclass(frozen=True)
@@ -73,7 +74,6 @@ def rigidity(d: np.ndarray) -> tuple[float, float]:
     d = d[np.isfinite(d)]
     if d.size < 3:
         return 0.0, 0.0
-    spread = 1.4826 * float(np.median(np.abs(d - np.median(d))))
-    step = np.diff(d)
-    noise = 1.4826 * float(np.median(np.abs(step - np.median(step)))) / np.sqrt(2.0)
+    spread = mad_std(d)
+    noise = mad_std(np.diff(d)) / np.sqrt(2.0)
     return spread, noise

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.quantiles import chi2_ppf
+from calibration.quantiles import MAD_TO_SIGMA, chi2_ppf
 
 #: Quantile of the statistic above which its tail is modelled (the exponential tail's origin).
 TAIL_QUANTILE = 0.75
@@ -17,9 +17,6 @@ TAIL_QUANTILE = 0.75
 #: Confidence of the upper bound on the tail's scale used for the threshold (short recordings hold
 #: few independent exceedances; the bound keeps the stated rate with this confidence).
 TAIL_CONFIDENCE = 0.75
-
-#: ``1 / Phi^-1(3/4)``: a normal variable's standard deviation over its median absolute deviation.
-MAD_TO_SIGMA = 1.4826
 
 
 def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:

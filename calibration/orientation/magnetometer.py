@@ -49,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.quantiles import mad_std
 
 #: Largest standard error of a semi-axis, over its length, of a determined fit (1 %).
 AXIS_TOLERANCE = 0.01
@@ -391,7 +392,7 @@ def _departures(m: np.ndarray, valid: np.ndarray | None, strength: float | None)
         return _Departures(use, float("nan"), float("nan"), none)
     B = float(np.median(n[use])) if strength is None else float(strength)
     x = n / B - 1.0
-    spread = 1.4826 * float(np.median(np.abs(x[use] - np.median(x[use]))))
+    spread = mad_std(x[use])
     if not spread > 0:
         return _Departures(use, B, spread, none)
     out = np.flatnonzero(use & (np.abs(x - np.median(x[use])) > SPAN_THRESHOLD * spread))
