@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 
 import simbench as sb
 from calibration.errors import CalibrationInputError
@@ -553,6 +554,29 @@ def test_a_skeleton_cut_to_a_tree_keeps_its_joints_and_refuses_an_orphan():
         sk.permuted(np.array([1, 2]))
     with pytest.raises(CalibrationInputError, match="distinct"):
         sk.permuted(np.array([0, 0, 1]))
+
+
+def test_the_solve_runs_blas_on_one_thread(monkeypatch):
+    """The banded solves' blocks are small: a threaded BLAS only slows them (twice as slow on two
+    cores, :data:`~calibration.orientation.skeleton.BLAS_THREADS`), whatever the caller set."""
+    import calibration.orientation.skeleton as sk
+
+    seen: list[int] = []
+    solve = sk._solve_tree
+
+    def recording(*args, **kwargs):
+        seen.extend(x["num_threads"] for x in threadpool_info() if x["user_api"] == "blas")
+        return solve(*args, **kwargs)
+
+    monkeypatch.setattr(sk, "_solve_tree", recording)
+    rng = np.random.default_rng(0)
+    acc = rng.normal(size=(200, 2, 3)) + np.array([0.0, 0.0, 9.81])
+    mag = rng.normal(size=(200, 2, 3)) + np.array([20.0, 0.0, -40.0])
+    with threadpool_limits(limits=2, user_api="blas"):
+        skeleton_orientation(acc, mag, 100.0)
+        after = [x["num_threads"] for x in threadpool_info() if x["user_api"] == "blas"]
+    assert seen and set(seen) == {1}
+    assert after and set(after) == {2}  # the caller's setting is back
 
 
 def test_normal_equations_equal_those_of_a_finite_difference_jacobian():

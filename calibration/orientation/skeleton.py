@@ -123,6 +123,7 @@ from scipy.ndimage import maximum_filter1d
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 from scipy.spatial.transform import Rotation, Slerp
+from threadpoolctl import threadpool_limits
 
 from calibration.errors import CalibrationInputError
 from calibration.orientation.disturbance import Weighting, smooth_vectors
@@ -154,6 +155,13 @@ OVERLAP_S = 10.0
 #: Fewest frames a segment holds, whatever the rate: a recording labelled with a rate far too low
 #: (0.01 Hz for a 100 Hz IMU) is not cut into thousands of tiny solves.
 MIN_SEGMENT_FRAMES = 512
+
+#: BLAS threads the solve runs on (restored after it). The banded Cholesky's blocks are small
+#: (half-bandwidth about 110), where a threaded BLAS only waits on itself: measured on two cores,
+#: the humanoid's 16 sensors, true skeleton, 60 s at 100 Hz: 11.7 s on one thread, 22.0 s on two;
+#: 20 s on the calibrated skeleton 4.0 s and 8.5 s. (The command line and the test suite ran on one
+#: thread already; the Python API's callers did not.)
+BLAS_THREADS = 1
 
 #: Frames read at once by :meth:`Skeleton.with_ranges`.
 RANGE_CHUNK = 65536
@@ -1228,22 +1236,24 @@ def skeleton_orientation(
         v = None if valid is None else np.asarray(valid, dtype=bool)[:, roots]
         ref = reference_from_data(acc[:, roots], mag[:, roots], valid=v)
     _, _, ok = measured_directions(acc, mag, ref, valid)
-    # each tree on its own, over its sensors in an order that narrows the band
+    # each tree on its own, over its sensors in an order that narrows the band; BLAS on one thread
+    # (:data:`BLAS_THREADS`)
     data = _Data(acc, mag, ok, clipped, carry)
     R = np.empty((f, n, 3, 3))
     iterations = 0
-    for tree in skeleton.trees():
-        setup = _Setup(
-            rate_hz,
-            skeleton.permuted(tree),
-            ref,
-            priors,
-            tuple(levels_hz),
-            max_iter,
-            fine_iter,
-            weigh_disturbance,
-            tuple(tuple(p) for p in starts) or ((),),
-        )
-        R[:, tree], it = _solve_tree(data.take(tree, axis=1), setup, segment_s)
-        iterations += it
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        for tree in skeleton.trees():
+            setup = _Setup(
+                rate_hz,
+                skeleton.permuted(tree),
+                ref,
+                priors,
+                tuple(levels_hz),
+                max_iter,
+                fine_iter,
+                weigh_disturbance,
+                tuple(tuple(p) for p in starts) or ((),),
+            )
+            R[:, tree], it = _solve_tree(data.take(tree, axis=1), setup, segment_s)
+            iterations += it
     return Estimate(quat_where(R, ok), ok, ref.frame, iterations=iterations)
