@@ -220,7 +220,7 @@ def orient(
     data: Dataset | ImuRecording,
     method: str = DEFAULT_METHOD,
     *,
-    skeleton: Skeleton | str | os.PathLike[str] | None = None,
+    skeleton: Skeleton | Calibration | str | os.PathLike[str] | None = None,
     weighting: bool = True,
     smooth_hz: float | None = None,
     calibrate_mag: bool = True,
@@ -234,9 +234,11 @@ def orient(
     Args:
         data: a Dataset with inertial data, or an IMU recording (e.g. a BROAD trial from :func:`read`).
         method: one of :data:`simbench.orient.METHODS`.
-        skeleton: for the ``skeleton`` method, a calibration JSON of the same sensors (``simbench
-            calibrate --json``) or a :class:`calibration.orientation.Skeleton` over the
-            recording's sensors; ``None``: each sensor on its own.
+        skeleton: for the ``skeleton`` method, a calibration of the same sensors: a
+            :class:`calibration.Calibration` (:func:`calibrate`) or its JSON (``simbench
+            calibrate --json``; :func:`simbench.orient.skeleton_from_calibration`), or a
+            :class:`calibration.orientation.Skeleton` over the recording's sensors; ``None``:
+            each sensor on its own.
         weighting: Fontaine's disturbance weighting.
         smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
         calibrate_mag: calibrate each magnetometer from the recording's own samples first

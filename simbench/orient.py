@@ -51,7 +51,7 @@ from calibration.orientation import (
 )
 from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
-from simbench.io.calibration_json import calibration_joints, read_calibration_json
+from simbench.io.calibration_json import calibration_joints, calibration_to_dict, read_calibration_json
 from simbench.io.imu import ImuRecording
 
 #: Every method :func:`estimate` knows: gyro-free (``skeleton``, the default; the per-sample
@@ -249,20 +249,35 @@ def skeleton_of(cal: Calibration) -> Skeleton:
     return Skeleton(np.asarray(cal.hierarchy.parent), lp, lc)
 
 
-def skeleton_from_calibration(path: str | os.PathLike[str], names: tuple[str, ...]) -> Skeleton:
+def skeleton_from_calibration(
+    source: str | os.PathLike[str] | Calibration, names: tuple[str, ...]
+) -> Skeleton:
     """The skeleton of a calibration JSON (``simbench calibrate --json``, or a dataset's
-    ``--truth-json``) over a recording's sensors: its tree and its joints in the sensors' frames.
+    ``--truth-json``), or of a calibration in memory (:func:`simbench.calibrate`, read as its JSON
+    would be), over a recording's sensors: its tree and its joints in the sensors' frames.
 
     The calibration must be of the same sensors mounted as in the recording (e.g. made from the
     session's magnetic-tracker poses, or from an earlier session without re-mounting). Sensors
     that the calibration leaves out are their own roots; a joint it found single-axis is a hinge
-    about its axis (``axis_in_parent``, ``axis_in_child``); a joint with a ``range`` keeps to it.
+    about its axis (``axis_in_parent``, ``axis_in_child``); a joint with a ``range`` keeps to it
+    (a file's: ``simbench calibrate`` writes the ranges its poses show; one in memory has none).
 
     Raises:
         InputError: the file is not a calibration JSON, is not in metres, names sensors the
-            recording lacks, or its joints do not form a tree.
+            recording lacks, or its joints do not form a tree; ``source`` is neither a path nor a
+            calibration.
     """
-    doc = read_calibration_json(path)
+    if isinstance(source, Calibration):
+        doc = calibration_to_dict(source)
+        path: str | os.PathLike[str] = "the calibration given"
+    elif isinstance(source, str | os.PathLike):
+        doc = read_calibration_json(source)
+        path = source
+    else:
+        raise InputError(
+            "skeleton: expected a Skeleton, a Calibration (simbench.calibrate) or the path of a "
+            f"calibration JSON, got {type(source).__name__}"
+        )
     units = doc.get("units", "m")
     if units != "m":
         raise InputError(f"{path}, key units: expected 'm', got {units!r}")

@@ -5,6 +5,7 @@ magnetic disturbance; bad inputs are refused; the calibration JSON becomes its s
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from calibration.orientation.world import measured_directions, quat_where
 from calibration.rotations import quat_to_matrix, rotvec_to_matrix
 from simbench.cli import main
 from simbench.errors import InputError
+from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
 from simbench.io.dataset import write_dataset
 from simbench.io.imu import ImuRecording, read_broad
 from simbench.orient import calibrate_magnetometers, estimate, skeleton_from_calibration
@@ -554,6 +556,25 @@ def test_a_skeleton_cut_to_a_tree_keeps_its_joints_and_refuses_an_orphan():
         sk.permuted(np.array([1, 2]))
     with pytest.raises(CalibrationInputError, match="distinct"):
         sk.permuted(np.array([0, 0, 1]))
+
+
+def test_a_calibration_in_memory_is_the_skeleton_its_json_gives(tmp_path):
+    """``sb.orient(ds, skeleton=sb.calibrate(ds))``: the calibration in memory gives the skeleton its
+    JSON gives (tree, joints, hinges), and anything else is refused by name."""
+    ds = sb.simulate(model="humanoid", motion="exercise", sensors="mems-industrial", duration_s=2, seed=11)
+    cal = sb.calibrate(ds)
+    path = tmp_path / "cal.json"
+    write_calibration_json(path, calibration_to_dict(cal))
+    names = ds.imu().names
+    from_memory, from_file = skeleton_from_calibration(cal, names), skeleton_from_calibration(path, names)
+    for field in dataclasses.fields(from_file):
+        a, b = getattr(from_memory, field.name), getattr(from_file, field.name)
+        assert (a is None and b is None) or np.array_equal(a, b), field.name
+    assert (from_memory.parent >= 0).sum() == 15
+    run = sb.orient(ds, skeleton=cal)
+    assert run.method == "skeleton" and np.isfinite(run.q_w_s).all()
+    with pytest.raises(sb.InputError, match=r"expected a Skeleton, a Calibration .* got dict"):
+        sb.orient(ds, skeleton={"joints": []})
 
 
 def test_the_solve_runs_blas_on_one_thread(monkeypatch):
