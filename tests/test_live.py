@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 import textwrap
+import time
 
 import numpy as np
 import pytest
@@ -114,6 +115,22 @@ WRITER = textwrap.dedent(
 )
 
 
+class _UntilWriterDone:
+    """A follower's clock that runs as the wall clock until the writer has exited and the follower
+    has read the file once more after that, then jumps past any timeout: the follow ends when
+    the file is complete instead of waiting out its bound."""
+
+    def __init__(self, writer: subprocess.Popen) -> None:
+        self.writer = writer
+        self.calls_since_exit = 0
+
+    def __call__(self) -> float:
+        if self.writer.poll() is not None:
+            self.calls_since_exit += 1
+        # one call starts a read pass; the second, after a whole pass over the finished file, ends
+        return time.monotonic() + (1e6 if self.calls_since_exit > 2 else 0.0)
+
+
 def test_follow_reads_a_file_another_process_is_appending(tmp_path):
     skeleton = random_tree(5, np.random.default_rng(2))
     cap = simulate_motion(
@@ -132,8 +149,10 @@ def test_follow_reads_a_file_another_process_is_appending(tmp_path):
     writer = subprocess.Popen([sys.executable, "-c", WRITER, str(whole), str(growing)])
     lines: list[str] = []
     try:
-        # bounded: the writer needs about 1 s; the follower stops after 8 s whatever happens
-        cal = follow_csv(growing, timeout_s=8.0, refresh_s=2.0, out=lines.append)
+        # bounded: the writer needs about 1 s; the follower stops once it has read the finished
+        # file, and after 8 s whatever happens
+        clock = _UntilWriterDone(writer)
+        cal = follow_csv(growing, timeout_s=8.0, refresh_s=2.0, out=lines.append, clock=clock)
     finally:
         writer.wait(timeout=30)
     assert writer.returncode == 0
