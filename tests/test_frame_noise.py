@@ -245,3 +245,25 @@ def test_glitches_in_exact_poses_are_left_out(linkage_exact):
     assert out.mask[glitches, 1].all() and out.gain[1] > 100.0
     assert out.mask[:, 1].sum() <= len(glitches) * (fn.WINDOW_FRAMES + 4)
     assert not out.mask[:, [0, 2, 3, 4, 5]].any()
+
+
+def test_report_option(tmp_path, capsys):
+    """``simbench report --drop-noisy-frames``: the report's calibration leaves the far frames out
+    (its warnings say how many; the plain report's say each joint explains almost nothing), and a
+    calibration file given with it is refused."""
+    cap, _ = _far(8)
+    path = tmp_path / "far.csv"
+    write_pose_csv(path, PoseRecording(cap.names, cap.time_s, cap.R_w_s, cap.p_w_s, _valid(cap)))
+    docs = {}
+    for name, extra in (("plain", []), ("dropped", ["--drop-noisy-frames"])):
+        assert main(["report", str(path), "--out", str(tmp_path / name), *extra]) == 0
+        docs[name] = json.loads((tmp_path / name / "results.json").read_text())
+    capsys.readouterr()
+    assert any("explains almost nothing" in w for w in docs["plain"]["warnings"])
+    assert not any("explains almost nothing" in w for w in docs["dropped"]["warnings"])
+    assert any("left out for their position noise" in w for w in docs["dropped"]["warnings"])
+    assert docs["dropped"]["calibration"] == "calibrated here (hierarchy inferred, noisy frames left out)"
+    assert main(["calibrate", str(path), "--json", str(tmp_path / "cal.json")]) == 0
+    args = ["report", str(path), "--calibration", str(tmp_path / "cal.json"), "--drop-noisy-frames"]
+    assert main([*args, "--out", str(tmp_path / "x")]) == 2
+    assert "--drop-noisy-frames leaves frames out of a calibration made here" in capsys.readouterr().err

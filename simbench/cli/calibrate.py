@@ -30,6 +30,13 @@ from simbench.io.read import read_poses, refuse_unlocated
 from simbench.orient import skeleton_of
 from simbench.units import LENGTH_UNITS, implausible_lengths
 
+#: ``--drop-noisy-frames``, as ``simbench calibrate`` and ``simbench report`` offer it.
+DROP_NOISY_FRAMES_HELP = (
+    "leave out each sensor's frames whose position noise (read off its own poses) drowns its "
+    "others, where that makes the fit's expected error at least 2 times smaller: a magnetic "
+    "tracker far from its transmitter; the warnings say how many"
+)
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``calibrate`` subcommand to ``simbench``'s subparsers."""
@@ -84,15 +91,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "rotations (it biases least squares where a joint moved little); not with --robust"
         ),
     )
-    cal.add_argument(
-        "--drop-noisy-frames",
-        action="store_true",
-        help=(
-            "leave out each sensor's frames whose position noise (read off its own poses) drowns its "
-            "others, where that makes the fit's expected error at least 2 times smaller: a magnetic "
-            "tracker far from its transmitter; the warnings say how many"
-        ),
-    )
+    cal.add_argument("--drop-noisy-frames", action="store_true", help=DROP_NOISY_FRAMES_HELP)
     cal.add_argument("--json", metavar="OUT", help="write the calibration JSON here")
     cal.add_argument(
         "--clusters",

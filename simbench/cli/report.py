@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from simbench.cli.calibrate import DROP_NOISY_FRAMES_HELP
 from simbench.errors import InputError
 from simbench.report.dataset import dataset_report
 from simbench.units import LENGTH_UNITS
@@ -32,6 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rep.add_argument(
         "--calibration", metavar="FILE.json", help="report this calibration JSON instead of calibrating"
     )
+    rep.add_argument("--drop-noisy-frames", action="store_true", help=DROP_NOISY_FRAMES_HELP)
     rep.add_argument("--out", default="report", metavar="DIR", help="report folder (default ./report)")
     rep.set_defaults(func=cmd_report)
 
@@ -50,6 +52,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         units=args.units,
         clusters=args.clusters,
         wide=args.wide,
+        drop_noisy_frames=args.drop_noisy_frames,
     )
     for p in paths.values():
         print(f"wrote {p}")

@@ -65,14 +65,16 @@ def _read_input(
     return None, read_poses(str(dataset), units, clusters, wide), 1.0
 
 
-def _calibrated_here(rec: PoseRecording) -> ReportedCalibration:
-    """Calibrate the recording, hierarchy inferred."""
-    cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
+def _calibrated_here(rec: PoseRecording, drop_noisy_frames: bool = False) -> ReportedCalibration:
+    """Calibrate the recording, hierarchy inferred (its noisiest frames left out if asked:
+    :mod:`calibration.frame_noise`)."""
+    cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, drop_noisy_frames=drop_noisy_frames)
+    how = "hierarchy inferred, noisy frames left out" if drop_noisy_frames else "hierarchy inferred"
     return ReportedCalibration(
         tuple(cal.joints),
         tuple(cal.lengths),
         cal.parent_of,
-        "calibrated here (hierarchy inferred)",
+        f"calibrated here ({how})",
         tuple(cal.warnings),
     )
 
@@ -167,6 +169,7 @@ def dataset_report(
     units: str | None = None,
     clusters: str | None = None,
     wide: str | None = None,
+    drop_noisy_frames: bool = False,
 ) -> dict[str, Path]:
     """The report of one recording: residuals, hierarchy and lengths; scored when it has truth.
 
@@ -176,7 +179,8 @@ def dataset_report(
         out: report folder (made if missing).
         calibration_file: a calibration JSON (``simbench calibrate --json``) to report instead of
             calibrating the recording here.
-        units, clusters, wide: as for ``simbench calibrate``.
+        units, clusters, wide, drop_noisy_frames: as for ``simbench calibrate``
+            (``drop_noisy_frames`` only for a calibration made here).
 
     Returns:
         ``{"md": ..., "html": ..., "json": ...}``: the paths written (the PNG lies beside them).
@@ -184,11 +188,20 @@ def dataset_report(
     Raises:
         InputError: an input file is missing or malformed, the calibration JSON's hierarchy is
             not a tree over the sensors, or the recording cannot be calibrated (each naming the
-            file).
+            file); ``drop_noisy_frames`` with a calibration file.
     """
+    if drop_noisy_frames and calibration_file is not None:
+        raise InputError(
+            f"--drop-noisy-frames leaves frames out of a calibration made here; {calibration_file} is "
+            "reported as it is (give one or the other)"
+        )
     ds, rec, scale = _read_input(dataset, units, clusters, wide)
     try:
-        cal = _calibrated_here(rec) if calibration_file is None else _from_file(rec, calibration_file)
+        cal = (
+            _calibrated_here(rec, drop_noisy_frames)
+            if calibration_file is None
+            else _from_file(rec, calibration_file)
+        )
     except CalibrationError as exc:  # what the data (or the file's hierarchy) cannot give
         raise InputError(f"{calibration_file or dataset}: {exc}") from None
     if calibration_file is None:  # as simbench calibrate: a recording that locates no joint centre
