@@ -51,7 +51,12 @@ from calibration.orientation import (
 )
 from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
-from simbench.io.calibration_json import calibration_joints, calibration_to_dict, read_calibration_json
+from simbench.io.calibration_json import (
+    calibration_joints,
+    calibration_to_dict,
+    check_calibration_document,
+    read_calibration_json,
+)
 from simbench.io.imu import ImuRecording
 
 #: Every method :func:`estimate` knows: gyro-free (``skeleton``, the default; the per-sample
@@ -267,9 +272,9 @@ def skeleton_from_calibration(
             recording lacks, or its joints do not form a tree; ``source`` is neither a path nor a
             calibration.
     """
-    if isinstance(source, Calibration):
-        doc = calibration_to_dict(source)
+    if isinstance(source, Calibration):  # the checks a file gets (e.g. a centre not finite)
         path: str | os.PathLike[str] = "the calibration given"
+        doc = check_calibration_document(calibration_to_dict(source), path)
     elif isinstance(source, str | os.PathLike):
         doc = read_calibration_json(source)
         path = source

@@ -575,6 +575,12 @@ def test_a_calibration_in_memory_is_the_skeleton_its_json_gives(tmp_path):
     assert run.method == "skeleton" and np.isfinite(run.q_w_s).all()
     with pytest.raises(sb.InputError, match=r"expected a Skeleton, a Calibration .* got dict"):
         sb.orient(ds, skeleton={"joints": []})
+    # the checks a file gets: a centre that is not finite is named, not solved with
+    first = cal.joints[0]
+    lost = dataclasses.replace(first, fit=dataclasses.replace(first.fit, joint_in_parent=np.full(3, np.nan)))
+    broken = dataclasses.replace(cal, joints=[lost, *cal.joints[1:]])
+    with pytest.raises(sb.InputError, match=r"the calibration given: .*joints\[0\].*joint_in_parent"):
+        skeleton_from_calibration(broken, names)
 
 
 def test_the_solve_runs_blas_on_one_thread(monkeypatch):

@@ -237,7 +237,7 @@ def write_calibration_json(path: str | os.PathLike[str], doc: dict[str, Any]) ->
     atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
 
 
-def _check_joint(path: Path, k: int, joint: Any) -> None:
+def _check_joint(path: str | os.PathLike[str], k: int, joint: Any) -> None:
     """Raise an :class:`InputError` naming what ``joints[k]`` lacks."""
     where = f"{path}: not a calibration JSON: joints[{k}]"
     if not isinstance(joint, dict):
@@ -320,6 +320,16 @@ def read_calibration_json(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise InputError(
             f"{path}, line {exc.lineno}: not a calibration JSON: not valid JSON: {exc.msg}"
         ) from None
+    return check_calibration_document(doc, path)
+
+
+def check_calibration_document(doc: Any, path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The checks of :func:`read_calibration_json` on a parsed document (or one made in memory,
+    :func:`calibration_to_dict`), naming ``path`` (where it came from) in the error; returns it.
+
+    Raises:
+        InputError: as :func:`read_calibration_json`.
+    """
     if not isinstance(doc, dict) or not isinstance(doc.get("joints"), list):
         raise InputError(f'{path}: not a calibration JSON: expected an object with a "joints" list')
     for k, joint in enumerate(doc["joints"]):
