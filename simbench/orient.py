@@ -273,11 +273,11 @@ def skeleton_from_calibration(
             calibration.
     """
     if isinstance(source, Calibration):  # the checks a file gets (e.g. a centre not finite)
-        path: str | os.PathLike[str] = "the calibration given"
-        doc = check_calibration_document(calibration_to_dict(source), path)
+        where: str | os.PathLike[str] = "the calibration given"
+        doc = check_calibration_document(calibration_to_dict(source), where)
     elif isinstance(source, str | os.PathLike):
         doc = read_calibration_json(source)
-        path = source
+        where = source
     else:
         raise InputError(
             "skeleton: expected a Skeleton, a Calibration (simbench.calibrate) or the path of a "
@@ -285,8 +285,8 @@ def skeleton_from_calibration(
         )
     units = doc.get("units", "m")
     if units != "m":
-        raise InputError(f"{path}, key units: expected 'm', got {units!r}")
-    joints = calibration_joints(doc, names, source=path)
+        raise InputError(f"{where}, key units: expected 'm', got {units!r}")
+    joints = calibration_joints(doc, names, source=where)
     n = len(names)
     parent = np.full(n, -1)
     lp = np.zeros((n, 3))
@@ -308,7 +308,7 @@ def skeleton_from_calibration(
         axes = [entry.get("axis_in_parent"), entry.get("axis_in_child")]
         if not all(_is_vector(a) for a in axes):
             raise InputError(
-                f"{path}: joints[{k}] is single-axis but its axis_in_parent and axis_in_child are not "
+                f"{where}: joints[{k}] is single-axis but its axis_in_parent and axis_in_child are not "
                 f"3 finite numbers each: {axes}"
             )
         a_p[joints.child_index[k]], a_c[joints.child_index[k]] = (
@@ -318,7 +318,7 @@ def skeleton_from_calibration(
     try:
         return Skeleton(parent, lp, lc, a_p, a_c, *ranges)
     except CalibrationError as exc:
-        raise InputError(f"{path}: the joints are not a tree over the recording's sensors: {exc}") from None
+        raise InputError(f"{where}: the joints are not a tree over the recording's sensors: {exc}") from None
 
 
 def _is_vector(a: object) -> bool:
