@@ -55,7 +55,13 @@ VARIANTS = {
 }
 
 #: The estimators whose posture (hands and feet placed by forward kinematics) is scored.
-POSTURE_VARIANTS = ("skeleton (calibrated skeleton)", "triad", "fontaine (weighting, 1 Hz)", "mahony (gyro)")
+POSTURE_VARIANTS = (
+    "skeleton (calibrated skeleton)",
+    "skeleton (calibrated skeleton, ranges)",
+    "triad",
+    "fontaine (weighting, 1 Hz)",
+    "mahony (gyro)",
+)
 
 
 #: Near a ferromagnetic object: a 2 A m^2 dipole 40 cm in front of the chest, quieter sensors.
