@@ -52,6 +52,10 @@ def test_quick_validate_writes_a_complete_report(quick_report):
     assert ori["default"] == "skeleton"
     assert ori["target_met"] == (ori["methods"]["skeleton"]["total_rmse_deg"] <= 8)
     assert "Target for the default gyro-free estimator (skeleton): total RMSE at most 8 degrees" in md
+    # the report says Gauss-Newton's fontaine and the closed-form wahba reach the same minimum
+    assert "(`wahba`: the two rows agree" in md
+    f, w = ori["methods"]["fontaine"], ori["methods"]["wahba"]
+    assert w["total_rmse_deg"] == pytest.approx(f["total_rmse_deg"], rel=1e-6)
     broad = results["orientation"]["broad"]
     assert set(broad) == {p.stem for p in DEFAULT_DATA_DIR.glob("broad_*.hdf5")}
     for trial, r in broad.items():
@@ -60,6 +64,8 @@ def test_quick_validate_writes_a_complete_report(quick_report):
         ratio = r["methods"][r["default"]]["total_deg"] / r["methods"]["triad"]["total_deg"]
         assert r["target_met"] == (ratio <= r["target_ratio"])
         assert r["methods"]["vqf (gyro-aided reference)"]["ratio_to_triad"] < 0.5
+        gauss_newton, closed_form = r["methods"]["fontaine"], r["methods"]["wahba"]
+        assert closed_form["total_deg"] == pytest.approx(gauss_newton["total_deg"], rel=1e-6)
     for t in results["humanoid"]["trials"]:  # a wrong tree names its wrong edges, both methods
         assert isinstance(t["wrong_joints"], list) and isinstance(t["wrong_joints_mst"], list)
         assert (t["wrong_joints_mst"] == []) == t["hierarchy_correct_mst"]

@@ -209,6 +209,7 @@ ORIENTATION_METHODS: dict[str, dict[str, Any]] = {
     "triad": {"method": "triad"},
     "fontaine": {"method": "fontaine"},
     "fontaine (1 Hz weighted smoothing)": {"method": "fontaine", "smooth_hz": 1.0},
+    "wahba": {"method": "wahba"},
     "vqf (gyro-aided reference)": {"method": "vqf"},
 }
 

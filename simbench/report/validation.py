@@ -226,8 +226,9 @@ def _slip_and_orientation(slip: dict[str, Any], orientation: dict[str, Any]) -> 
         "sensors, so the limbs' linear acceleration is predicted from the chain's motion instead of "
         "being taken for gravity. On BROAD (one IMU, no skeleton) the sensor moves on its own: its "
         "velocity, the integral of its linear acceleration, has a prior, and its angular acceleration "
-        "another. The others "
-        "are per sample (Fontaine et al., TRIAD), and VQF uses the gyroscope.",
+        "another. The others are per sample: Fontaine et al.'s weighted quadratic error minimised by "
+        "Gauss-Newton (`fontaine`), the same minimum in closed form (`wahba`: the two rows agree, a "
+        "check of the iteration), and TRIAD; VQF uses the gyroscope.",
         "",
         markdown_table(["estimator", "total RMSE (deg)", "heading", "inclination"], errors),
         "",
