@@ -21,6 +21,8 @@ are left out before the tree is built: they say nothing about rigidity.
 
 from __future__ import annotations
 
+import itertools
+import math
 import warnings
 from dataclasses import dataclass, field
 
@@ -29,7 +31,7 @@ from scipy.cluster.hierarchy import fcluster, linkage
 from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.quantiles import f_ppf
+from calibration.quantiles import f_ppf, mad_std, norm_ppf
 
 #: Fewest frames in which two markers are seen together for their distance's spread to be judged
 #: (a standard deviation of fewer than three samples says nothing about how steady it is).
@@ -39,6 +41,18 @@ MIN_FRAMES = 3
 #: frame's misfit ratio is beyond what one rigid body with independent marker noise exceeds in one
 #: frame in a thousand.
 RIGID_FALSE_ALARM = 1e-3
+
+#: False-alarm rate of the check of a cluster's top union against the recording's own clusters
+#: (:func:`doubtful_unions`), per cluster judged.
+DOUBT_FALSE_ALARM = 1e-3
+
+#: Subsets of the other clusters drawn for that check, at most; fewer than :data:`DOUBT_MIN_NULL`
+#: with a top union of the same sizes leave the cluster unjudged.
+DOUBT_SUBSETS = 100
+DOUBT_MIN_NULL = 20
+
+#: Frames (evenly spaced) that check's misfit ratios are taken over, at most.
+DOUBT_FRAMES = 200
 
 
 @dataclass(frozen=True)
@@ -148,6 +162,9 @@ class MarkerGroups:
         splits: ``(part, other part, F, limit)`` for each union the rigidity test refused
             (:func:`rigid_parts`): marker index lists, the median frame's misfit ratio and the
             F quantile it exceeded.
+        doubtful: ``(part, other part, F, z, n)`` for each cluster that may be two bodies: its top
+            union misfits far more than the same union in ``n`` subsets of the recording's other
+            clusters (:func:`doubtful_unions`); kept as one cluster, and said.
     """
 
     clusters: list[list[int]]
@@ -158,6 +175,7 @@ class MarkerGroups:
     rotation_deg: list[float]
     cut_m: tuple[float, float]
     splits: list[tuple[list[int], list[int], float, float]] = field(default_factory=list)
+    doubtful: list[tuple[list[int], list[int], float, float, int]] = field(default_factory=list)
 
 
 def distance_spread(markers: np.ndarray) -> np.ndarray:
@@ -323,6 +341,113 @@ def rigid_parts(
     return parts, splits
 
 
+def _top_union(spread: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two branches joined last in the spread tree of ``members`` (three or more)."""
+    Z = _spread_tree(spread, members)
+    nodes: list[np.ndarray] = [members[[i]] for i in range(len(members))]
+    for left, right, _, _ in Z:
+        nodes.append(np.sort(np.concatenate([nodes[int(left)], nodes[int(right)]])))
+    return nodes[int(Z[-1, 0])], nodes[int(Z[-1, 1])]
+
+
+def _subsets(bodies: list[np.ndarray], size: int, most: int, rng: np.random.Generator) -> list[np.ndarray]:
+    """Up to ``most`` distinct subsets of ``size`` markers, each within one of ``bodies``, drawn
+    evenly over all of them (all when there are no more)."""
+    counts = np.array([math.comb(len(g), size) for g in bodies], dtype=float)
+    if counts.sum() <= most:
+        return [np.array(c) for g in bodies for c in itertools.combinations(sorted(g.tolist()), size)]
+    seen: set[tuple[int, ...]] = set()
+    out = []
+    while len(out) < most:
+        g = bodies[int(rng.choice(len(bodies), p=counts / counts.sum()))]
+        key = tuple(sorted(rng.choice(g, size, replace=False).tolist()))
+        if key not in seen:
+            seen.add(key)
+            out.append(np.array(key))
+    return out
+
+
+def doubtful_unions(
+    markers: np.ndarray,
+    spread: np.ndarray,
+    clusters: list[np.ndarray],
+    *,
+    false_alarm: float = DOUBT_FALSE_ALARM,
+    subsets: int = DOUBT_SUBSETS,
+    frames: int = DOUBT_FRAMES,
+    seed: int = 0,
+) -> list[tuple[list[int], list[int], float, float, int]]:
+    """Clusters that may be two bodies: each one's top union judged against the same union in the
+    recording's other clusters.
+
+    The rigidity test (:func:`rigid_parts`) takes its noise from the two parts alone, and with few
+    markers in them (a segment that lost markers) its limit is so high that two segments pass as
+    one. Here the reference is the recording itself, its skin motion and noise included. A part
+    of another segment joins a cluster last, its distances to the rest being the least steady, so
+    the union judged is the cluster's top union: its spread tree's two main branches
+    (:func:`_top_union`), by the median frame's misfit ratio F (:func:`union_misfit_ratio`). The
+    reference is the same construction on bodies known to be one: ``subsets`` subsets of as many
+    markers of the *other* clusters (each subset within one cluster), whose own top union has
+    parts of the same sizes -- the top union is the least rigid-looking split by construction,
+    so random splits would not do (on simulated skin clusters of 5-8 markers a random-split
+    reference flagged a third of the correct clusters). ``log F`` of the reference is taken as
+    normal (median and robust spread, :func:`calibration.quantiles.mad_std`); a cluster whose
+    ``log F`` lies beyond its ``1 - false_alarm`` quantile, and above every reference value, is
+    doubtful. A cluster is not judged with fewer than :data:`DOUBT_MIN_NULL` reference values
+    (the others too small or too few). Unit-free; the same ``seed`` gives the same result.
+
+    Measured (``studies/cluster_doubt.py``, 30 seeds): simulated chains with 5-8 skin markers per
+    segment, none of the 153 clusters of the whole sets doubtful and 1 of 153 sets with a segment
+    cut to 2-3 markers; 94 of 122 planted unions (3 markers of one segment, 2 of the next)
+    doubtful. Chains of 3-4 markers (``studies/cluster_finding.py``'s, 140 seeds): none. The real
+    hip trial with each of its 73 markers lost, for the whole recording and for its second half
+    (``studies/cluster_marker_loss.py``): both unions of two segments doubtful (F 21 against a
+    reference median of 7 and a largest value of 10), none of the 131 cases grouped right.
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        spread: ``(M, M)`` distance spread (:func:`distance_spread`).
+        clusters: the rigid clusters (marker index arrays).
+        false_alarm: the rate at which a cluster that is one body like the others is doubtful.
+        subsets: subsets of the other clusters drawn per cluster judged, at most.
+        frames: frames (evenly spaced) the misfit ratios are taken over, at most.
+        seed: seeds the draw of the subsets.
+
+    Returns:
+        ``(part, other part, F, z, n)`` per doubtful cluster: ``z`` how many robust standard
+        deviations its ``log F`` lies above the reference's median, ``n`` the reference values.
+    """
+    x = np.asarray(markers, dtype=float)
+    x = x[:: max(1, -(-x.shape[0] // frames))]
+    rng = np.random.default_rng(seed)
+    limit = float(norm_ppf(1.0 - false_alarm))
+    out = []
+    for k, members in enumerate(clusters):
+        members = np.asarray(members)
+        others = [np.asarray(g) for j, g in enumerate(clusters) if j != k and len(g) >= len(members)]
+        if len(members) < 3 or not others:
+            continue
+        a, b = _top_union(spread, members)
+        sizes = sorted((len(a), len(b)))
+        reference = []
+        for subset in _subsets(others, len(members), subsets, rng):
+            a_ref, b_ref = _top_union(spread, subset)
+            if sorted((len(a_ref), len(b_ref))) == sizes:
+                test = union_misfit_ratio(x, a_ref, b_ref)
+                if test is not None and test[0] > 0:
+                    reference.append(np.log(test[0]))
+        test = union_misfit_ratio(x, a, b)
+        if len(reference) < DOUBT_MIN_NULL or test is None or not test[0] > 0:
+            continue
+        scale = mad_std(np.array(reference))
+        if not scale > 0:
+            continue
+        z = (np.log(test[0]) - float(np.median(reference))) / scale
+        if z > limit and np.log(test[0]) > max(reference):
+            out.append(([int(i) for i in a], [int(i) for i in b], float(test[0]), float(z), len(reference)))
+    return out
+
+
 def unjudged_markers(markers: np.ndarray) -> dict[int, str]:
     """``{marker index: reason}`` for markers seen too little to judge how steady their distances are.
 
@@ -432,6 +557,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     order = lambda gs: sorted((sorted(int(k) for k in g) for g in gs), key=lambda g: (-len(g), g[0]))  # noqa: E731
     clusters, still = order(clusters), order(still)
     groups = clusters + still
+    doubtful = doubtful_unions(x, spread, [np.array(g) for g in clusters])
     return MarkerGroups(
         clusters=clusters,
         still=still,
@@ -441,6 +567,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         rotation_deg=[stats[tuple(g)][1] for g in groups],
         cut_m=(cut1, cut2),
         splits=splits,
+        doubtful=doubtful,
     )
 
 

@@ -132,3 +132,46 @@ def test_rigidity_test_cannot_judge_two_single_markers_and_keeps_exact_bodies_wh
     assert union_misfit_ratio(x, np.array([0]), np.array([6])) is None
     exact = np.repeat(x[:1], 50, axis=0)  # one frame repeated: every part fits exactly
     assert rigid_parts(exact, distance_spread(exact), np.arange(8))[0][0].tolist() == list(range(8))
+
+
+def _planted(seed: int) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]:
+    """A chain with 5-8 skin markers per segment: its true clusters, and the same with segment 0
+    cut to 3 markers and joined by 2 of segment 1's (a union of two segments)."""
+    rng = np.random.default_rng(seed)
+    x, truth, _ = simulate_marker_chain(rng, markers=(5, 9))
+    a = list(rng.choice(truth[0], 3, replace=False))
+    b = list(rng.choice(truth[1], 2, replace=False))
+    union = np.array(sorted(a + b))
+    rest = [np.array([k for k in t if k not in b]) for t in truth[1:]]
+    return x, [np.array(t) for t in truth], [union, *rest]
+
+
+@pytest.mark.parametrize("seed", [300, 302])
+def test_a_union_of_two_segments_is_doubtful_and_true_clusters_are_not(seed):
+    """The union's top union (3 markers of one segment, 2 of the next) misfits far more than the
+    same union in subsets of the other clusters; the true clusters are judged and pass."""
+    from calibration.clusters import doubtful_unions
+
+    x, truth, planted = _planted(seed)
+    spread = distance_spread(x)
+    assert doubtful_unions(x, spread, truth) == []
+    doubt = doubtful_unions(x, spread, planted)
+    assert len(doubt) == 1
+    part, other, f, z, n = doubt[0]
+    assert sorted(part + other) == planted[0].tolist() and {len(part), len(other)} == {2, 3}
+    assert z > 3.09 and n >= 20 and f > 0
+    # unit-free, and the same seed the same answer
+    again = doubtful_unions(x * 1000.0, distance_spread(x * 1000.0), planted)
+    assert [d[:2] for d in again] == [d[:2] for d in doubt]
+    assert again[0][2] == pytest.approx(f, rel=1e-9) and again[0][3] == pytest.approx(z, rel=1e-6)
+
+
+def test_small_clusters_are_not_judged():
+    """With no other cluster as large (chains of 3-4 markers per segment), there is no reference:
+    nothing is said, whatever the clusters."""
+    from calibration.clusters import doubtful_unions
+
+    x, truth, _ = simulate_marker_chain(np.random.default_rng(105))
+    union = np.array(sorted(truth[0] + truth[1][:2]))
+    clusters = [union, *[np.array(t) for t in truth[2:]]]
+    assert doubtful_unions(x, distance_spread(x), clusters) == []

@@ -183,3 +183,23 @@ def test_real_file_thigh_marker_lost_is_not_merged_into_the_shank(tmp_path, dead
         dead == "RTHI1"
     )
     assert c3d_poses(path).names == ("RLM+7", "still")
+
+
+@pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data not beside the repository")
+@pytest.mark.parametrize("dead", ["RGT", "LASIS"])
+def test_real_file_two_segments_kept_as_one_cluster_are_said_to_be_doubtful(dead):
+    """RGT lost (or LASIS for the second half): the segment cut joins two foot markers to the
+    thigh's three, and the rigidity test, whose noise comes from those five markers alone, lets
+    the union pass (F 20.3 against a limit of 51.7). It is kept, but now said: the same union in
+    subsets of the shank's eight markers misfits far less. The whole file gets no such note."""
+    labels, xyz, _ = read_c3d_markers(SHARED_DATA / "biobuddy_right_hip.c3d")
+    _, notes = auto_clusters(labels, xyz)
+    assert not any("may be two bodies" in n for n in notes)
+    k = labels.index(dead)
+    xyz[(slice(None) if dead == "RGT" else slice(xyz.shape[0] // 2, None)), k] = np.nan
+    found, notes = auto_clusters(labels, xyz)
+    assert sorted(found["RMFH1+4"]) == sorted(["RTHI1", "RTHI2", "RTHI3", "RMFH1", "RTT2"])
+    doubt = [n for n in notes if "may be two bodies" in n]
+    assert len(doubt) == 1
+    assert doubt[0].startswith("cluster RMFH1+4 may be two bodies: RTHI1+RTHI2+RTHI3 and RMFH1+RTT2")
+    assert "--clusters FILE" in doubt[0]

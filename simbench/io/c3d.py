@@ -22,7 +22,13 @@ from pathlib import Path
 import ezc3d
 import numpy as np
 
-from calibration.clusters import RIGID_FALSE_ALARM, find_clusters, reference_shape, rigid_fit
+from calibration.clusters import (
+    DOUBT_FALSE_ALARM,
+    RIGID_FALSE_ALARM,
+    find_clusters,
+    reference_shape,
+    rigid_fit,
+)
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_path
@@ -248,6 +254,15 @@ def auto_clusters(
             f"not one rigid body, split: {_group_name([labels[k] for k in a])} and "
             f"{_group_name([labels[k] for k in b])} move against each other (median frame's misfit ratio "
             f"F {f:.3g} > {limit:.3g}, exceeded by one rigid body in 1 frame in {1 / RIGID_FALSE_ALARM:.0f})"
+        )
+    for a, b, f, z, n in found.doubtful:
+        notes.append(
+            f"cluster {_group_name([labels[k] for k in sorted(a + b)])} may be two bodies: "
+            f"{_group_name([labels[k] for k in a])} and {_group_name([labels[k] for k in b])} misfit as one "
+            f"(median frame's misfit ratio F {f:.3g}) {z:.1f} robust standard deviations (log F) beyond the "
+            f"same union in {n} subsets of the other clusters (a one-body cluster goes that far 1 time in "
+            f"{1 / DOUBT_FALSE_ALARM:.0f}); kept as one: if they are on two segments, name the clusters "
+            "(--clusters FILE)"
         )
     if found.unseen:
         notes.append(

@@ -32,7 +32,7 @@ def smooth_noise(rng: np.random.Generator, frames: int, shape: tuple[int, ...], 
 
 
 def simulate_marker_chain(
-    rng: np.random.Generator, *, frames: int = 600, n_static: int = 3
+    rng: np.random.Generator, *, frames: int = 600, n_static: int = 3, markers: tuple[int, int] = (3, 5)
 ) -> tuple[np.ndarray, list[list[int]], list[int]]:
     """Markers of a moving chain with skin motion, the true clusters and the static markers.
 
@@ -40,6 +40,7 @@ def simulate_marker_chain(
         rng: the only source of randomness.
         frames: samples.
         n_static: markers that do not move (camera noise only).
+        markers: markers per segment, drawn from ``[low, high)``.
 
     Returns:
         ``(frames, M, 3)`` marker positions in metres (markers in shuffled order); the true
@@ -54,7 +55,7 @@ def simulate_marker_chain(
     for s in range(n_seg):
         if s > 0:
             R = R @ rotvec_to_matrix(0.6 * smooth_noise(rng, frames, (3,), 2.0))
-        k = int(rng.integers(3, 5))
+        k = int(rng.integers(*markers))
         local = np.column_stack(
             [rng.uniform(-0.05, 0.05, k), rng.uniform(-0.05, 0.05, k), -rng.uniform(0.3, 0.7, k) * length[s]]
         )
