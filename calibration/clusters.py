@@ -51,6 +51,11 @@ DOUBT_FALSE_ALARM = 1e-3
 DOUBT_SUBSETS = 100
 DOUBT_MIN_NULL = 20
 
+#: Smallest cluster that check judges: a cluster of three splits into one marker and a pair,
+#: whose misfit leaves one degree of freedom for the noise; the ratio's spread is then too wide
+#: to tell anything.
+DOUBT_MIN_SIZE = 4
+
 #: Frames (evenly spaced) that check's misfit ratios are taken over, at most.
 DOUBT_FRAMES = 200
 
@@ -394,7 +399,8 @@ def doubtful_unions(
     normal (median and robust spread, :func:`calibration.quantiles.mad_std`); a cluster whose
     ``log F`` lies beyond its ``1 - false_alarm`` quantile, and above every reference value, is
     doubtful. A cluster is not judged with fewer than :data:`DOUBT_MIN_NULL` reference values
-    (the others too small or too few). Unit-free; the same ``seed`` gives the same result.
+    (the others too small or too few), nor below :data:`DOUBT_MIN_SIZE` markers. Unit-free; the
+    same ``seed`` gives the same result.
 
     Measured (``studies/cluster_doubt.py``, 30 seeds): simulated chains with 5-8 skin markers per
     segment, none of the 153 clusters of the whole sets doubtful and 1 of 153 sets with a segment
@@ -425,17 +431,18 @@ def doubtful_unions(
     for k, members in enumerate(clusters):
         members = np.asarray(members)
         others = [np.asarray(g) for j, g in enumerate(clusters) if j != k and len(g) >= len(members)]
-        if len(members) < 3 or not others:
+        if len(members) < DOUBT_MIN_SIZE or not others:
             continue
         a, b = _top_union(spread, members)
         sizes = sorted((len(a), len(b)))
-        reference = []
-        for subset in _subsets(others, len(members), subsets, rng):
-            a_ref, b_ref = _top_union(spread, subset)
-            if sorted((len(a_ref), len(b_ref))) == sizes:
-                test = union_misfit_ratio(x, a_ref, b_ref)
-                if test is not None and test[0] > 0:
-                    reference.append(np.log(test[0]))
+        alike = [
+            ab
+            for ab in (_top_union(spread, s) for s in _subsets(others, len(members), subsets, rng))
+            if sorted((len(ab[0]), len(ab[1]))) == sizes
+        ]
+        if len(alike) < DOUBT_MIN_NULL:  # the trees alone tell: no misfit worked out in vain
+            continue
+        reference = [np.log(t[0]) for t in (union_misfit_ratio(x, *ab) for ab in alike) if t and t[0] > 0]
         test = union_misfit_ratio(x, a, b)
         if len(reference) < DOUBT_MIN_NULL or test is None or not test[0] > 0:
             continue
