@@ -202,4 +202,4 @@ def test_real_file_two_segments_kept_as_one_cluster_are_said_to_be_doubtful(dead
     doubt = [n for n in notes if "may be two bodies" in n]
     assert len(doubt) == 1
     assert doubt[0].startswith("cluster RMFH1+4 may be two bodies: RTHI1+RTHI2+RTHI3 and RMFH1+RTT2")
-    assert "--clusters FILE" in doubt[0]
+    assert "name the clusters (--clusters SPEC.toml)" in doubt[0]

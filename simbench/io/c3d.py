@@ -262,7 +262,7 @@ def auto_clusters(
             f"(median frame's misfit ratio F {f:.3g}) {z:.1f} robust standard deviations (log F) beyond the "
             f"same union in {n} subsets of the other clusters (a one-body cluster goes that far 1 time in "
             f"{1 / DOUBT_FALSE_ALARM:.0f}); kept as one: if they are on two segments, name the clusters "
-            "(--clusters FILE)"
+            "(--clusters SPEC.toml)"
         )
     if found.unseen:
         notes.append(
