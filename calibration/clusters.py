@@ -219,6 +219,15 @@ def _spread_tree(spread: np.ndarray, members: np.ndarray) -> np.ndarray:
     return linkage(squareform(np.where(finite, sub, top), checks=False), method="complete")
 
 
+def _tree_nodes(Z: np.ndarray, members: np.ndarray) -> list[np.ndarray]:
+    """Every node of the tree ``Z`` over ``members``, in scipy's numbering: the leaves, then each
+    row's union of its two nodes (sorted marker indices)."""
+    nodes: list[np.ndarray] = [members[[i]] for i in range(len(members))]
+    for left, right, _, _ in Z:
+        nodes.append(np.sort(np.concatenate([nodes[int(left)], nodes[int(right)]])))
+    return nodes
+
+
 def _largest_gap_groups(spread: np.ndarray, members: np.ndarray) -> tuple[list[np.ndarray], float]:
     """The spread's tree (:func:`_spread_tree`) cut at its largest ratio gap (unit-free)."""
     if len(members) < 2:
@@ -327,7 +336,7 @@ def rigid_parts(
         return [members], []
     Z = _spread_tree(spread, members)
     m = len(members)
-    nodes: list[np.ndarray] = [members[[i]] for i in range(m)]
+    nodes = _tree_nodes(Z, members)
     whole: list[bool] = [True] * m  # each node one rigid body
     splits = []
     for left, right, _, _ in Z:
@@ -339,7 +348,6 @@ def rigid_parts(
             if test is not None and not test[0] <= test[1]:
                 ok = False
                 splits.append(([int(k) for k in a], [int(k) for k in b], *test))
-        nodes.append(np.sort(np.concatenate([a, b])))
         whole.append(ok)
     # the parts: the rigid nodes whose parent is not (or the root, if rigid)
     parent = np.full(len(nodes), -1)
@@ -350,11 +358,9 @@ def rigid_parts(
 
 
 def _top_union(spread: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The two branches joined last in the spread tree of ``members`` (three or more)."""
+    """The two branches joined last in the spread tree of ``members`` (two or more)."""
     Z = _spread_tree(spread, members)
-    nodes: list[np.ndarray] = [members[[i]] for i in range(len(members))]
-    for left, right, _, _ in Z:
-        nodes.append(np.sort(np.concatenate([nodes[int(left)], nodes[int(right)]])))
+    nodes = _tree_nodes(Z, members)
     return nodes[int(Z[-1, 0])], nodes[int(Z[-1, 1])]
 
 

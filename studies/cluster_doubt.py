@@ -16,7 +16,7 @@ unjudged (no other cluster is as large).
 3. **Planted unions (power):** each segment's 3 markers with 2 of the next segment's, the other
    segments as they are: is the union doubtful?
 
-Results go to ``studies/results/cluster_doubt.json`` (about 5 minutes with 30 seeds).
+Results go to ``studies/results/cluster_doubt.json`` (about 3 minutes with 30 seeds).
 """
 
 from __future__ import annotations
@@ -28,7 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.clusters import DOUBT_FALSE_ALARM, distance_spread, doubtful_unions, find_clusters
+from calibration.clusters import (
+    DOUBT_FALSE_ALARM,
+    DOUBT_MIN_SIZE,
+    distance_spread,
+    doubtful_unions,
+    find_clusters,
+)
 from simbench.io.atomic import atomic_write_text
 from simbench.sim.markers import simulate_marker_chain
 
@@ -43,7 +49,9 @@ def _spans_two(clusters: list[list[int]], truth: list[list[int]]) -> bool:
 def _can_be_judged(clusters: list[list[int]]) -> int:
     """Clusters that another is at least as large as (the others give the reference; those with
     fewer than ``DOUBT_MIN_NULL`` subsets of the same top-union sizes are still not judged)."""
-    return sum(len(c) >= 3 and any(len(o) >= len(c) for o in clusters if o is not c) for c in clusters)
+    return sum(
+        len(c) >= DOUBT_MIN_SIZE and any(len(o) >= len(c) for o in clusters if o is not c) for c in clusters
+    )
 
 
 def main() -> None:

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.clusters import distance_spread, find_clusters, rigid_parts, union_misfit_ratio
+from calibration.clusters import (
+    distance_spread,
+    doubtful_unions,
+    find_clusters,
+    rigid_parts,
+    union_misfit_ratio,
+)
 from calibration.rotations import rotvec_to_matrix
 from simbench.sim.markers import simulate_marker_chain, smooth_noise
 
@@ -150,8 +156,6 @@ def _planted(seed: int) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray]]
 def test_a_union_of_two_segments_is_doubtful_and_true_clusters_are_not(seed):
     """The union's top union (3 markers of one segment, 2 of the next) misfits far more than the
     same union in subsets of the other clusters; the true clusters are judged and pass."""
-    from calibration.clusters import doubtful_unions
-
     x, truth, planted = _planted(seed)
     spread = distance_spread(x)
     assert doubtful_unions(x, spread, truth) == []
@@ -169,8 +173,6 @@ def test_a_union_of_two_segments_is_doubtful_and_true_clusters_are_not(seed):
 def test_small_clusters_are_not_judged():
     """With no other cluster as large (chains of 3-4 markers per segment), there is no reference:
     nothing is said, whatever the clusters."""
-    from calibration.clusters import doubtful_unions
-
     x, truth, _ = simulate_marker_chain(np.random.default_rng(105))
     union = np.array(sorted(truth[0] + truth[1][:2]))
     clusters = [union, *[np.array(t) for t in truth[2:]]]
