@@ -14,12 +14,13 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from calibration.orientation import orientation_errors
 from calibration.pipeline import Calibration
-from calibration.skeleton import segment_lengths
+from calibration.skeleton import joint_name, segment_lengths
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset, Truth
 
@@ -137,24 +138,91 @@ def score(cal: Calibration, ds: Dataset, *, scale: float | None = None) -> Calib
         ds: the simulated session it was computed from (must have truth).
         scale: metres per tracker unit; default ``ds.position_unit_scale``.
     """
+    fits = {(j.parent, j.child): j.fit for j in cal.joints}
+    return score_joints(
+        JointArrays.of(cal),
+        ds,
+        scale=scale,
+        residual={k: f.rms_residual for k, f in fits.items()},
+        condition={k: float(f.condition) for k, f in fits.items()},
+    )
+
+
+@dataclass(frozen=True)
+class JointArrays:
+    """Joints of any estimator as arrays: ``parent``, ``child`` ``(J,)`` sensor names and the
+    centres ``joint_in_parent``, ``joint_in_child`` ``(J, 3)`` in the sensors' frames (in the
+    estimate's unit). :class:`simbench.io.calibration_json.CalibrationJoints` is one."""
+
+    parent: tuple[str, ...]
+    child: tuple[str, ...]
+    joint_in_parent: np.ndarray
+    joint_in_child: np.ndarray
+
+    @classmethod
+    def of(cls, cal: Calibration) -> JointArrays:
+        """A calibration's joints."""
+        return cls(
+            tuple(j.parent for j in cal.joints),
+            tuple(j.child for j in cal.joints),
+            np.array([j.fit.joint_in_parent for j in cal.joints], dtype=float).reshape(-1, 3),
+            np.array([j.fit.joint_in_child for j in cal.joints], dtype=float).reshape(-1, 3),
+        )
+
+
+def score_joints(
+    joints: JointArrays | Any,
+    ds: Dataset,
+    *,
+    scale: float | None = None,
+    residual: Mapping[tuple[str, str], float] | None = None,
+    condition: Mapping[tuple[str, str], float] | None = None,
+) -> CalibrationScore:
+    """Score any estimator's joints against ``ds``'s truth: each joint's centre in both sensor
+    frames, the limb lengths between a segment's joints, the tree (as undirected edges).
+
+    Args:
+        joints: anything with ``parent``, ``child``, ``joint_in_parent``, ``joint_in_child``
+            (:class:`JointArrays`, :class:`simbench.io.calibration_json.CalibrationJoints`), in the
+            recording's position unit.
+        ds: the simulated session (must have truth).
+        scale: metres per position unit; default ``ds.position_unit_scale``.
+        residual, condition: ``{(parent, child): value}`` each joint's rms residual (position unit)
+            and condition number where the estimator gives them (NaN elsewhere).
+
+    Returns:
+        The score; a true limb the estimate lacks a joint of has NaN as its estimated length.
+    """
     t = _truth(ds)
     scale = ds.position_unit_scale if scale is None else float(scale)
-    got = estimated_lengths(cal)
+    names = list(ds.sensors)
+    pairs = [(names.index(p), names.index(c)) for p, c in zip(joints.parent, joints.child, strict=True)]
+    jip = np.asarray(joints.joint_in_parent, dtype=float).reshape(-1, 3)
+    jic = np.asarray(joints.joint_in_child, dtype=float).reshape(-1, 3)
+    got = {(x.segment, x.joint_a, x.joint_b): x.length for x in segment_lengths(ds.sensors, pairs, jip, jic)}
     limbs = tuple(
         LimbScore(key[0], key[1], key[2], value, length_of(got, key) * scale)
         for key, value in truth_lengths(ds).items()
     )
     true_joints = {(p, c): k for k, (p, c) in enumerate(zip(t.parent, t.child, strict=True))}
-    joints = []
-    for j in cal.joints:
-        k = true_joints.get((j.parent, j.child))
+    out = []
+    for k, (parent, child) in enumerate(zip(joints.parent, joints.child, strict=True)):
+        i = true_joints.get((parent, child))
         lp = lc = float("nan")
-        if k is not None:
-            lp = float(np.linalg.norm(j.fit.joint_in_parent * scale - t.joint_in_parent[k]))
-            lc = float(np.linalg.norm(j.fit.joint_in_child * scale - t.joint_in_child[k]))
-        joints.append(JointScore(j.name, lp, lc, j.fit.rms_residual * scale, float(j.fit.condition)))
+        if i is not None:
+            lp = float(np.linalg.norm(jip[k] * scale - t.joint_in_parent[i]))
+            lc = float(np.linalg.norm(jic[k] * scale - t.joint_in_child[i]))
+        r = (residual or {}).get((parent, child), float("nan")) * scale
+        out.append(
+            JointScore(
+                joint_name(parent, child), lp, lc, r, (condition or {}).get((parent, child), float("nan"))
+            )
+        )
     return CalibrationScore(
-        limbs=limbs, joints=tuple(joints), tree=compare_trees(cal.parent_of, t.parent_of), scale=scale
+        limbs=limbs,
+        joints=tuple(out),
+        tree=compare_trees(dict(zip(joints.child, joints.parent, strict=True)), t.parent_of),
+        scale=scale,
     )
 
 

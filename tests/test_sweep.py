@@ -115,7 +115,15 @@ def test_error_grows_with_noise(tmp_path):
         (('estimators = ["calibration"]', 'estimators = ["magic"]'), "unknown 'magic'"),
         (
             ('estimators = ["calibration"]', 'estimators = ["joint:magic"]'),
-            r"joint:<obrien\|obrien-eiv\|score",
+            r"'joint:magic': unknown estimator 'magic': expected one of obrien, obrien-eiv, obrien-robust",
+        ),
+        (
+            ('estimators = ["calibration"]', 'estimators = ["joint:fontaine"]'),
+            r"'fontaine' estimates orientation, not joints",
+        ),
+        (
+            ('estimators = ["calibration"]', 'estimators = ["joint:nowhere.py:fit"]'),
+            r"no file nowhere.py",
         ),
         (('kind = "grid"', 'kind = "random"\nsamples = 4'), "random sampling needs low < high"),
     ],

@@ -9,12 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from calibration import calibrate
-from calibration.errors import CalibrationError
-from calibration.methods import JOINT_METHODS
-from calibration.skeleton import segment_lengths
+from simbench.estimators import Estimator, resolve, run_joints, run_orientation
 from simbench.io.dataset import Dataset
-from simbench.orient import estimate
-from simbench.score import compare_trees, score, score_orientation
+from simbench.score import compare_trees, score, score_joints, score_orientation
 
 #: What :func:`calibration_metrics` returns.
 CALIBRATION_METRICS = {
@@ -50,11 +47,12 @@ def calibration_metrics(ds: Dataset) -> dict[str, float]:
     }
 
 
-def orientation_metrics(ds: Dataset, method: str) -> dict[str, float]:
-    """Orientation RMSE (total, heading, inclination; degrees) of one method over every sensor and
-    sample of a simulated session, against the actual sensor orientations."""
+def orientation_metrics(ds: Dataset, method: str | Estimator) -> dict[str, float]:
+    """Orientation RMSE (total, heading, inclination; degrees) of one estimator (any spec of
+    :func:`simbench.estimators.resolve`) over every sensor and sample of a simulated session,
+    against the actual sensor orientations."""
     rec = ds.imu()
-    run = estimate(rec, method)
+    run = run_orientation(resolve(method, "orientation"), rec)
     scored = score_orientation(run.q_enu, rec.q_true, rec.names)
     return {
         "total_rmse_deg": scored.total_rmse_deg,
@@ -78,46 +76,25 @@ def true_joints(ds: Dataset) -> list[tuple[int, int]]:
     return [(names.index(p), c) for c, n in enumerate(names) if (p := ds.truth.parent_of.get(n)) is not None]
 
 
-def joint_method_metrics(ds: Dataset, method: str) -> dict[str, float]:
-    """One joint-centre method of :data:`calibration.methods.JOINT_METHODS` on every joint of the
-    true hierarchy of a simulated session, scored as :func:`calibration_metrics` scores O'Brien's
+def joint_method_metrics(ds: Dataset, method: str | Estimator) -> dict[str, float]:
+    """One joints estimator (any spec of :func:`simbench.estimators.resolve`) on the true
+    hierarchy of a simulated session, scored as :func:`calibration_metrics` scores O'Brien's
     (centres in the parent's frame, limb lengths between a segment's joints; metres through the
-    dataset's unit scale). A joint the method cannot fit (e.g. a sphere fit of a hinge) is
-    counted in ``failed_joints`` and left out of the means (NaN when all fail)."""
+    dataset's unit scale). A joint the estimator does not return (e.g. a sphere fit of a hinge) is
+    counted in ``failed_joints`` and left out of the means (NaN when all fail); an estimator that
+    infers its own tree is given none and scored on the joints it has."""
     if ds.truth is None:
         raise ValueError("joint_method_metrics needs a dataset with truth (a simulated session)")
-    fit = JOINT_METHODS[method]
-    rec = ds.poses()
-    scale = ds.position_unit_scale
-    true_p, true_c = ds.truth_joint_arrays()
-    pairs = true_joints(ds)
-    est_p, est_c, keep = [], [], []
-    failed = 0
-    for parent, child in pairs:
-        try:
-            got = fit(
-                rec.R_w_s[:, parent],
-                rec.p_w_s[:, parent],
-                rec.R_w_s[:, child],
-                rec.p_w_s[:, child],
-                valid=rec.valid[:, parent] & rec.valid[:, child],
-            )
-        except CalibrationError:
-            failed += 1
-            est_p.append(np.full(3, np.nan))
-            est_c.append(np.full(3, np.nan))
-            keep.append(False)
-            continue
-        est_p.append(got.joint_in_parent * scale)
-        est_c.append(got.joint_in_child * scale)
-        keep.append(True)
-    children = [c for _, c in pairs]
-    est_p, est_c, keep = np.array(est_p), np.array(est_c), np.array(keep)
-    centre = np.linalg.norm(est_p - true_p[children], axis=1)[keep]
-    truth = segment_lengths(rec.names, pairs, true_p[children], true_c[children])
-    got = segment_lengths(rec.names, pairs, est_p, est_c)
-    length = np.array([abs(g.length - t.length) for g, t in zip(got, truth, strict=True)])
+    est = resolve(method, "joints")
+    data = ds.poses() if est.data == "poses" else ds.imu()
+    got = run_joints(est, data, hierarchy=ds.truth.parent_of if est.takes_hierarchy else None)
+    scored = score_joints(got.joints, ds, scale=ds.position_unit_scale if est.data == "poses" else 1.0)
+    centre = np.array([j.centre_error_in_parent_m for j in scored.joints])
+    centre = centre[np.isfinite(centre)]
+    length = np.abs([x.error_m for x in scored.limbs])
     length = length[np.isfinite(length)]
+    found = {(p, c) for p, c in zip(got.joints.parent, got.joints.child, strict=True)}
+    failed = sum((p, c) not in found for c, p in ds.truth.parent_of.items())
     return {
         "joint_centre_error_m": float(np.mean(centre)) if centre.size else float("nan"),
         "limb_length_error_m": float(np.mean(length)) if length.size else float("nan"),

@@ -6,7 +6,8 @@ metrics::
     name = "noise"
     seed = 1
     seeds_per_cell = 3
-    estimators = ["calibration"]                  # and/or "orientation:fontaine", "joint:score", ...
+    estimators = ["calibration"]                  # and/or "orientation:fontaine", "joint:score",
+                                                  # "joint:mylab.fit:estimate", "joint:cmd:..."
     metrics = ["joint_centre_error_m", "limb_length_error_m", "hierarchy_correct"]
     [base]                                        # a missing key takes SessionConfig's default
     model = "linkage"
@@ -40,10 +41,9 @@ from typing import Any
 
 import numpy as np
 
-from calibration.methods import JOINT_METHODS
 from simbench.errors import InputError, load_toml
+from simbench.estimators import names, resolve
 from simbench.experiments.metrics import CALIBRATION_METRICS
-from simbench.orient import METHODS
 from simbench.sim.plan import plan_session
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model
@@ -58,12 +58,6 @@ METRICS = {
 }
 #: Keys of ``[base]``: fields of :class:`SessionConfig` (a missing one takes its default).
 BASE_KEYS = {"model", "motion", "sensors", "duration_s", "rate_hz"}
-#: Orientation methods a study may score (``orientation:<method>``).
-ORIENTATION_METHODS = METHODS
-#: Joint-centre methods a study may score (``joint:<method>``) on the true hierarchy: the
-#: columns ``joint_centre_error_m:<method>``, ``limb_length_error_m:<method>`` and
-#: ``failed_joints:<method>`` (:func:`simbench.experiments.metrics.joint_method_metrics`).
-JOINT_ESTIMATORS = tuple(JOINT_METHODS)
 DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
 STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
 PARAMETER_KEYS = {"name", "unit", "values", "low", "high", "log"}
@@ -270,19 +264,37 @@ def _strings(doc: dict[str, Any], path: Path, key: str, default: tuple[str, ...]
     return tuple(value)
 
 
+#: A study's estimator entries: ``calibration`` (O'Brien's whole calibration, with the hierarchy
+#: inferred and given), or a kind's prefix and any spec of :func:`simbench.estimators.resolve`.
+ESTIMATOR_PREFIXES = {"joint:": "joints", "orientation:": "orientation"}
+
+
 def _parse_estimators(doc: dict[str, Any], path: Path) -> tuple[str, ...]:
-    estimators = _strings(doc, path, "estimators", ("calibration",))
-    for e in estimators:
-        if e.startswith("joint:") and e.split(":", 1)[1] in JOINT_ESTIMATORS:
+    """The study's estimators, each resolved once here (a spec that names nothing, or a file or
+    module that cannot be loaded, is refused before any trial); a ``file.py:function`` is found
+    beside the study file first, as the base's files are."""
+    estimators = []
+    for e in _strings(doc, path, "estimators", ("calibration",)):
+        if e == "calibration":
+            estimators.append(e)
             continue
-        method = e.split(":", 1)[1] if e.startswith("orientation:") else None
-        if e != "calibration" and method not in ORIENTATION_METHODS:
-            expected = (
-                f"calibration, orientation:<{'|'.join(ORIENTATION_METHODS)}> or "
-                f"joint:<{'|'.join(JOINT_ESTIMATORS)}>"
+        prefix = next((p for p in ESTIMATOR_PREFIXES if e.startswith(p)), None)
+        if prefix is None:
+            raise InputError(
+                f"{path}, key estimators: unknown {e!r}; expected calibration, joint:SPEC or "
+                f"orientation:SPEC, SPEC one of {', '.join(names())}, package.module:function, "
+                "path/to/file.py:function or cmd:COMMAND"
             )
-            raise InputError(f"{path}, key estimators: unknown {e!r}; expected {expected}")
-    return estimators
+        spec = e[len(prefix) :]
+        where, _, attr = spec.rpartition(":")
+        if where.endswith(".py") and not Path(where).is_absolute() and (path.parent / where).is_file():
+            spec = f"{path.parent / where}:{attr}"
+        try:
+            resolve(spec, ESTIMATOR_PREFIXES[prefix])
+        except InputError as exc:
+            raise InputError(f"{path}, key estimators: {e!r}: {exc}") from None
+        estimators.append(prefix + spec)
+    return tuple(estimators)
 
 
 def _parse_sampling(doc: dict[str, Any], path: Path) -> tuple[str, int]:

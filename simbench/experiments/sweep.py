@@ -26,6 +26,7 @@ from typing import Any
 
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, optional_module
+from simbench.estimators import EstimatorError
 from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
 from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.experiments.study import Study, Trial, check_study, study_fingerprint, trial_config, trials
@@ -88,13 +89,17 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
     for est in study.estimators:
         if est == "calibration":
             row.update(calibration_metrics(ds))
-        elif est.startswith("joint:"):
-            method = est.split(":", 1)[1]
-            row.update({f"{k}:{method}": v for k, v in joint_method_metrics(ds, method).items()})
-        else:
-            method = est.split(":", 1)[1]
-            key = f"orientation_rmse_deg:{method}" if several else "orientation_rmse_deg"
-            row[key] = orientation_metrics(ds, method)["total_rmse_deg"]
+            continue
+        kind, spec = est.split(":", 1)
+        try:
+            if kind == "joint":
+                got = joint_method_metrics(ds, spec)
+                row.update({f"{k}:{spec}": v for k, v in got.items()})
+            else:
+                key = f"orientation_rmse_deg:{spec}" if several else "orientation_rmse_deg"
+                row[key] = orientation_metrics(ds, spec)["total_rmse_deg"]
+        except EstimatorError as exc:  # a user's estimator failed on this trial: named, the rest go on
+            row[f"error:{spec}"] = str(exc)
     row["run_time_s"] = time.perf_counter() - t0
     return row
 

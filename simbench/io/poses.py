@@ -36,7 +36,7 @@ from calibration.rotations import matrix_to_quat
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_open
 from simbench.io.csv_blocks import CSV_COLUMNS, read_table
-from simbench.units import metres_per_unit
+from simbench.units import LENGTH_UNITS, metres_per_unit
 
 #: A step shorter than this fraction of the mean step is part of a burst.
 BURST_STEP = 0.1
@@ -98,10 +98,13 @@ class PoseRecording:
         names: ``(sensors,)`` sensor names.
         time_s: ``(frames,)`` strictly increasing times, seconds.
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world (NaN where missing).
-        p_w_s: ``(frames, sensors, 3)`` sensor positions in world, metres (NaN where missing).
+        p_w_s: ``(frames, sensors, 3)`` sensor positions in world, in ``unit`` (NaN where missing).
         valid: ``(frames, sensors)`` bool, False where a pose is missing or not finite.
         source: where the data came from (a path, or a description).
         notes: what the reader repaired or noticed, in plain language.
+        unit: the positions' length unit (a key of :data:`simbench.units.LENGTH_UNITS`): ``"m"``
+            from every reader, which converts; a tracker's own metres for a simulated session
+            (its ``position_unit_scale`` is the truth's, not the recording's).
     """
 
     names: tuple[str, ...]
@@ -111,8 +114,11 @@ class PoseRecording:
     valid: np.ndarray
     source: str = ""
     notes: tuple[str, ...] = ()
+    unit: str = "m"
 
     def __post_init__(self) -> None:
+        if self.unit not in LENGTH_UNITS:
+            raise InputError(f"Expected unit to be one of {sorted(LENGTH_UNITS)}, got {self.unit!r}")
         f, n = self.time_s.shape[0], len(self.names)
         expected = {"time_s": (f,), "R_w_s": (f, n, 3, 3), "p_w_s": (f, n, 3), "valid": (f, n)}
         for name, shape in expected.items():
@@ -187,7 +193,7 @@ def write_pose_csv(
         digits: significant digits per value; ``None`` writes every value exactly (``repr``),
             so that reading gives back the same numbers.
     """
-    scale = metres_per_unit(units)
+    scale = metres_per_unit(units) / metres_per_unit(rec.unit)
     fmt = repr if digits is None else (lambda v: f"{v:.{digits}g}")
     q = matrix_to_quat(np.where(rec.valid[..., None, None], rec.R_w_s, np.eye(3)))
     with atomic_open(path, "w", newline="") as fh:

@@ -1,0 +1,268 @@
+"""simbench's own estimators, registered in :data:`simbench.estimators.registry.REGISTRY`.
+
+This module is the one list of the built-in methods: the command line, studies, the baseline, the
+validation, ``simbench bench`` and the reports take their names from the registry it fills.
+
+**Joint centres** (kind ``joints``; the contract in :mod:`simbench.estimators.registry`):
+
+- ``obrien``: O'Brien et al. (2000) over the whole recording (:func:`calibration.calibrate`): the
+  hierarchy inferred when none is given, each joint's least-squares fit with the single-axis test;
+  ``obrien-eiv`` the same corrected for the rotations' noise (:mod:`calibration.eiv`);
+  ``obrien-robust`` fitted by IRLS (:mod:`calibration.robust`).
+- ``score`` (SCoRE, Ehrig et al. 2006), ``sara`` (SARA, Ehrig et al. 2007),
+  ``sphere-gamage-lasenby`` and ``sphere-geometric`` (sphere fits): the joints of a given hierarchy,
+  one pair at a time (:mod:`calibration.methods`); a joint a method cannot fit is left out, named.
+- ``inertial``: Seel et al. (2012; 2014), the joints of a given hierarchy from gyroscopes and
+  accelerometers alone (its data is an IMU recording, not poses).
+
+**Orientation** (kind ``orientation``): ``skeleton`` (the default: every sensor over the whole
+recording at once, on a calibrated skeleton when one is given), the per-sample ``fontaine``
+(Fontaine et al.), ``triad`` and ``wahba``, and the gyro-aided references ``mahony`` and ``vqf``
+(:func:`simbench.orient.estimate`).
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration, CalibrationError
+from calibration import calibrate as calibrate_arrays
+from calibration.methods import JOINT_METHODS, JointEstimate, estimate_inertial
+from calibration.orientation import Priors, Skeleton
+from calibration.robust import LOSSES
+from simbench.estimators.registry import (
+    REGISTRY,
+    SUFFIX_UNITS,
+    Estimator,
+    JointsResult,
+    OrientationResult,
+    Param,
+    register,
+)
+from simbench.io.calibration_json import CalibrationJoints
+from simbench.io.imu import ImuRecording
+from simbench.io.poses import PoseRecording
+from simbench.orient import estimate
+
+#: The default joints estimator (``simbench calibrate``, ``sb.calibrate``).
+DEFAULT_JOINTS = "obrien"
+#: The default orientation estimator (``simbench orient``, ``sb.orient``).
+DEFAULT_ORIENTATION = "skeleton"
+
+_HIERARCHY_METHOD = Param(
+    "hierarchy_method",
+    HIERARCHY_METHODS[0],
+    help="how an inferred tree weighs each pair: misfit = the joint-fit residual less its noise, "
+    "mst = the residual itself (O'Brien et al.'s minimum spanning tree)",
+    choices=HIERARCHY_METHODS,
+)
+_SINGLE_AXIS_RATIO = Param(
+    "single_axis_ratio",
+    SINGLE_AXIS_RATIO,
+    help="hard floor of s_min/s_max below which a direction is always undetermined",
+)
+_ROOT = Param("root", None, help="root sensor (default: the centre of the inferred tree)")
+_INTERVALS = Param("intervals", False, help="95 % regions of every centre and intervals of limb lengths")
+_DROP_NOISY = Param(
+    "drop_noisy_frames", False, help="leave out each sensor's frames whose position noise drowns its others"
+)
+OBRIEN_PARAMS = (_HIERARCHY_METHOD, _SINGLE_AXIS_RATIO, _ROOT, _INTERVALS, _DROP_NOISY)
+
+
+def joints_of(cal: Calibration) -> CalibrationJoints:
+    """The joints of a calibration as arrays (centres in its input's unit)."""
+    index = {n: k for k, n in enumerate(cal.names)}
+    return CalibrationJoints(
+        parent=tuple(j.parent for j in cal.joints),
+        child=tuple(j.child for j in cal.joints),
+        parent_index=np.array([index[j.parent] for j in cal.joints], dtype=int),
+        child_index=np.array([index[j.child] for j in cal.joints], dtype=int),
+        joint_in_parent=np.array([j.fit.joint_in_parent for j in cal.joints], dtype=float).reshape(-1, 3),
+        joint_in_child=np.array([j.fit.joint_in_child for j in cal.joints], dtype=float).reshape(-1, 3),
+        single_axis=np.array([bool(j.fit.single_axis) for j in cal.joints], dtype=bool),
+    )
+
+
+def _obrien(
+    poses: PoseRecording, *, hierarchy: Mapping[str, str] | None = None, **options: Any
+) -> JointsResult:
+    cal = calibrate_arrays(
+        poses.R_w_s, poses.p_w_s, poses.names, valid=poses.valid, parent_of=hierarchy, **options
+    )
+    return JointsResult(joints_of(cal), calibration=cal, notes=cal.warnings)
+
+
+def _obrien_variant(**fixed: Any) -> Callable[..., JointsResult]:
+    def run(
+        poses: PoseRecording, *, hierarchy: Mapping[str, str] | None = None, **options: Any
+    ) -> JointsResult:
+        return _obrien(poses, hierarchy=hierarchy, **fixed, **options)
+
+    return run
+
+
+def pairwise(fit: Callable[..., JointEstimate]) -> Callable[..., JointsResult]:
+    """A joints estimator of the given hierarchy from a one-pair method of
+    :mod:`calibration.methods` (``fit(R_w_p, p_w_p, R_w_c, p_w_c, *, valid, **options)``): every
+    joint fitted on the frames where both its sensors are valid; a joint the motion cannot determine
+    for the method (:class:`calibration.CalibrationError`) is left out and named in the notes."""
+
+    def run(poses: PoseRecording, *, hierarchy: Mapping[str, str], **options: Any) -> JointsResult:
+        rows, notes = [], []
+        for child, parent in hierarchy.items():
+            p, c = poses.names.index(parent), poses.names.index(child)
+            try:
+                got = fit(*poses.pair(parent, child), valid=poses.valid[:, p] & poses.valid[:, c], **options)
+            except CalibrationError as exc:
+                notes.append(f"joint {parent}-{child} not fitted: {exc}")
+                continue
+            rows.append((parent, child, p, c, got))
+        return JointsResult(_pair_joints(rows), notes=tuple(notes))
+
+    return run
+
+
+def pair_params(fit: Callable[..., JointEstimate]) -> tuple[Param, ...]:
+    """The options of a one-pair method, read off its signature: its keyword-only parameters with
+    defaults, but ``valid`` (the harness's) and those a ``partial`` fixed (a sphere fit's variant)."""
+    fixed = set(getattr(fit, "keywords", {}))
+    return tuple(
+        Param(p.name, p.default, unit=next((u for s, u in SUFFIX_UNITS if p.name.endswith(s)), "1"))
+        for p in inspect.signature(fit).parameters.values()
+        if p.kind is p.KEYWORD_ONLY and p.name != "valid" and p.name not in fixed
+    )
+
+
+def _summary(fit: Callable[..., Any]) -> str:
+    return (inspect.getdoc(getattr(fit, "func", fit)) or "").split("\n", 1)[0]
+
+
+def _pair_joints(rows: list[tuple[str, str, int, int, JointEstimate]]) -> CalibrationJoints:
+    return CalibrationJoints(
+        parent=tuple(r[0] for r in rows),
+        child=tuple(r[1] for r in rows),
+        parent_index=np.array([r[2] for r in rows], dtype=int),
+        child_index=np.array([r[3] for r in rows], dtype=int),
+        joint_in_parent=np.array([r[4].joint_in_parent for r in rows], dtype=float).reshape(-1, 3),
+        joint_in_child=np.array([r[4].joint_in_child for r in rows], dtype=float).reshape(-1, 3),
+        single_axis=np.array([r[4].axis_in_parent is not None for r in rows], dtype=bool),
+    )
+
+
+def _inertial(imu: ImuRecording, *, hierarchy: Mapping[str, str], hinge: bool = False) -> JointsResult:
+    rows, notes = [], []
+    for child, parent in hierarchy.items():
+        p, c = imu.names.index(parent), imu.names.index(child)
+        try:
+            got = estimate_inertial(
+                imu.gyro[:, p],
+                imu.gyro[:, c],
+                imu.acc[:, p],
+                imu.acc[:, c],
+                rate_hz=imu.rate_hz,
+                hinge=hinge,
+                valid=imu.valid[:, p] & imu.valid[:, c],
+            )
+        except CalibrationError as exc:
+            notes.append(f"joint {parent}-{child} not fitted: {exc}")
+            continue
+        rows.append((parent, child, p, c, got))
+    return JointsResult(_pair_joints(rows), notes=tuple(notes))
+
+
+def _orientation(method: str) -> Callable[..., OrientationResult]:
+    def run(imu: ImuRecording, *, skeleton: Skeleton | None = None, **options: Any) -> OrientationResult:
+        if "lone_speed_m_per_s" in options:
+            options["priors"] = Priors(lone_speed=options.pop("lone_speed_m_per_s"))
+        got = estimate(imu, method, skeleton=skeleton, **options)
+        return OrientationResult(got.q_enu, got.ok, got.field_strength_ut, got.inclination_deg)
+
+    run.__name__ = f"orientation_{method}"
+    return run
+
+
+_WEIGHTING = Param("weighting", True, help="Fontaine's disturbance weighting of the accelerometer")
+_SMOOTH = Param("smooth_hz", None, unit="hz", help="zero-phase low-pass cutoff of the inputs (none: none)")
+
+
+def _register_all() -> None:
+    register(
+        Estimator(
+            DEFAULT_JOINTS,
+            "joints",
+            _obrien,
+            OBRIEN_PARAMS,
+            summary="O'Brien et al. 2000: least-squares joint fits, single-axis test, spanning tree",
+        )
+    )
+    register(
+        Estimator(
+            "obrien-eiv",
+            "joints",
+            _obrien_variant(correct_rotation_noise=True),
+            OBRIEN_PARAMS,
+            summary="O'Brien's fits corrected for the rotations' noise (errors in variables)",
+        )
+    )
+    register(
+        Estimator(
+            "obrien-robust",
+            "joints",
+            _obrien_variant(),
+            (*OBRIEN_PARAMS, Param("robust", LOSSES[0], help="the IRLS loss", choices=LOSSES)),
+            summary="O'Brien's fits by iteratively reweighted least squares (slip, bursts)",
+        )
+    )
+    # the one-pair methods of calibration.methods (O'Brien's are the whole-recording ones above)
+    for name, fit in JOINT_METHODS.items():
+        if name in REGISTRY:
+            continue
+        register(
+            Estimator(
+                name, "joints", pairwise(fit), pair_params(fit), frozenset({"hierarchy"}), _summary(fit)
+            )
+        )
+    register(
+        Estimator(
+            "inertial",
+            "joints",
+            _inertial,
+            (Param("hinge", False, help="the joints are hinges: their axes from the gyroscopes"),),
+            frozenset({"hierarchy", "rate", "gyro"}),
+            "Seel et al. 2012/2014: joints from gyroscopes and accelerometers, no poses",
+            data="imu",
+        )
+    )
+    register(
+        Estimator(
+            DEFAULT_ORIENTATION,
+            "orientation",
+            _orientation("skeleton"),
+            (
+                Param(
+                    "lone_speed_m_per_s",
+                    Priors().lone_speed,
+                    unit="m/s",
+                    help="the speed prior of a sensor on its own (no skeleton, or a root with no children)",
+                ),
+            ),
+            frozenset({"rate"}),
+            "every sensor over the whole recording at once, on the calibrated skeleton when given",
+            takes_skeleton=True,
+        )
+    )
+    for name, params, needs, summary in (
+        ("fontaine", (_WEIGHTING, _SMOOTH), {"rate"}, "Fontaine et al.: Gauss-Newton per sample"),
+        ("triad", (_SMOOTH,), {"rate"}, "TRIAD: the two-vector fix per sample"),
+        ("wahba", (_WEIGHTING, _SMOOTH), {"rate"}, "Wahba's problem per sample (closed form)"),
+        ("mahony", (_SMOOTH,), {"rate", "gyro"}, "Mahony's complementary filter (gyro-aided)"),
+        ("vqf", (_SMOOTH,), {"rate", "gyro"}, "VQF (Laidig and Seel 2023), offline (gyro-aided reference)"),
+    ):
+        register(Estimator(name, "orientation", _orientation(name), params, frozenset(needs), summary))
+
+
+_register_all()

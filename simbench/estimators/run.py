@@ -1,0 +1,251 @@
+"""Running any estimator on its data: what it needs checked first, what it returns checked after.
+
+:func:`run_joints` and :func:`run_orientation` give every estimator, built-in or not, the same
+treatment: the hierarchy, rate and gyroscope it needs are there, its parameters are its own, and
+its result is of the right shape, finite, of the recording's sensors and in the poses' unit. What a
+user's estimator does wrong (raises, returns NaN or the wrong sensors, a command that fails) is an
+:class:`EstimatorError` naming it; a harness (``simbench bench``, studies) records that as a failure
+and goes on.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from calibration import Calibration
+from calibration.orientation import Skeleton
+from simbench.errors import InputError
+from simbench.estimators.builtin import joints_of
+from simbench.estimators.command import EstimatorError
+from simbench.estimators.registry import Estimator, JointsResult, OrientationResult
+from simbench.io.calibration_json import CalibrationJoints, calibration_joints, check_calibration_document
+from simbench.io.imu import ImuRecording
+from simbench.io.poses import PoseRecording
+from simbench.units import metres_per_unit
+
+
+def check_hierarchy(
+    hierarchy: Mapping[str, str], names: tuple[str, ...], where: str = "hierarchy"
+) -> dict[str, str]:
+    """A ``{child: parent}`` of the recording's sensors, as a plain dict.
+
+    Raises:
+        InputError: not a mapping of names, a sensor the recording lacks, a sensor its own parent.
+    """
+    if not isinstance(hierarchy, Mapping) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in hierarchy.items()
+    ):
+        raise InputError(f"{where}: expected {{child: parent}} of sensor names, got {hierarchy!r}")
+    unknown = sorted({s for edge in hierarchy.items() for s in edge} - set(names))
+    if unknown:
+        raise InputError(f"{where}: sensor(s) {unknown} are not in the recording ({', '.join(names)})")
+    own = sorted(c for c, p in hierarchy.items() if c == p)
+    if own:
+        raise InputError(f"{where}: sensor(s) {own} are their own parent")
+    return dict(hierarchy)
+
+
+def _call(est: Estimator, *args: Any, **kwargs: Any) -> Any:
+    """Call the estimator; a user's exception becomes an :class:`EstimatorError` naming it."""
+    if est.origin == "builtin":
+        return est.fn(*args, **kwargs)
+    try:
+        return est.fn(*args, **kwargs)
+    except EstimatorError:
+        raise
+    except Exception as exc:
+        raise EstimatorError(f"estimator {est.name!r} raised {type(exc).__name__}: {exc}") from None
+
+
+def run_joints(
+    est: Estimator,
+    data: PoseRecording | ImuRecording,
+    *,
+    hierarchy: Mapping[str, str] | None = None,
+    params: Mapping[str, Any] | None = None,
+) -> JointsResult:
+    """Run a joints estimator.
+
+    Args:
+        est: a ``joints`` estimator.
+        data: its data: a pose recording (positions in ``data.unit``), or an IMU recording for an
+            estimator whose ``data`` is ``imu``.
+        hierarchy: ``{child: parent}``; required when the estimator needs one; an estimator that
+            does not take one infers its own tree (given, it is then ignored).
+        params: parameter values, over the estimator's defaults.
+
+    Returns:
+        The joints, centres in the unit of ``data``'s positions (metres for an IMU recording).
+
+    Raises:
+        InputError: the data is not what the estimator takes, a hierarchy it needs is missing,
+            an unknown parameter; :class:`EstimatorError` for a user's estimator that fails.
+    """
+    if est.kind != "joints":
+        raise InputError(f"{est.name!r} estimates {est.kind}, not joints")
+    expected = PoseRecording if est.data == "poses" else ImuRecording
+    if not isinstance(data, expected):
+        raise InputError(
+            f"{est.name!r} estimates from {est.data}: expected a {expected.__name__}, "
+            f"got {type(data).__name__}"
+        )
+    if hierarchy is not None:
+        hierarchy = check_hierarchy(hierarchy, data.names)
+    elif "hierarchy" in est.needs:
+        raise InputError(
+            f"{est.name!r} fits the joints of a given hierarchy: give one (--hierarchy FILE.json)"
+        )
+    _check_needs(est, data)
+    kwargs = est.arguments(params)
+    if est.takes_hierarchy:
+        kwargs["hierarchy"] = hierarchy
+    got = _call(est, data, **kwargs)
+    return joints_result(got, est.name, data.names, getattr(data, "unit", "m"))
+
+
+def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") -> JointsResult:
+    """What a joints estimator returned, as a checked :class:`JointsResult` in ``unit``.
+
+    Raises:
+        EstimatorError: not one of the accepted types, a malformed document, sensors the data
+            lacks, centres that are not finite.
+    """
+    calibration = None
+    notes: tuple[str, ...] = ()
+    if isinstance(got, JointsResult):
+        calibration, notes, got = got.calibration, got.notes, got.joints
+    if isinstance(got, Calibration):
+        calibration, notes, got = got, got.warnings, joints_of(got)
+    if isinstance(got, Mapping):
+        where = f"estimator {name!r}'s result"
+        try:
+            doc = check_calibration_document(dict(got), where)
+            doc_unit = doc.get("units", "m")
+            factor = metres_per_unit(doc_unit) / metres_per_unit(unit)
+            joints = calibration_joints(doc, names, source=where)
+        except InputError as exc:
+            raise EstimatorError(str(exc)) from None
+        got = CalibrationJoints(
+            joints.parent,
+            joints.child,
+            joints.parent_index,
+            joints.child_index,
+            joints.joint_in_parent * factor,
+            joints.joint_in_child * factor,
+            joints.single_axis,
+        )
+    if not isinstance(got, CalibrationJoints):
+        raise EstimatorError(
+            f"estimator {name!r} returned a {type(got).__name__}; expected a calibration document "
+            "(dict with 'joints'), a JointsResult, a CalibrationJoints or a Calibration"
+        )
+    wrong = sorted({*got.parent, *got.child} - set(names))
+    if wrong:
+        raise EstimatorError(
+            f"estimator {name!r} returned joints of sensor(s) {wrong} the data lacks ({', '.join(names)})"
+        )
+    for field in ("joint_in_parent", "joint_in_child"):
+        x = np.asarray(getattr(got, field), dtype=float)
+        if x.shape != (len(got.child), 3):
+            raise EstimatorError(
+                f"estimator {name!r}: expected {field} of shape ({len(got.child)}, 3), got {x.shape}"
+            )
+        bad = ~np.isfinite(x).all(axis=1)
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise EstimatorError(
+                f"estimator {name!r} returned a {field} that is not finite for joint "
+                f"{got.parent[k]}-{got.child[k]}: {x[k].tolist()}"
+            )
+    return JointsResult(got, calibration=calibration, notes=tuple(notes))
+
+
+def run_orientation(
+    est: Estimator,
+    imu: ImuRecording,
+    *,
+    skeleton: Skeleton | None = None,
+    params: Mapping[str, Any] | None = None,
+) -> OrientationResult:
+    """Run an orientation estimator.
+
+    Args:
+        est: an ``orientation`` estimator.
+        imu: the recording.
+        skeleton: the calibrated skeleton, for an estimator that takes one.
+        params: parameter values, over the estimator's defaults.
+
+    Returns:
+        ``(F, N, 4)`` quaternions of ``R_w_s`` in ENU and where they were estimated.
+
+    Raises:
+        InputError: a skeleton for an estimator that takes none, an unknown parameter;
+            :class:`EstimatorError` for a user's estimator that fails.
+    """
+    if est.kind != "orientation":
+        raise InputError(f"{est.name!r} estimates {est.kind}, not orientation")
+    if not isinstance(imu, ImuRecording):
+        raise InputError(f"{est.name!r}: expected an ImuRecording, got {type(imu).__name__}")
+    if skeleton is not None and not est.takes_skeleton:
+        raise InputError(f"a skeleton is used by estimators that take one ({est.name!r} does not)")
+    _check_needs(est, imu)
+    kwargs = est.arguments(params)
+    if est.takes_skeleton:
+        kwargs["skeleton"] = skeleton
+    got = _call(est, imu, **kwargs)
+    return orientation_result(got, est.name, imu)
+
+
+def orientation_result(got: Any, name: str, imu: ImuRecording) -> OrientationResult:
+    """What an orientation estimator returned, as a checked :class:`OrientationResult`.
+
+    Raises:
+        EstimatorError: not quaternions of shape ``(F, N, 4)``, quaternions not of unit norm (to
+            1e-3), nothing estimated.
+    """
+    if isinstance(got, OrientationResult):
+        q = got.q_enu
+    elif hasattr(got, "q_enu"):
+        q = got.q_enu
+    else:
+        q = got
+    try:
+        q = np.asarray(q, dtype=float)
+    except (TypeError, ValueError):
+        raise EstimatorError(
+            f"estimator {name!r} returned a {type(got).__name__}; expected (F, N, 4) quaternions"
+        ) from None
+    shape = (imu.time_s.size, len(imu.names), 4)
+    if q.shape != shape:
+        raise EstimatorError(f"estimator {name!r}: expected quaternions of shape {shape}, got {q.shape}")
+    ok = np.isfinite(q).all(axis=-1)
+    if not ok.any():
+        raise EstimatorError(f"estimator {name!r} estimated no sample (every quaternion NaN)")
+    norm = np.linalg.norm(q[ok], axis=-1)
+    off = np.abs(norm - 1)
+    if off.max() > 1e-3:
+        raise EstimatorError(
+            f"estimator {name!r}: expected unit quaternions (qw, qx, qy, qz), got norms from "
+            f"{norm.min():.6g} to {norm.max():.6g}"
+        )
+    if isinstance(got, OrientationResult):
+        return OrientationResult(q, ok, got.field_strength_ut, got.inclination_deg)
+    return OrientationResult(
+        q,
+        ok,
+        float(getattr(got, "field_strength_ut", math.nan)),
+        float(getattr(got, "inclination_deg", math.nan)),
+    )
+
+
+def _check_needs(est: Estimator, data: PoseRecording | ImuRecording) -> None:
+    if "rate" in est.needs and not (math.isfinite(data.rate_hz) and data.rate_hz > 0):
+        raise InputError(
+            f"{est.name!r} needs a sample rate; the recording's time stamps give {data.rate_hz!r} Hz"
+        )
+    if "gyro" in est.needs and not np.isfinite(getattr(data, "gyro", np.nan)).any():
+        raise InputError(f"{est.name!r} needs gyroscope readings; the recording has none")
