@@ -22,6 +22,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
 
 from calibration import Calibration
+from simbench import estimators
 from simbench.api import Orientations, calibrate, export, orient, read, score, simulate
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset, read_dataset, write_dataset
@@ -49,6 +50,7 @@ __all__ = [
     "SessionConfig",
     "__version__",
     "calibrate",
+    "estimators",
     "export",
     "load_sensor_config",
     "orient",

@@ -15,7 +15,7 @@ carried by the Dataset and applied by :func:`score`.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,26 +26,45 @@ from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
 from calibration import calibrate as calibrate_arrays
 from calibration.orientation import Priors, Skeleton
 from simbench.errors import InputError
+from simbench.estimators import (
+    DEFAULT_ORIENTATION,
+    Estimator,
+    JointsResult,
+    joints_result,
+    resolve,
+    run_joints,
+    run_orientation,
+)
+from simbench.estimators.registry import from_callable
 from simbench.io.c3d import read_c3d
+from simbench.io.calibration_json import read_calibration_json
 from simbench.io.dataset import Dataset
 from simbench.io.export import check_outputs, export_c3d_markers, export_dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.io.read import read
 from simbench.orient import (
-    DEFAULT_METHOD,
     calibrate_magnetometers,
     disturbed_fraction,
     estimate,
     skeleton_from_calibration,
 )
-from simbench.score import CalibrationScore, OrientationScore, score_orientation
+from simbench.score import CalibrationScore, OrientationScore, score_joints, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.marker_clusters import MarkerConfig, add_markers
 from simbench.sim.sensor_config import SensorConfig
 from simbench.sim.session import SessionConfig, run_session
 
 _DEFAULT = SessionConfig()
+
+
+def _estimator(method: str | Estimator | Callable[..., Any], kind: str) -> Estimator:
+    """The estimator of a spec, an :class:`Estimator` or a plain function."""
+    if isinstance(method, str | Estimator):
+        return resolve(method, kind)
+    if callable(method):
+        return from_callable(method, getattr(method, "__qualname__", repr(method)), "python", kind)
+    raise InputError(f"Expected method to be an estimator spec or a function, got {type(method).__name__}")
 
 
 def simulate(
@@ -122,9 +141,23 @@ def simulate(
     return add_markers(ds, MarkerConfig() if markers is True else markers, seed=config.seed)
 
 
+#: O'Brien's options of :func:`calibrate` at their defaults (refused beside another ``method``).
+_CALIBRATE_DEFAULTS = {
+    "root": None,
+    "hierarchy_method": HIERARCHY_METHODS[0],
+    "single_axis_ratio": SINGLE_AXIS_RATIO,
+    "robust": None,
+    "intervals": False,
+    "correct_rotation_noise": False,
+    "drop_noisy_frames": False,
+}
+
+
 def calibrate(
     data: Dataset | PoseRecording,
     *,
+    method: str | Estimator | Callable[..., Any] | None = None,
+    params: Mapping[str, Any] | None = None,
     hierarchy: Mapping[str, str] | None = None,
     root: str | None = None,
     hierarchy_method: str = HIERARCHY_METHODS[0],
@@ -133,12 +166,21 @@ def calibrate(
     intervals: bool = False,
     correct_rotation_noise: bool = False,
     drop_noisy_frames: bool = False,
-) -> Calibration:
+) -> Calibration | JointsResult:
     """Joint centres, hierarchy, limb lengths and sensor placement from a recording's poses
-    (O'Brien et al. 2000; :func:`calibration.calibrate` does the same on bare arrays).
+    (O'Brien et al. 2000; :func:`calibration.calibrate` does the same on bare arrays), or the joint
+    centres of any other estimator (``method``).
 
     Args:
         data: a Dataset (simulated or read with :func:`read`) or a pose recording.
+        method: ``None`` for O'Brien's calibration with the options below (returns a
+            :class:`calibration.Calibration`); or any joints estimator: a built-in's name
+            (:func:`simbench.estimators.names`), ``module:function``, ``file.py:function``,
+            ``cmd:COMMAND {poses} {hierarchy} {out}``, an installed plugin's name, or a function
+            ``fn(poses, *, hierarchy=None, ...)``; returns its
+            :class:`simbench.estimators.JointsResult` (centres in the recording's position unit).
+        params: with ``method``: the estimator's parameters (its defaults otherwise); the
+            options below are O'Brien's and go with ``method=None`` only.
         hierarchy: a known hierarchy ``{child: parent}``; inferred when ``None``.
         root: root sensor (default: the tree's centre).
         hierarchy_method: how an inferred tree weighs the pairs: ``"misfit"`` (residual less its
@@ -160,6 +202,31 @@ def calibrate(
     rec = data.poses() if isinstance(data, Dataset) else data
     if not isinstance(rec, PoseRecording):
         raise InputError(f"Expected a Dataset or a PoseRecording, got {type(data).__name__}")
+    if method is not None:
+        est = _estimator(method, "joints")
+        options = {
+            "root": root,
+            "hierarchy_method": hierarchy_method,
+            "single_axis_ratio": single_axis_ratio,
+            "robust": robust,
+            "intervals": intervals,
+            "correct_rotation_noise": correct_rotation_noise,
+            "drop_noisy_frames": drop_noisy_frames,
+        }
+        changed = sorted(k for k, v in options.items() if v != _CALIBRATE_DEFAULTS[k])
+        if changed:
+            raise InputError(
+                f"{', '.join(changed)}: options of O'Brien's calibration (method=None); give an "
+                f"estimator's own parameters as params={{...}} ({est.name}: {[p.name for p in est.params]})"
+            )
+        data_of = rec if est.data == "poses" else data.imu() if isinstance(data, Dataset) else None
+        if data_of is None:
+            raise InputError(
+                f"{est.name!r} estimates joints from IMU data: give a Dataset with inertial data"
+            )
+        return run_joints(est, data_of, hierarchy=hierarchy, params=params)
+    if params is not None:
+        raise InputError("params go with method=...: O'Brien's options are the keyword arguments")
     return calibrate_arrays(
         rec.R_w_s,
         rec.p_w_s,
@@ -176,18 +243,48 @@ def calibrate(
     )
 
 
-def score(cal: Calibration, ds: Dataset, *, scale: float | None = None) -> CalibrationScore:
-    """A calibration against the truth of the session it came from: limb lengths, joint centres
-    (both sensor frames), the hierarchy (wrong edges named), in metres (``scale`` metres per
-    tracker unit; default the dataset's ``position_unit_scale``)."""
+def score(
+    cal: Calibration | JointsResult | Mapping[str, Any] | str | os.PathLike[str],
+    ds: Dataset,
+    *,
+    scale: float | None = None,
+) -> CalibrationScore:
+    """An estimate of joints against the truth of the session it came from: limb lengths, joint
+    centres (both sensor frames), the hierarchy (wrong edges named), in metres (``scale`` metres
+    per tracker unit; default the dataset's ``position_unit_scale``).
+
+    Args:
+        cal: a :class:`calibration.Calibration`, any estimator's
+            :class:`simbench.estimators.JointsResult` (:func:`calibrate` with ``method``), or an
+            estimate made anywhere: a calibration document (``joints`` with ``parent``, ``child``,
+            ``joint_in_parent``, ``joint_in_child``; ``units``) or the path of its JSON file.
+        ds: the simulated session.
+        scale: metres per tracker unit.
+    """
     if scale is not None and not (isinstance(scale, int | float) and np.isfinite(scale) and scale > 0):
         raise InputError(f"Expected scale (metres per tracker unit) to be a finite number > 0, got {scale!r}")
-    if set(cal.names) != set(ds.sensors):
+    if isinstance(cal, Calibration):
+        if set(cal.names) != set(ds.sensors):
+            raise InputError(
+                f"the calibration's sensors ({', '.join(cal.names)}) are not the dataset's "
+                f"({', '.join(ds.sensors)}): a calibration of another recording?"
+            )
+        return score_calibration(cal, ds, scale=scale)
+    if isinstance(cal, str | os.PathLike):
+        cal = read_calibration_json(cal)
+    if isinstance(cal, Mapping):
+        cal = joints_result(cal, "the calibration given", tuple(ds.sensors), "m")
+    if not isinstance(cal, JointsResult):
         raise InputError(
-            f"the calibration's sensors ({', '.join(cal.names)}) are not the dataset's "
-            f"({', '.join(ds.sensors)}): a calibration of another recording?"
+            "Expected a Calibration, a JointsResult, a calibration document or its JSON path, got "
+            f"{type(cal).__name__}"
         )
-    return score_calibration(cal, ds, scale=scale)
+    if cal.calibration is not None:
+        return score(cal.calibration, ds, scale=scale)
+    wrong = sorted({*cal.joints.parent, *cal.joints.child} - set(ds.sensors))
+    if wrong:
+        raise InputError(f"the estimate's sensors {wrong} are not the dataset's ({', '.join(ds.sensors)})")
+    return score_joints(cal.joints, ds, scale=scale)
 
 
 @dataclass(frozen=True)
@@ -218,8 +315,9 @@ class Orientations:
 
 def orient(
     data: Dataset | ImuRecording,
-    method: str = DEFAULT_METHOD,
+    method: str | Estimator | Callable[..., Any] = DEFAULT_ORIENTATION,
     *,
+    params: Mapping[str, Any] | None = None,
     skeleton: Skeleton | Calibration | str | os.PathLike[str] | None = None,
     weighting: bool = True,
     smooth_hz: float | None = None,
@@ -233,7 +331,11 @@ def orient(
 
     Args:
         data: a Dataset with inertial data, or an IMU recording (e.g. a BROAD trial from :func:`read`).
-        method: one of :data:`simbench.orient.METHODS`.
+        method: any orientation estimator: a built-in's name (:func:`simbench.estimators.names`),
+            ``module:function``, ``file.py:function``, ``cmd:COMMAND {imu} {out}``, an installed
+            plugin's name, or a function ``fn(imu, ...)`` returning ``(F, N, 4)`` quaternions.
+        params: the estimator's parameters (:class:`simbench.estimators.Estimator`), for one not
+            built in; the built-ins take the options below.
         skeleton: for the ``skeleton`` method, a calibration of the same sensors: a
             :class:`calibration.Calibration` (:func:`calibrate`) or its JSON (``simbench
             calibrate --json``; :func:`simbench.orient.skeleton_from_calibration`), or a
@@ -253,16 +355,29 @@ def orient(
         raise InputError(f"Expected a Dataset or an ImuRecording, got {type(data).__name__}")
     if skeleton is not None and not isinstance(skeleton, Skeleton):
         skeleton = skeleton_from_calibration(skeleton, rec.names)
+    est = _estimator(method, "orientation")
+    if est.origin != "builtin" and (not weighting or smooth_hz is not None or priors is not None):
+        raise InputError(
+            f"weighting, smooth_hz and priors are options of the built-in methods; give {est.name!r} its "
+            f"own as params={{...}} ({[p.name for p in est.params]})"
+        )
+    if est.origin == "builtin" and params is not None:
+        raise InputError(f"{est.name!r}: the built-in methods take their options as keyword arguments")
     fits = None
     if calibrate_mag:
         rec, fits = calibrate_magnetometers(rec)
-    run = estimate(rec, method, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton, priors=priors)
+    if est.origin == "builtin":
+        run = estimate(
+            rec, est.name, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton, priors=priors
+        )
+    else:
+        run = run_orientation(est, rec, skeleton=skeleton, params=params)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return Orientations(
         q_w_s=run.q_enu,
         ok=run.ok,
         names=rec.names,
-        method=method,
+        method=est.name,
         score=scored,
         magnetometers=fits,
         disturbed=disturbed_fraction(rec),

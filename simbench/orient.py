@@ -59,16 +59,6 @@ from simbench.io.calibration_json import (
 )
 from simbench.io.imu import ImuRecording
 
-#: Every method :func:`estimate` knows: gyro-free (``skeleton``, the default; the per-sample
-#: ``fontaine``, ``triad``, ``wahba``) and the gyro-aided references (``mahony``, ``vqf``).
-METHODS = ("skeleton", "fontaine", "triad", "wahba", "mahony", "vqf")
-
-#: The default method.
-DEFAULT_METHOD = "skeleton"
-
-#: The methods that use the gyroscope.
-GYRO_AIDED = ("mahony", "vqf")
-
 
 @dataclass(frozen=True)
 class OrientationRun:
@@ -118,7 +108,7 @@ def check_recording(rec: ImuRecording) -> None:
 
 def estimate(
     rec: ImuRecording,
-    method: str = DEFAULT_METHOD,
+    method: str,
     *,
     weighting: bool = True,
     smooth_hz: float | None = None,
@@ -132,7 +122,8 @@ def estimate(
 
     Args:
         rec: the recording.
-        method: one of :data:`METHODS`.
+        method: a built-in orientation method (registered in :mod:`simbench.estimators.builtin`,
+            which runs every one through here).
         weighting: Fontaine's disturbance weighting (``fontaine`` and ``wahba``).
         smooth_hz: zero-phase smoothing cutoff, Hz: weighted by the disturbance weights for
             ``fontaine``, plain low-pass of the inputs for the others; not for ``skeleton``,
@@ -144,8 +135,6 @@ def estimate(
             (:class:`calibration.orientation.Priors`; default ``Priors()``), e.g. a sensor on its
             own's speed prior (``lone_speed``).
     """
-    if method not in METHODS:
-        raise InputError(f"unknown method {method!r}: expected one of {', '.join(METHODS)}")
     check_recording(rec)
     if skeleton is not None and method != "skeleton":
         raise InputError(f"a skeleton is used by the skeleton method only, not {method!r}")
@@ -194,8 +183,10 @@ def estimate(
         )
     elif method == "mahony":
         est = mahony(acc, rec.gyro, mag, rec.rate_hz, ref, valid=rec.valid)
-    else:
+    elif method == "vqf":
         est = vqf_offline(acc, rec.gyro, mag, rec.rate_hz, valid=rec.valid)
+    else:
+        raise InputError(f"unknown orientation method {method!r} (simbench.estimators.names('orientation'))")
     return OrientationRun(
         est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
     )

@@ -19,8 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from simbench.estimators import DEFAULT_ORIENTATION as DEFAULT_METHOD
 from simbench.io.imu import read_broad
-from simbench.orient import DEFAULT_METHOD, calibrate_magnetometers, estimate
+from simbench.orient import calibrate_magnetometers, estimate
 from simbench.score import score_orientation
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from simbench.cli import main
+from simbench.estimators import DEFAULT_ORIENTATION as DEFAULT_METHOD
 from simbench.experiments import baseline as bl
 from simbench.experiments import validate
 from simbench.experiments.obrien import human_trial, human_trials, linkage_experiment
@@ -20,7 +21,7 @@ from simbench.experiments.pool import worker_pool
 from simbench.experiments.realism import DEFAULT_DATA_DIR
 from simbench.experiments.validate import Plan
 from simbench.io.imu import read_broad
-from simbench.orient import DEFAULT_METHOD, estimate
+from simbench.orient import estimate
 
 
 @pytest.fixture(scope="module")

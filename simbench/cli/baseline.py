@@ -14,6 +14,7 @@ from simbench.experiments.baseline import (
     compute,
     diff_lines,
     load_baseline,
+    load_scenarios,
     write_baseline,
 )
 
@@ -21,7 +22,17 @@ from simbench.experiments.baseline import (
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``baseline`` subcommand to ``simbench``'s subparsers."""
     bas = sub.add_parser(
-        "baseline", help="accuracy regression check against reports/baseline.json (or --update it)"
+        "baseline",
+        help="accuracy regression check against reports/baseline.json (or --update it)",
+        description="Recompute fixed seeded scenarios' accuracy figures and compare them with the accepted "
+        "ones (exit 1 if any got worse than the tolerance), or --update them. simbench's own scenarios by "
+        "default; --scenarios FILE runs yours, with your estimators (joint:SPEC, orientation:SPEC).",
+    )
+    bas.add_argument(
+        "--scenarios",
+        metavar="FILE.toml",
+        help="your own scenarios ([[scenario]] name, estimator, model, motion, sensors, duration_s, rate_hz, "
+        "seed); their accepted figures are in FILE.baseline.json beside it unless --file says",
     )
     bas.add_argument(
         "--update", action="store_true", help="recompute and rewrite the baseline, showing the diff"
@@ -29,7 +40,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     bas.add_argument(
         "--tolerance", type=non_negative_float, default=0.10, help="relative tolerance (default 0.10)"
     )
-    bas.add_argument("--file", metavar="PATH", help="baseline file (default reports/baseline.json)")
+    bas.add_argument(
+        "--file", metavar="PATH", help="baseline file (default reports/baseline.json, or beside --scenarios)"
+    )
     bas.set_defaults(func=cmd_baseline)
 
 
@@ -38,13 +51,15 @@ def cmd_baseline(args: argparse.Namespace) -> int:
 
     Returns 0 when no figure got worse than the tolerance (or after ``--update``), 1 otherwise.
     """
-    path = Path(args.file) if args.file else BASELINE_FILE
+    scenarios = load_scenarios(args.scenarios) if args.scenarios else None
+    default = Path(args.scenarios).with_suffix(".baseline.json") if args.scenarios else BASELINE_FILE
+    path = Path(args.file) if args.file else default
     if args.update:
         if not path.resolve().parent.is_dir():
             raise InputError(f"cannot write {path}: folder {path.parent} does not exist")
         if path.is_dir():
             raise InputError(f"cannot write {path}: it is a folder")
-        current = compute()
+        current = compute(scenarios)
         try:
             old = load_baseline(path)
         except InputError:
@@ -56,7 +71,7 @@ def cmd_baseline(args: argparse.Namespace) -> int:
         print("\n".join(f"  {line}" for line in changes) if changes else "  no change")
         return 0
     accepted = load_baseline(path)  # a missing or broken file is found before the long computation
-    current = compute()
+    current = compute(scenarios)
     problems = compare(current, accepted, rel_tol=args.tolerance)
     for name, figures in current.items():
         print(f"  {name}: " + ", ".join(f"{k} {v:.4g}" for k, v in figures.items()))

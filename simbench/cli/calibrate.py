@@ -23,6 +23,7 @@ from simbench.cli.live import LiveOptions, add_follow_arguments, follow_csv
 from simbench.cli.table import format_table
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
+from simbench.estimators import DEFAULT_JOINTS, TIME_LIMIT_S, Estimator, JointsResult, names, resolve
 from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
 from simbench.io.hierarchy_json import read_hierarchy_json
 from simbench.io.poses import PoseRecording
@@ -47,6 +48,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "6-DoF sensor poses (O'Brien et al. 2000).",
     )
     cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
+    cal.add_argument(
+        "--method",
+        default=DEFAULT_JOINTS,
+        metavar="SPEC",
+        help=f"the joints estimator: {', '.join(names('joints'))} (default {DEFAULT_JOINTS}); or your "
+        "own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
+        "'cmd:COMMAND ... {poses} [{hierarchy}] {out}' (docs/estimators.md); the methods that fit a "
+        "given tree need --hierarchy",
+    )
+    cal.add_argument(
+        "--time-limit",
+        type=positive_float,
+        default=TIME_LIMIT_S,
+        metavar="SECONDS",
+        help=f"a cmd: estimator's time limit (default {TIME_LIMIT_S:g} s)",
+    )
     cal.add_argument(
         "--units",
         choices=sorted(LENGTH_UNITS),
@@ -176,7 +193,14 @@ def _slip_reports(
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
     if args.follow:
+        if args.method != DEFAULT_JOINTS:
+            raise InputError(f"--follow calibrates live with {DEFAULT_JOINTS}, not {args.method}")
         return _follow(args)
+    est = resolve(args.method, "joints")  # a spec that names nothing is refused before reading
+    if est.data != "poses":
+        raise InputError(f"{est.name!r} estimates joints from IMU data, not poses: it is not for calibrate")
+    if args.method != DEFAULT_JOINTS:
+        return _other_method(args, est)
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
     sensors = f"its sensors: {', '.join(rec.names)}"
@@ -240,6 +264,93 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         write_calibration_json(args.json, doc)
         print(f"\n  wrote {args.json}")
     return 0
+
+
+#: Options of ``calibrate`` that are estimator parameters: ``(flag, argparse dest, parameter)``;
+#: another --method gets those it declares, and refuses the others when given.
+PARAMETER_OPTIONS = (
+    ("--root", "root", "root"),
+    ("--hierarchy-method", "hierarchy_method", "hierarchy_method"),
+    ("--single-axis-ratio", "single_axis_ratio", "single_axis_ratio"),
+    ("--intervals", "intervals", "intervals"),
+    ("--drop-noisy-frames", "drop_noisy_frames", "drop_noisy_frames"),
+    ("--robust", "robust", "robust"),
+    ("--time-limit", "time_limit", "time_limit_s"),
+)
+
+
+def _other_method(args: argparse.Namespace, est: Estimator) -> int:
+    """``simbench calibrate --method SPEC``: any joints estimator on the recording's poses; the
+    whole table and JSON for O'Brien's variants, the joints (and their JSON) for the others."""
+    defaults = parser_defaults()
+    params = {}
+    for flag, dest, param in PARAMETER_OPTIONS:
+        value = getattr(args, dest)
+        if value == defaults[dest]:
+            continue
+        if param not in est.defaults:
+            raise InputError(
+                f"{flag}: not a parameter of {est.name!r} ({[p.name for p in est.params] or 'none'})"
+            )
+        params[param] = value
+    if args.correct_rotation_noise:
+        raise InputError(
+            f"--correct-rotation-noise is O'Brien's; with --method give obrien-eiv, not {est.name!r}"
+        )
+    if args.slip_window != defaults["slip_window"]:
+        raise InputError("--slip-window: slip detection runs with O'Brien's calibration (the default method)")
+    rec = read_poses(args.input, args.units, args.clusters, args.wide)
+    parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
+    got = calibrate(rec, method=est, hierarchy=parent_of, params=params)
+    assert isinstance(got, JointsResult)
+    if got.calibration is not None:
+        refuse_unlocated(rec, got.calibration, args.input)
+        print(format_table(rec, got.calibration, []))
+        doc = calibration_to_dict(got.calibration, time_s=rec.time_s, notes=rec.notes)
+    else:
+        print(f"simbench calibrate: {rec.source}")
+        print(f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   method: {est.name}")
+        print(f"\n  {'joint':<28}{'centre in parent (mm)':>30}{'centre in child (mm)':>30}")
+        j = got.joints
+        for k in range(len(j.child)):
+            jp = " ".join(f"{1000 * v:8.1f}" for v in j.joint_in_parent[k])
+            jc = " ".join(f"{1000 * v:8.1f}" for v in j.joint_in_child[k])
+            print(f"  {j.parent[k] + '-' + j.child[k]:<28}{jp:>30}{jc:>30}")
+        for note in (*rec.notes, *got.notes):
+            print(f"  note: {note}")
+        doc = joints_document(got)
+    doc["method"] = est.name
+    if args.json:
+        write_calibration_json(args.json, doc)
+        print(f"\n  wrote {args.json}")
+    return 0
+
+
+def joints_document(got: JointsResult) -> dict:
+    """A calibration JSON document (the schema ``simbench calibrate --json`` writes) of any
+    estimator's joints, in metres."""
+    j = got.joints
+    return {
+        "units": "m",
+        "joints": [
+            {
+                "parent": j.parent[k],
+                "child": j.child[k],
+                "joint_in_parent": j.joint_in_parent[k].tolist(),
+                "joint_in_child": j.joint_in_child[k].tolist(),
+                "single_axis": bool(j.single_axis[k]),
+            }
+            for k in range(len(j.child))
+        ],
+        "notes": list(got.notes),
+    }
+
+
+def parser_defaults() -> dict:
+    """The defaults of ``calibrate``'s options, by argparse dest."""
+    sub = argparse.ArgumentParser().add_subparsers()
+    add_parser(sub)
+    return vars(sub.choices["calibrate"].parse_args(["input"]))
 
 
 def _follow(args: argparse.Namespace) -> int:

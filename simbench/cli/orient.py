@@ -8,12 +8,10 @@ from calibration.errors import CalibrationInputError
 from calibration.orientation import Priors
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
+from simbench.estimators import DEFAULT_ORIENTATION, TIME_LIMIT_S, names, resolve, run_orientation
 from simbench.io.orientation_csv import write_orientation_csv
 from simbench.io.read import read_imu
 from simbench.orient import (
-    DEFAULT_METHOD,
-    GYRO_AIDED,
-    METHODS,
     calibrate_magnetometers,
     describe_fit,
     disturbed_fraction,
@@ -34,7 +32,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "over the whole recording at once, on the skeleton of --skeleton when given.",
     )
     ori.add_argument("input", help="a simbench dataset (.h5) or a BROAD trial (.hdf5)")
-    ori.add_argument("--method", choices=METHODS, default=DEFAULT_METHOD)
+    ori.add_argument(
+        "--method",
+        default=DEFAULT_ORIENTATION,
+        metavar="SPEC",
+        help=f"the estimator: {', '.join(names('orientation'))} (default {DEFAULT_ORIENTATION}); or your "
+        "own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
+        "'cmd:COMMAND ... {imu} ... {out}' (docs/estimators.md)",
+    )
+    ori.add_argument(
+        "--time-limit",
+        type=positive_float,
+        default=TIME_LIMIT_S,
+        metavar="SECONDS",
+        help=f"a cmd: estimator's time limit (default {TIME_LIMIT_S:g} s)",
+    )
     ori.add_argument(
         "--skeleton",
         metavar="CALIBRATION.json",
@@ -74,10 +86,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_orient(args: argparse.Namespace) -> int:
     """``simbench orient``: sensor orientations from accelerometer and magnetometer."""
+    est = resolve(args.method, "orientation")  # a spec that names nothing is refused before reading
+    if est.origin != "builtin":
+        given = [
+            f
+            for f, v in (("--lone-speed", args.lone_speed), ("--smooth-hz", args.smooth_hz))
+            if v is not None
+        ]
+        given += ["--no-weighting"] if args.no_weighting else []
+        if given:
+            raise InputError(f"{', '.join(given)}: options of the built-in methods, not of {est.name!r}")
     rec = read_imu(args.input)
     skeleton = None
     if args.skeleton is not None:
-        if args.method != "skeleton":
+        if not est.takes_skeleton:
             raise InputError(f"--skeleton is for --method skeleton, not {args.method}")
         skeleton = skeleton_from_calibration(args.skeleton, rec.names)
     priors = None
@@ -95,14 +117,18 @@ def cmd_orient(args: argparse.Namespace) -> int:
     try:
         if args.calibrate_mag:
             rec, fits = calibrate_magnetometers(rec)
-        run = estimate(
-            rec,
-            args.method,
-            weighting=not args.no_weighting,
-            smooth_hz=args.smooth_hz,
-            skeleton=skeleton,
-            priors=priors,
-        )
+        if est.origin == "builtin":
+            run = estimate(
+                rec,
+                est.name,
+                weighting=not args.no_weighting,
+                smooth_hz=args.smooth_hz,
+                skeleton=skeleton,
+                priors=priors,
+            )
+        else:
+            limit = {"time_limit_s": args.time_limit} if "time_limit_s" in est.defaults else {}
+            run = run_orientation(est, rec, skeleton=skeleton, params=limit)
     except CalibrationInputError as exc:
         if not notes:
             raise
@@ -113,13 +139,16 @@ def cmd_orient(args: argparse.Namespace) -> int:
     print(
         f"  sensors: {len(rec.names)}   samples: {rec.time_s.size} at {rec.rate_hz:.6g} Hz   "
         f"method: {args.method}"
-        f"{'' if args.no_weighting or args.method in UNWEIGHTED else ' (disturbance weighting)'}"
+        f"{' (disturbance weighting)' if 'weighting' in est.defaults and not args.no_weighting else ''}"
         f"{skeleton_line(skeleton, priors or Priors()) if args.method == 'skeleton' else ''}"
     )
-    print(
-        f"  reference field from the data: {run.field_strength_ut:.1f} uT, inclination "
-        f"{run.inclination_deg:.1f} deg; world frame of the output: {args.frame.upper()}"
-    )
+    if est.origin == "builtin":
+        print(
+            f"  reference field from the data: {run.field_strength_ut:.1f} uT, inclination "
+            f"{run.inclination_deg:.1f} deg; world frame of the output: {args.frame.upper()}"
+        )
+    else:
+        print(f"  world frame of the output: {args.frame.upper()} (the estimator's ENU converted)")
     masked = int((~rec.valid).sum())
     print(f"  estimated {int(run.ok.sum())} of {n_total} sensor samples ({masked} masked by the reader)")
     for note in rec.notes:
@@ -143,10 +172,6 @@ def cmd_orient(args: argparse.Namespace) -> int:
         write_orientation_csv(args.csv, rec, in_frame(run.q_enu, args.frame))
         print(f"\n  wrote {args.csv}")
     return 0
-
-
-#: Methods without Fontaine's disturbance weighting.
-UNWEIGHTED = ("triad", "skeleton", *GYRO_AIDED)
 
 
 def skeleton_line(skeleton, priors: Priors) -> str:

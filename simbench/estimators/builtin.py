@@ -256,8 +256,8 @@ def _register_all() -> None:
         )
     )
     for name, params, needs, summary in (
-        ("fontaine", (_WEIGHTING, _SMOOTH), {"rate"}, "Fontaine et al.: Gauss-Newton per sample"),
         ("triad", (_SMOOTH,), {"rate"}, "TRIAD: the two-vector fix per sample"),
+        ("fontaine", (_WEIGHTING, _SMOOTH), {"rate"}, "Fontaine et al.: Gauss-Newton per sample"),
         ("wahba", (_WEIGHTING, _SMOOTH), {"rate"}, "Wahba's problem per sample (closed form)"),
         ("mahony", (_SMOOTH,), {"rate", "gyro"}, "Mahony's complementary filter (gyro-aided)"),
         ("vqf", (_SMOOTH,), {"rate", "gyro"}, "VQF (Laidig and Seel 2023), offline (gyro-aided reference)"),

@@ -81,11 +81,17 @@ def command_estimator(spec: str, kind: str | None = None) -> Estimator:
     if not argv:
         raise InputError(f"{spec!r}: no command after {PREFIX!r}")
     used = _placeholders(argv)
+    known = {p for table in PLACEHOLDERS.values() for p in table}
+    if used - known:
+        raise InputError(
+            f"{spec!r}: unknown placeholder(s) {sorted('{' + u + '}' for u in used - known)}; a joints "
+            "command takes {poses}, {hierarchy}, {out}; an orientation command {imu}, {out}"
+        )
     own = "joints" if used & {"poses", "hierarchy"} else "orientation" if "imu" in used else kind
     if own is None:
         raise InputError(
             f"{spec!r}: cannot tell what it estimates: give {{poses}} (joint centres) "
-            "or {{imu}} (orientation)"
+            "or {imu} (orientation)"
         )
     if kind is not None and own != kind:
         raise InputError(f"{spec!r}: its placeholders are those of an estimator of {own}, not {kind}")

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import InputError, not_utf8
+from simbench.errors import InputError, load_toml, not_utf8
+from simbench.estimators import names, resolve
 from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
 from simbench.experiments.realism import realism_ratios, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
@@ -57,10 +58,12 @@ def _orientation_metrics(method: str) -> Callable[[Dataset], dict[str, float]]:
     return metrics
 
 
-#: The joint-centre methods the baseline holds to their figures: every pose-based method of
-#: :mod:`calibration.methods` but SARA, whose centre on a ball joint is an arbitrary point of an
-#: arbitrary axis (its figure would be no accuracy).
-BASELINE_JOINT_METHODS = ("obrien", "obrien-eiv", "score", "sphere-gamage-lasenby", "sphere-geometric")
+#: The joint-centre methods the baseline holds to their figures: every pose-based built-in but
+#: SARA, whose centre on a ball joint is an arbitrary point of an arbitrary axis (its figure would
+#: be no accuracy).
+BASELINE_JOINT_METHODS = tuple(
+    n for n in names("joints", plugins=False) if resolve(n).data == "poses" and n != "sara"
+)
 
 
 def _joint_methods_metrics(ds: Dataset) -> dict[str, float]:
@@ -168,22 +171,124 @@ class Figures(dict):
     unavailable: tuple[str, ...] = ()
 
 
+def _spec_metrics(estimator: str) -> Callable[[Dataset], dict[str, float]] | None:
+    """The figures of ``joint:SPEC`` (centre and limb-length errors, cm; joints not fitted) or
+    ``orientation:SPEC`` (total and heading RMSE, degrees) for any estimator spec; ``None`` for
+    another name."""
+    kind, _, spec = estimator.partition(":")
+    if kind == "joint" and spec:
+
+        def joints(ds: Dataset) -> dict[str, float]:
+            m = joint_method_metrics(ds, spec)
+            return {
+                "centre_error_cm": m["joint_centre_error_m"] * 100,
+                "length_error_cm": m["limb_length_error_m"] * 100,
+                "failed_joints_wrong": m["failed_joints"],
+            }
+
+        return joints
+    if kind == "orientation" and spec:
+        return _orientation_metrics(spec)
+    return None
+
+
+def estimator_metrics(name: str) -> Callable[[Dataset], dict[str, float]]:
+    """The figures function of a scenario's estimator: a name of :data:`ESTIMATORS`, or
+    ``joint:SPEC`` / ``orientation:SPEC`` with any spec of :func:`simbench.estimators.resolve`.
+
+    Raises:
+        InputError: neither.
+    """
+    got = ESTIMATORS.get(name) or _spec_metrics(name)
+    if got is None:
+        raise InputError(
+            f"unknown estimator {name!r}: expected one of {sorted(ESTIMATORS)}, joint:SPEC or "
+            "orientation:SPEC"
+        )
+    return got
+
+
 def compute(scenarios: list[Scenario] | None = None) -> Figures:
-    """Every scenario's figures, and those of :data:`FIGURES`."""
+    """Every scenario's figures; with simbench's own scenarios (``scenarios`` not given), also
+    those of :data:`FIGURES`."""
     out = Figures()
-    for name, figures in FIGURES.items():
-        got = figures()
-        if got is None:
-            out.unavailable += (name,)
-        else:
-            out[name] = got
+    if scenarios is None:
+        for name, figures in FIGURES.items():
+            got = figures()
+            if got is None:
+                out.unavailable += (name,)
+            else:
+                out[name] = got
     for sc in scenarios or SCENARIOS:
-        if sc.estimator not in ESTIMATORS:
-            raise InputError(
-                f"scenario {sc.name}: unknown estimator {sc.estimator!r}; known: {sorted(ESTIMATORS)}"
-            )
+        try:
+            metrics = estimator_metrics(sc.estimator)
+        except InputError as exc:
+            raise InputError(f"scenario {sc.name}: {exc}") from None
         ds = run_session(sc.config, load_session_model(sc.config))
-        out[sc.name] = ESTIMATORS[sc.estimator](ds)
+        out[sc.name] = metrics(ds)
+    return out
+
+
+#: Keys of a scenario in a scenarios file, besides ``name`` and ``estimator``: the session.
+SCENARIO_SESSION_KEYS = ("model", "motion", "sensors", "duration_s", "rate_hz", "seed")
+
+
+def load_scenarios(path: str | Path) -> list[Scenario]:
+    """A user's baseline scenarios: a TOML file of ``[[scenario]]`` tables, each with ``name``,
+    ``estimator`` (``joint:SPEC`` or ``orientation:SPEC``, any spec of
+    :func:`simbench.estimators.resolve`; a ``file.py:function`` is found beside the file first) and
+    the session (``model``, ``motion``, ``sensors``, ``duration_s``, ``rate_hz``, ``seed``;
+    SessionConfig's defaults where missing)::
+
+        [[scenario]]
+        name = "linkage-mine"
+        estimator = "joint:my_estimator.py:estimate"
+        model = "linkage"
+        sensors = "polhemus-liberty"
+        duration_s = 20.0
+        seed = 1
+
+    Raises:
+        InputError: naming the file and the scenario: unknown keys, a missing name or estimator,
+            names given twice, an estimator that cannot be resolved, a session value that does not fit.
+    """
+    path = Path(path)
+    doc = load_toml(path)
+    tables = doc.get("scenario")
+    extra = sorted(set(doc) - {"scenario"})
+    if extra or not isinstance(tables, list) or not tables:
+        raise InputError(
+            f"{path}: expected [[scenario]] tables (name, estimator, the session), got keys {sorted(doc)}"
+        )
+    out, seen = [], set()
+    for k, table in enumerate(tables):
+        where = f"{path}, scenario {k + 1}"
+        if not isinstance(table, dict):
+            raise InputError(f"{where}: expected a table, got {table!r}")
+        unknown = sorted(set(table) - {"name", "estimator", *SCENARIO_SESSION_KEYS})
+        if unknown:
+            raise InputError(
+                f"{where}: unknown keys {unknown}; expected name, estimator, {list(SCENARIO_SESSION_KEYS)}"
+            )
+        name, estimator = table.get("name"), table.get("estimator")
+        if not isinstance(name, str) or not name or name in seen:
+            raise InputError(f"{where}: expected a unique name (a string), got {name!r}")
+        seen.add(name)
+        if not isinstance(estimator, str):
+            raise InputError(f'{where} ({name}): expected estimator = "joint:SPEC" or "orientation:SPEC"')
+        kind, _, spec = estimator.partition(":")
+        folder_spec = spec.rpartition(":")
+        if folder_spec[0].endswith(".py") and (path.parent / folder_spec[0]).is_file():
+            estimator = f"{kind}:{path.parent / folder_spec[0]}:{folder_spec[2]}"
+        try:
+            if estimator not in ESTIMATORS:
+                if kind not in ("joint", "orientation"):
+                    raise InputError(f"expected joint:SPEC or orientation:SPEC, got {estimator!r}")
+                resolve(estimator.partition(":")[2], "joints" if kind == "joint" else "orientation")
+            config = SessionConfig(**{key: table[key] for key in SCENARIO_SESSION_KEYS if key in table})
+        except (InputError, TypeError) as exc:
+            raise InputError(f"{where} ({name}): {exc}") from None
+        out.append(Scenario(name, estimator, config))
     return out
 
 

@@ -41,6 +41,8 @@ from calibration import calibrate, detect_slip, fit_joint
 from calibration.errors import CalibrationError
 from calibration.methods import JOINT_METHODS, estimate_obrien_eiv
 from calibration.uncertainty import holds_truth, joint_covariance
+from simbench.estimators import DEFAULT_ORIENTATION as DEFAULT_METHOD
+from simbench.estimators import names, resolve
 from simbench.experiments.decisions import run_decisions, slip_trials
 from simbench.experiments.metrics import joint_method_metrics, true_joints
 from simbench.experiments.obrien import (
@@ -59,7 +61,7 @@ from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
 from simbench.io.imu import read_broad
-from simbench.orient import DEFAULT_METHOD, estimate, skeleton_of
+from simbench.orient import estimate, skeleton_of
 from simbench.score import score_orientation
 from simbench.sim.physics_cache import physics_cache
 from simbench.sim.sensor_config import parse_sensor_config
@@ -204,14 +206,20 @@ SIMULATION_TARGET_DEG = 8.0
 
 
 #: The orientation estimators the report compares: gyro-free, then the gyro-aided reference.
-ORIENTATION_METHODS: dict[str, dict[str, Any]] = {
-    "skeleton": {"method": "skeleton"},
-    "triad": {"method": "triad"},
-    "fontaine": {"method": "fontaine"},
-    "fontaine (1 Hz weighted smoothing)": {"method": "fontaine", "smooth_hz": 1.0},
-    "wahba": {"method": "wahba"},
-    "vqf (gyro-aided reference)": {"method": "vqf"},
-}
+def _orientation_methods() -> dict[str, dict[str, Any]]:
+    """Every gyro-free built-in (the registry's order), Fontaine's also with 1 Hz weighted
+    smoothing, then VQF as the gyro-aided reference."""
+    out: dict[str, dict[str, Any]] = {}
+    for name in names("orientation", plugins=False):
+        if "gyro" not in resolve(name).needs:
+            out[name] = {"method": name}
+        if name == "fontaine":
+            out["fontaine (1 Hz weighted smoothing)"] = {"method": name, "smooth_hz": 1.0}
+    out["vqf (gyro-aided reference)"] = {"method": "vqf"}
+    return out
+
+
+ORIENTATION_METHODS = _orientation_methods()
 
 #: Issue 15's targets for the default gyro-free estimator, as a fraction of TRIAD's total RMSE:
 #: by the kind of BROAD trial its file name says (the first that matches).
@@ -431,7 +439,7 @@ def coverage_study(path: Path = COVERAGE_STUDY) -> dict[str, Any] | None:
     for name, by_method in doc["summary"].items():
         if name.endswith("/ ideal"):  # exact data: every region is a point that holds the truth
             continue
-        cover = [by_method[m]["coverage95"] for m in ("obrien", "obrien-eiv")]
+        cover = [by_method["obrien"]["coverage95"], by_method["obrien-eiv"]["coverage95"]]
         conditions[name] = {
             "shares": [c[k] for c in cover for k in ("batch-means", "iid")],
             "bounded": cover[1].get("bounded"),

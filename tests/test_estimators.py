@@ -1,0 +1,329 @@
+"""The estimator registry: built-ins and users' estimators (Python, plugin, command) alike."""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import simbench
+from calibration import SINGLE_AXIS_RATIO
+from simbench.errors import InputError
+from simbench.estimators import (
+    EstimatorError,
+    names,
+    resolve,
+    run_joints,
+    run_orientation,
+)
+from simbench.estimators import spec as spec_module
+from simbench.experiments.metrics import joint_method_metrics
+from simbench.sim.session import SessionConfig, load_session_model, run_session
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "estimators"
+
+
+@pytest.fixture(scope="module")
+def linkage():
+    config = SessionConfig(
+        model="linkage", motion="exercise", duration_s=6.0, seed=3, sensors="polhemus-liberty"
+    )
+    return run_session(config, load_session_model(config))
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+SHIFTED = """
+import simbench.estimators as se
+
+def estimate(poses, *, hierarchy=None, shift_m=0.01):
+    got = se.run_joints(se.resolve("obrien"), poses, hierarchy=hierarchy)
+    j = got.joints
+    return {"units": poses.unit, "joints": [
+        {"parent": p, "child": c, "joint_in_parent": (j.joint_in_parent[k] + [shift_m, 0, 0]).tolist(),
+         "joint_in_child": j.joint_in_child[k].tolist()}
+        for k, (p, c) in enumerate(zip(j.parent, j.child, strict=True))]}
+"""
+
+
+def test_every_builtin_is_registered_with_its_kind_and_defaults():
+    joints, orientation = names("joints", plugins=False), names("orientation", plugins=False)
+    assert {"obrien", "obrien-eiv", "obrien-robust", "score", "sara", "inertial"} <= set(joints)
+    assert {"sphere-gamage-lasenby", "sphere-geometric"} <= set(joints)
+    assert set(orientation) == {"skeleton", "fontaine", "triad", "wahba", "mahony", "vqf"}
+    assert resolve("obrien").defaults["single_axis_ratio"] == SINGLE_AXIS_RATIO
+    assert "hierarchy" in resolve("score").needs and "gyro" in resolve("vqf").needs
+    assert resolve("skeleton").takes_skeleton and not resolve("triad").takes_skeleton
+
+
+def test_no_second_list_of_method_names():
+    """The registry is the one list: no tuple, list, set or dict literal elsewhere in the package
+    names two or more registered estimators (calibration.methods' table of one-pair functions,
+    which the registry registers, is the lower layer's own)."""
+    registered = set(names(plugins=False))
+    allowed = {
+        ROOT / "simbench" / "estimators" / "builtin.py",
+        ROOT / "calibration" / "methods" / "__init__.py",
+    }
+    offenders = []
+    for path in [*(ROOT / "simbench").rglob("*.py"), *(ROOT / "calibration").rglob("*.py")]:
+        if path in allowed:
+            continue
+        tree = ast.parse(path.read_text())
+        exported = {
+            id(n.value)
+            for n in ast.walk(tree)
+            if isinstance(n, ast.Assign)
+            and any(isinstance(t, ast.Name) and t.id == "__all__" for t in n.targets)
+        }
+        for node in ast.walk(tree):
+            if id(node) in exported:
+                continue
+            items = node.keys if isinstance(node, ast.Dict) else getattr(node, "elts", None)
+            if not isinstance(node, ast.Tuple | ast.List | ast.Set | ast.Dict) or items is None:
+                continue
+            found = {e.value for e in items if isinstance(e, ast.Constant) and e.value in registered}
+            if len(found) >= 2:
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} {sorted(found)}")
+    assert not offenders, offenders
+
+
+def test_unknown_spec_names_the_builtins():
+    with pytest.raises(InputError, match=r"unknown estimator 'magic': expected one of obrien, obrien-eiv"):
+        resolve("magic", "joints")
+    with pytest.raises(InputError, match="'vqf' estimates orientation, not joints"):
+        resolve("vqf", "joints")
+
+
+def test_python_file_estimator_is_scored_like_a_builtin(tmp_path, linkage):
+    spec = f"{_write(tmp_path / 'shifted.py', SHIFTED)}:estimate"
+    est = resolve(spec, "joints")
+    assert est.kind == "joints" and est.origin == "python" and est.defaults == {"shift_m": 0.01}
+    shifted = joint_method_metrics(linkage, spec)["joint_centre_error_m"]
+    obrien = joint_method_metrics(linkage, "obrien")["joint_centre_error_m"]
+    # every centre moved 1 cm in the parent frame: the error is about 1 cm, far above O'Brien's
+    assert shifted > obrien + 0.005 and shifted == pytest.approx(0.01, abs=obrien + 1e-3)
+    # a parameter reaches the function, a wrong one is refused by name
+    got = run_joints(est, linkage.poses(), hierarchy=linkage.truth.parent_of, params={"shift_m": 0.0})
+    ref = run_joints(resolve("obrien"), linkage.poses(), hierarchy=linkage.truth.parent_of)
+    np.testing.assert_allclose(
+        got.joints.joint_in_parent, ref.joints.joint_in_parent, atol=1e-12
+    )  # exact copy
+    with pytest.raises(InputError, match="no parameter 'shift'"):
+        run_joints(est, linkage.poses(), params={"shift": 1.0})
+
+
+def test_example_estimators_run_from_their_files(linkage):
+    sphere = joint_method_metrics(linkage, f"{EXAMPLES / 'sphere_fit.py'}:estimate")
+    builtin = joint_method_metrics(linkage, "sphere-gamage-lasenby")
+    # the example is the algebraic sphere fit: the built-in closed form gives the same centres
+    assert sphere["joint_centre_error_m"] == pytest.approx(builtin["joint_centre_error_m"], rel=1e-6)
+    cmd = f"cmd:{sys.executable} {EXAMPLES / 'pair_fit_cmd.py'} {{poses}} {{hierarchy}} {{out}}"
+    via_cmd = joint_method_metrics(linkage, cmd)
+    obrien = joint_method_metrics(linkage, "score")  # the same least squares per pair
+    assert via_cmd["joint_centre_error_m"] == pytest.approx(obrien["joint_centre_error_m"], rel=1e-6)
+
+
+def test_module_function_and_plugin_specs(tmp_path, monkeypatch, linkage):
+    pkg = tmp_path / "mylab"
+    pkg.mkdir()
+    _write(pkg / "__init__.py", "")
+    _write(pkg / "fit.py", SHIFTED)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    est = resolve("mylab.fit:estimate")
+    assert est.kind == "joints" and est.origin == "python"
+
+    class EntryPoint:
+        name, value = "mylab-shifted", "mylab.fit:estimate"
+
+        def load(self):
+            import mylab.fit
+
+            return mylab.fit.estimate
+
+    monkeypatch.setattr(spec_module, "_plugins", lambda: {"mylab-shifted": EntryPoint()})
+    plugin = resolve("mylab-shifted", "joints")
+    assert plugin.origin == "plugin" and "mylab-shifted" in names("joints")
+    assert joint_method_metrics(linkage, "mylab-shifted")["joint_centre_error_m"] > 0.005
+    with pytest.raises(InputError, match="no module 'nolab'"):
+        resolve("nolab.fit:estimate")
+    with pytest.raises(InputError, match="has no 'nothing'"):
+        resolve("mylab.fit:nothing")
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("raise RuntimeError('boom')", "raised RuntimeError: boom"),
+        (
+            "return {'units': 'm', 'joints': [{'parent': 'chest', 'child': 'ghost', "
+            "'joint_in_parent': [0,0,0], 'joint_in_child': [0,0,0]}]}",
+            r"sensors the data lacks: \['ghost'\]",
+        ),
+        (
+            "return {'units': 'm', 'joints': [{'parent': 'chest', 'child': 'head', "
+            "'joint_in_parent': [float('nan'),0,0], 'joint_in_child': [0,0,0]}]}",
+            "expected 'joint_in_parent' to be 3 finite numbers",
+        ),
+        ("return 42", "returned a int"),
+    ],
+)
+def test_a_users_failure_is_named(tmp_path, linkage, body, message):
+    path = _write(tmp_path / "bad.py", f"def estimate(poses, *, hierarchy=None):\n    {body}\n")
+    with pytest.raises(EstimatorError, match=message):
+        run_joints(resolve(f"{path}:estimate"), linkage.poses(), hierarchy=linkage.truth.parent_of)
+
+
+@pytest.mark.parametrize(
+    ("script", "message"),
+    [
+        ("import sys; sys.stderr.write('no licence'); sys.exit(3)", "exited 3; its stderr ends: no licence"),
+        ("pass", "exited 0 but wrote nothing"),
+        ("import sys; open(sys.argv[1], 'w').write('{not json')", "not valid JSON"),
+        ("import time; time.sleep(30)", "time limit of 1 s"),
+    ],
+)
+def test_a_failing_command_is_named_and_leaves_nothing(tmp_path, linkage, script, message):
+    path = _write(tmp_path / "bad_cmd.py", script)
+    est = resolve(f"cmd:{sys.executable} {path} {{out}} {{poses}}")
+    before = set(Path("/tmp").glob("simbench-cmd-*"))
+    t0 = time.perf_counter()
+    with pytest.raises(EstimatorError, match=message):
+        run_joints(est, linkage.poses(), params={"time_limit_s": 1.0})
+    assert time.perf_counter() - t0 < 20
+    assert set(Path("/tmp").glob("simbench-cmd-*")) <= before  # the working folder is removed
+
+
+def test_command_specs_are_checked_before_running():
+    with pytest.raises(InputError, match=r"unknown placeholder\(s\) \['\{pose\}'\]"):
+        resolve("cmd:fit {pose} {out}")
+    with pytest.raises(InputError, match=r"needs \{poses\} and \{out\}"):
+        resolve("cmd:fit {poses}")
+    with pytest.raises(InputError, match="estimator of joints, not orientation"):
+        resolve("cmd:fit {poses} {out}", "orientation")
+    with pytest.raises(InputError, match="cannot run 'no-such-program'"):
+        est = resolve("cmd:no-such-program {imu} {out}")
+        rec = _tiny_imu()
+        run_orientation(est, rec)
+
+
+def _tiny_imu():
+    config = SessionConfig(
+        model="linkage", motion="exercise", duration_s=2.0, seed=1, sensors="mems-industrial", rate_hz=50.0
+    )
+    return run_session(config, load_session_model(config)).imu()
+
+
+ORIENT_CMD = """
+import csv, sys
+rows = list(csv.reader(open(sys.argv[1])))
+header = [r for r in rows if r and not r[0].startswith('#')][0]
+names = [h[:-6] for h in header if h.endswith('_acc_x')]
+with open(sys.argv[2], 'w') as fh:
+    fh.write('time,sensor,qw,qx,qy,qz\\n')
+    for r in rows[rows.index(header) + 1:]:
+        for n in names:
+            fh.write(f'{r[0]},{n},1,0,0,0\\n')
+"""
+
+
+def test_orientation_command_and_callable(tmp_path):
+    rec = _tiny_imu()
+    path = _write(tmp_path / "still.py", ORIENT_CMD)
+    got = run_orientation(resolve(f"cmd:{sys.executable} {path} {{imu}} {{out}}"), rec)
+    assert got.q_enu.shape == (rec.time_s.size, len(rec.names), 4) and got.ok.all()
+    np.testing.assert_array_equal(got.q_enu[..., 0], 1.0)
+
+    def identity(imu):
+        return np.tile([1.0, 0, 0, 0], (imu.time_s.size, len(imu.names), 1))
+
+    direct = simbench.orient(rec, identity, calibrate_mag=False)
+    np.testing.assert_array_equal(direct.q_w_s, got.q_enu)
+    with pytest.raises(EstimatorError, match="unit quaternions"):
+        simbench.orient(rec, lambda imu: 2 * identity(imu), calibrate_mag=False)
+
+
+def test_builtin_orientation_through_the_registry_equals_the_direct_call():
+    rec = _tiny_imu()
+    from simbench.orient import estimate
+
+    for name in ("triad", "fontaine"):
+        np.testing.assert_array_equal(run_orientation(resolve(name), rec).q_enu, estimate(rec, name).q_enu)
+
+
+def test_api_calibrate_and_score_take_any_estimator(linkage, tmp_path):
+    got = simbench.calibrate(linkage, method="score", hierarchy=linkage.truth.parent_of)
+    scored = simbench.score(got, linkage)
+    assert scored.tree.correct and scored.mean_centre_error_m < 0.01
+    doc = tmp_path / "cal.json"
+    j = got.joints
+    doc.write_text(
+        json.dumps(
+            {
+                "units": "mm",
+                "joints": [
+                    {
+                        "parent": p,
+                        "child": c,
+                        "joint_in_parent": (1000 * j.joint_in_parent[k]).tolist(),
+                        "joint_in_child": (1000 * j.joint_in_child[k]).tolist(),
+                    }
+                    for k, (p, c) in enumerate(zip(j.parent, j.child, strict=True))
+                ],
+            }
+        )
+    )
+    from_file = simbench.score(str(doc), linkage)  # an estimate made anywhere, in millimetres
+    assert from_file.mean_centre_error_m == pytest.approx(scored.mean_centre_error_m, rel=1e-9)
+    with pytest.raises(InputError, match="give one"):
+        simbench.calibrate(linkage, method="score")
+    with pytest.raises(InputError, match="options of O'Brien's calibration"):
+        simbench.calibrate(linkage, method="score", robust="tukey", hierarchy=linkage.truth.parent_of)
+
+
+def test_calibrate_command_line_with_a_users_estimator(tmp_path, linkage):
+    from simbench.io.poses import write_pose_csv
+
+    write_pose_csv(tmp_path / "poses.csv", linkage.poses())
+    (tmp_path / "tree.json").write_text(json.dumps(linkage.truth.parent_of))
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "simbench",
+            "calibrate",
+            "poses.csv",
+            "--hierarchy",
+            "tree.json",
+            "--method",
+            f"{EXAMPLES / 'sphere_fit.py'}:estimate",
+            "--json",
+            "out.json",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((tmp_path / "out.json").read_text())
+    assert doc["method"].endswith("sphere_fit.py:estimate")
+    assert {j["child"] for j in doc["joints"]} == set(linkage.truth.parent_of)
+    bad = subprocess.run(
+        [sys.executable, "-m", "simbench", "calibrate", "poses.csv", "--method", "score"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert bad.returncode == 2 and "give one (--hierarchy FILE.json)" in bad.stderr
