@@ -217,6 +217,7 @@ def test_written_scorecard_and_report(card: dict, specs: dict[str, str], tmp_pat
     assert back["rows"] == json.loads(json.dumps(card["rows"]))
     md = (tmp_path / "out" / "index.md").read_text()
     assert "## Ranking" in md and "## Significant differences" in md and "t-test" in md
+    assert "## Run time" in md and "nothing is tested" not in md
     assert all(s["fingerprint"] in md for s in card["scenarios"])
     assert f"`{specs['crash']}` on linkage-paper: 5 of 5 seed(s) failed" in md
     obrien = _row(card, "obrien", "linkage-paper", "joint_centre_error_m")["median"]

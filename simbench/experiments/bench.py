@@ -583,6 +583,7 @@ def scorecard_markdown(card: Mapping[str, Any]) -> str:
     estimator), each scenario's ranking, the significant differences, the failures, the suite's
     version and fingerprints."""
     rows = card["rows"]
+    scenarios = [s["name"] for s in card["scenarios"]]
     by = {(r["scenario"], r["estimator"], r["metric"]): r for r in rows}
     lines = [
         "# simbench bench: scorecard",
@@ -650,6 +651,11 @@ def scorecard_markdown(card: Mapping[str, Any]) -> str:
         f"are significant at {card['alpha']:g} (all are in `{SCORECARD}`).",
         "",
     ]
+    if len(card["seeds"]) < MIN_PAIRS:
+        lines += [
+            f"With {len(card['seeds'])} seed(s) nothing is tested (at least {MIN_PAIRS} are needed).",
+            "",
+        ]
     if significant:
         lines.append(
             markdown_table(
@@ -685,7 +691,25 @@ def scorecard_markdown(card: Mapping[str, Any]) -> str:
     if left:
         lines += ["", "Joints left out (not fitted; the means are over the rest):", ""]
         lines += [f"- `{r['estimator']}` on {r['scenario']}: {r['joints_left_out']}" for r in left]
+    lines += ["", "## Run time", "", "Median seconds per dataset (the simulation not included).", ""]
+    lines.append(markdown_table(["estimator", *scenarios], _run_times(card, scenarios)))
     return "\n".join(lines) + "\n"
+
+
+def _run_times(card: Mapping[str, Any], scenarios: Sequence[str]) -> list[list[Any]]:
+    """Rows of each estimator's median run time (s) per scenario; empty where it did not run."""
+    times: dict[tuple[str, str], list[float]] = {}
+    for job in card.get("results", []):
+        for r in job["results"]:
+            times.setdefault((r["estimator"], job["scenario"]), []).append(float(r["run_time_s"]))
+    table = []
+    for est in card["estimators"]:
+        cells = [
+            f"{float(np.median(times[(est['name'], sc)])):.2f}" if (est["name"], sc) in times else ""
+            for sc in scenarios
+        ]
+        table.append([f"`{est['name']}`", *cells])
+    return table
 
 
 def _kind_of(card: Mapping[str, Any], scenario: str) -> str:
