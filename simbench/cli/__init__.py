@@ -14,13 +14,25 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from calibration import CalibrationError
-from simbench.cli import baseline, calibrate, export, orient, replay, report, scale, simulate, sweep, validate
+from simbench.cli import (
+    baseline,
+    bench,
+    calibrate,
+    export,
+    orient,
+    replay,
+    report,
+    scale,
+    simulate,
+    sweep,
+    validate,
+)
 from simbench.errors import InputError
 from simbench.experiments.pool import one_blas_thread
 from simbench.versions import __version__
 
 #: The subcommands in the order ``simbench --help`` lists them; each module adds its parser.
-COMMANDS = (calibrate, replay, scale, simulate, export, orient, validate, report, baseline, sweep)
+COMMANDS = (calibrate, replay, scale, simulate, export, orient, validate, report, baseline, sweep, bench)
 
 
 def build_parser() -> argparse.ArgumentParser:
