@@ -33,6 +33,7 @@ LAYERS = {
     "simbench.report": 5,
     "simbench.experiments": 6,
     "simbench.api": 7,
+    "simbench.pytest_plugin": 7,
     "simbench.cli": 8,
     "simbench.__main__": 8,
 }

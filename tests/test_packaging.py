@@ -59,6 +59,11 @@ def test_wheel_holds_every_model_and_preset(wheel):
     text = zipfile.ZipFile(wheel).read(metadata).decode()
     assert f"Version: {simbench.__version__}" in text
     assert "Provides-Extra: studies" in text
+    # the pytest plugin is found by its entry point once the wheel is installed
+    entry_points = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
+    text = zipfile.ZipFile(wheel).read(entry_points).decode()
+    assert "[pytest11]\nsimbench = simbench.pytest_plugin\n" in text
+    assert "simbench/pytest_plugin.py" in names
 
 
 def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
