@@ -158,6 +158,7 @@ def calibrate(
     *,
     method: str | Estimator | Callable[..., Any] | None = None,
     params: Mapping[str, Any] | None = None,
+    time_limit_s: float | None = None,
     hierarchy: Mapping[str, str] | None = None,
     root: str | None = None,
     hierarchy_method: str = HIERARCHY_METHODS[0],
@@ -181,6 +182,8 @@ def calibrate(
             :class:`simbench.estimators.JointsResult` (centres in the recording's position unit).
         params: with ``method``: the estimator's parameters (its defaults otherwise); the
             options below are O'Brien's and go with ``method=None`` only.
+        time_limit_s: with ``method``: a user's estimator's time limit, s (a command's; a Python
+            function's wall time in the main thread); ``None``: a command's default, else none.
         hierarchy: a known hierarchy ``{child: parent}``; inferred when ``None``.
         root: root sensor (default: the tree's centre).
         hierarchy_method: how an inferred tree weighs the pairs: ``"misfit"`` (residual less its
@@ -224,7 +227,7 @@ def calibrate(
             raise InputError(
                 f"{est.name!r} estimates joints from IMU data: give a Dataset with inertial data"
             )
-        return run_joints(est, data_of, hierarchy=hierarchy, params=params)
+        return run_joints(est, data_of, hierarchy=hierarchy, params=params, time_limit_s=time_limit_s)
     if params is not None:
         raise InputError("params go with method=...: O'Brien's options are the keyword arguments")
     return calibrate_arrays(
@@ -318,6 +321,7 @@ def orient(
     method: str | Estimator | Callable[..., Any] = DEFAULT_ORIENTATION,
     *,
     params: Mapping[str, Any] | None = None,
+    time_limit_s: float | None = None,
     skeleton: Skeleton | Calibration | str | os.PathLike[str] | None = None,
     weighting: bool = True,
     smooth_hz: float | None = None,
@@ -336,6 +340,7 @@ def orient(
             plugin's name, or a function ``fn(imu, ...)`` returning ``(F, N, 4)`` quaternions.
         params: the estimator's parameters (:class:`simbench.estimators.Estimator`), for one not
             built in; the built-ins take the options below.
+        time_limit_s: a user's estimator's time limit, s (as :func:`calibrate`).
         skeleton: for the ``skeleton`` method, a calibration of the same sensors: a
             :class:`calibration.Calibration` (:func:`calibrate`) or its JSON (``simbench
             calibrate --json``; :func:`simbench.orient.skeleton_from_calibration`), or a
@@ -371,7 +376,7 @@ def orient(
             rec, est.name, weighting=weighting, smooth_hz=smooth_hz, skeleton=skeleton, priors=priors
         )
     else:
-        run = run_orientation(est, rec, skeleton=skeleton, params=params)
+        run = run_orientation(est, rec, skeleton=skeleton, params=params, time_limit_s=time_limit_s)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return Orientations(
         q_w_s=run.q_enu,

@@ -327,3 +327,23 @@ def test_calibrate_command_line_with_a_users_estimator(tmp_path, linkage):
         timeout=120,
     )
     assert bad.returncode == 2 and "give one (--hierarchy FILE.json)" in bad.stderr
+
+
+def test_a_python_estimator_past_its_time_limit_is_stopped(tmp_path, linkage):
+    path = _write(
+        tmp_path / "slow.py", "import time\n\ndef estimate(poses, *, hierarchy=None):\n    time.sleep(60)\n"
+    )
+    t0 = time.perf_counter()
+    with pytest.raises(EstimatorError, match=r"did not return within its time limit of 0\.5 s"):
+        run_joints(resolve(f"{path}:estimate"), linkage.poses(), time_limit_s=0.5)
+    assert time.perf_counter() - t0 < 10
+    # the timer is gone afterwards: a built-in runs on unhindered
+    assert run_joints(resolve("obrien"), linkage.poses()).joints.child
+
+
+def test_a_command_names_its_script_from_the_callers_folder(tmp_path, monkeypatch, linkage):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "fit.py").write_text((EXAMPLES / "pair_fit_cmd.py").read_text())
+    est = resolve(f"cmd:{sys.executable} fit.py {{poses}} {{hierarchy}} {{out}}")
+    got = run_joints(est, linkage.poses(), hierarchy=linkage.truth.parent_of)
+    assert set(got.joints.child) == set(linkage.truth.parent_of)

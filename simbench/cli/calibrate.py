@@ -62,7 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=TIME_LIMIT_S,
         metavar="SECONDS",
-        help=f"a cmd: estimator's time limit (default {TIME_LIMIT_S:g} s)",
+        help=f"your estimator's time limit: a command's, or a Python function's (default {TIME_LIMIT_S:g} s)",
     )
     cal.add_argument(
         "--units",
@@ -275,7 +275,6 @@ PARAMETER_OPTIONS = (
     ("--intervals", "intervals", "intervals"),
     ("--drop-noisy-frames", "drop_noisy_frames", "drop_noisy_frames"),
     ("--robust", "robust", "robust"),
-    ("--time-limit", "time_limit", "time_limit_s"),
 )
 
 
@@ -301,7 +300,8 @@ def _other_method(args: argparse.Namespace, est: Estimator) -> int:
         raise InputError("--slip-window: slip detection runs with O'Brien's calibration (the default method)")
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
     parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
-    got = calibrate(rec, method=est, hierarchy=parent_of, params=params)
+    limit = None if est.origin == "builtin" else args.time_limit
+    got = calibrate(rec, method=est, hierarchy=parent_of, params=params, time_limit_s=limit)
     assert isinstance(got, JointsResult)
     if got.calibration is not None:
         refuse_unlocated(rec, got.calibration, args.input)

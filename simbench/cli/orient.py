@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=TIME_LIMIT_S,
         metavar="SECONDS",
-        help=f"a cmd: estimator's time limit (default {TIME_LIMIT_S:g} s)",
+        help=f"your estimator's time limit: a command's, or a Python function's (default {TIME_LIMIT_S:g} s)",
     )
     ori.add_argument(
         "--skeleton",
@@ -127,8 +127,7 @@ def cmd_orient(args: argparse.Namespace) -> int:
                 priors=priors,
             )
         else:
-            limit = {"time_limit_s": args.time_limit} if "time_limit_s" in est.defaults else {}
-            run = run_orientation(est, rec, skeleton=skeleton, params=limit)
+            run = run_orientation(est, rec, skeleton=skeleton, time_limit_s=args.time_limit)
     except CalibrationInputError as exc:
         if not notes:
             raise

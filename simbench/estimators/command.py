@@ -12,6 +12,9 @@ command's working directory and is removed afterwards, whatever happens:
   where the command writes ``time,sensor,qw,qx,qy,qz`` (scalar-first ``R_w_s`` in ENU, one row per
   sample and sensor; a missing row is a sample not estimated).
 
+A file the command line names from the caller's working directory (``python3 fit.py``,
+``./fit``) is given to it by its full path.
+
 A command that exits non-zero, runs past its time limit (it and its children are killed), writes
 nothing, or writes a file that cannot be read raises :class:`EstimatorError` naming the command
 and what went wrong, with the end of its standard error.
@@ -165,9 +168,13 @@ def _run(spec: str, argv: list[str], paths: Mapping[str, Path], cwd: str, time_l
         EstimatorError: not found, not executable, non-zero exit, past the time limit, no output.
     """
     args = []
-    for a in argv:
+    for k, a in enumerate(argv):
         for key, path in paths.items():
             a = a.replace("{" + key + "}", str(path))
+        # the command runs in its temporary folder: a file named from the caller's folder
+        # (python3 fit.py, ./fit) is given by its full path
+        if a == argv[k] and not Path(a).is_absolute() and (k > 0 or "/" in a) and Path(a).exists():
+            a = str(Path(a).resolve())
         args.append(a)
     try:
         proc = subprocess.Popen(

@@ -11,7 +11,10 @@ and goes on.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+import signal
+import threading
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -49,16 +52,63 @@ def check_hierarchy(
     return dict(hierarchy)
 
 
-def _call(est: Estimator, *args: Any, **kwargs: Any) -> Any:
-    """Call the estimator; a user's exception becomes an :class:`EstimatorError` naming it."""
-    if est.origin == "builtin":
-        return est.fn(*args, **kwargs)
+class _TimeUp(BaseException):
+    """Raised in the main thread when a Python estimator's time limit runs out (a BaseException,
+    so that the estimator's own ``except Exception`` does not swallow it)."""
+
+
+@contextmanager
+def _time_limit(seconds: float | None) -> Iterator[None]:
+    """Raise :class:`_TimeUp` after ``seconds`` of wall time (POSIX interval timer; only in the
+    main thread, where Python delivers signals; elsewhere, or with ``None``, no limit)."""
+    if (
+        seconds is None
+        or threading.current_thread() is not threading.main_thread()
+        or not hasattr(signal, "setitimer")
+    ):
+        yield
+        return
+
+    def up(signum: int, frame: object) -> None:
+        raise _TimeUp
+
+    previous = signal.signal(signal.SIGALRM, up)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
-        return est.fn(*args, **kwargs)
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _call(est: Estimator, time_limit_s: float | None, data: Any, kwargs: dict[str, Any]) -> Any:
+    """Call the estimator on its data; a user's exception, or a Python estimator still running
+    after ``time_limit_s`` (a command keeps its own limit), becomes an :class:`EstimatorError`."""
+    if est.origin == "builtin":
+        return est.fn(data, **kwargs)
+    limit = None if est.origin == "command" else time_limit_s
+    try:
+        with _time_limit(limit):
+            return est.fn(data, **kwargs)
     except EstimatorError:
         raise
+    except _TimeUp:
+        raise EstimatorError(
+            f"estimator {est.name!r} did not return within its time limit of {limit:g} s; stopped"
+        ) from None
     except Exception as exc:
         raise EstimatorError(f"estimator {est.name!r} raised {type(exc).__name__}: {exc}") from None
+
+
+def _arguments(
+    est: Estimator, params: Mapping[str, Any] | None, time_limit_s: float | None
+) -> dict[str, Any]:
+    """The estimator's arguments: its defaults, then the time limit for a command that declares
+    one, then ``params``."""
+    limit = (
+        {"time_limit_s": time_limit_s} if time_limit_s is not None and "time_limit_s" in est.defaults else {}
+    )
+    return est.arguments({**limit, **(params or {})})
 
 
 def run_joints(
@@ -67,6 +117,7 @@ def run_joints(
     *,
     hierarchy: Mapping[str, str] | None = None,
     params: Mapping[str, Any] | None = None,
+    time_limit_s: float | None = None,
 ) -> JointsResult:
     """Run a joints estimator.
 
@@ -77,6 +128,9 @@ def run_joints(
         hierarchy: ``{child: parent}``; required when the estimator needs one; an estimator that
             does not take one infers its own tree (given, it is then ignored).
         params: parameter values, over the estimator's defaults.
+        time_limit_s: a user's estimator's time limit, s (a command's ``time_limit_s`` parameter;
+            a Python one's wall time, where it runs in the main thread); ``None``: none but a
+            command's default.
 
     Returns:
         The joints, centres in the unit of ``data``'s positions (metres for an IMU recording).
@@ -100,10 +154,10 @@ def run_joints(
             f"{est.name!r} fits the joints of a given hierarchy: give one (--hierarchy FILE.json)"
         )
     _check_needs(est, data)
-    kwargs = est.arguments(params)
+    kwargs = _arguments(est, params, time_limit_s)
     if est.takes_hierarchy:
         kwargs["hierarchy"] = hierarchy
-    got = _call(est, data, **kwargs)
+    got = _call(est, time_limit_s, data, kwargs)
     return joints_result(got, est.name, data.names, getattr(data, "unit", "m"))
 
 
@@ -170,6 +224,7 @@ def run_orientation(
     *,
     skeleton: Skeleton | None = None,
     params: Mapping[str, Any] | None = None,
+    time_limit_s: float | None = None,
 ) -> OrientationResult:
     """Run an orientation estimator.
 
@@ -178,6 +233,7 @@ def run_orientation(
         imu: the recording.
         skeleton: the calibrated skeleton, for an estimator that takes one.
         params: parameter values, over the estimator's defaults.
+        time_limit_s: a user's estimator's time limit, s (as :func:`run_joints`).
 
     Returns:
         ``(F, N, 4)`` quaternions of ``R_w_s`` in ENU and where they were estimated.
@@ -193,10 +249,10 @@ def run_orientation(
     if skeleton is not None and not est.takes_skeleton:
         raise InputError(f"a skeleton is used by estimators that take one ({est.name!r} does not)")
     _check_needs(est, imu)
-    kwargs = est.arguments(params)
+    kwargs = _arguments(est, params, time_limit_s)
     if est.takes_skeleton:
         kwargs["skeleton"] = skeleton
-    got = _call(est, imu, **kwargs)
+    got = _call(est, time_limit_s, imu, kwargs)
     return orientation_result(got, est.name, imu)
 
 

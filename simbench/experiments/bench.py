@@ -108,15 +108,13 @@ class BenchEstimator:
         name: how rows name it: a built-in's name, or the user's spec as given.
         kind: ``joints`` or ``orientation``.
         spec: what a worker resolves (a file's path made absolute: workers may run elsewhere).
-        builtin: one of simbench's own.
-        timed: it declares ``time_limit_s`` (a command), which gets the run's time limit.
+        builtin: one of simbench's own (a user's gets the run's time limit).
     """
 
     name: str
     kind: str
     spec: str
     builtin: bool
-    timed: bool = False
 
 
 def _worker_spec(spec: str) -> str:
@@ -155,8 +153,7 @@ def plan_estimators(
                 f"estimator {spec!r} estimates {est.kind}; this run has only {', '.join(kinds)} scenarios "
                 "(--kind)"
             )
-        timed = any(p.name == "time_limit_s" for p in est.params)
-        out.append(BenchEstimator(spec, est.kind, _worker_spec(spec), est.origin == "builtin", timed))
+        out.append(BenchEstimator(spec, est.kind, _worker_spec(spec), est.origin == "builtin"))
         seen.add(spec)
     return tuple(out)
 
@@ -195,15 +192,15 @@ def run_job(job: Job) -> dict[str, Any]:
         results = []
         for est in job.estimators:
             t1 = time.perf_counter()
-            params = {"time_limit_s": float(job.time_limit_s)} if est.timed else None
+            limit = None if est.builtin else float(job.time_limit_s)
             row: dict[str, Any] = {"estimator": est.name, "metrics": {}, "error": None, "joints_left_out": 0}
             try:
                 if sc.kind == "joints":
-                    got = joint_method_metrics(ds, resolve(est.spec, "joints"), params)
+                    got = joint_method_metrics(ds, resolve(est.spec, "joints"), time_limit_s=limit)
                     row["metrics"] = {m: float(got[m]) for m in METRICS["joints"]}
                     row["joints_left_out"] = int(got["failed_joints"])
                 else:
-                    got = orientation_metrics(ds, resolve(est.spec, "orientation"), params)
+                    got = orientation_metrics(ds, resolve(est.spec, "orientation"), time_limit_s=limit)
                     row["metrics"] = {"orientation_rmse_deg": float(got["total_rmse_deg"])}
             except Exception as exc:  # any failure of an estimator on this dataset: kept, the run goes on
                 row["metrics"] = {}

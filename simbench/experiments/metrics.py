@@ -51,13 +51,18 @@ def calibration_metrics(ds: Dataset) -> dict[str, float]:
 
 
 def orientation_metrics(
-    ds: Dataset, method: str | Estimator, params: Mapping[str, Any] | None = None
+    ds: Dataset,
+    method: str | Estimator,
+    params: Mapping[str, Any] | None = None,
+    *,
+    time_limit_s: float | None = None,
 ) -> dict[str, float]:
     """Orientation RMSE (total, heading, inclination; degrees) of one estimator (any spec of
     :func:`simbench.estimators.resolve`) over every sensor and sample of a simulated session,
-    against the actual sensor orientations; ``params`` over the estimator's defaults."""
+    against the actual sensor orientations; ``params`` over the estimator's defaults, and a user's
+    estimator's time limit (:func:`simbench.estimators.run_orientation`)."""
     rec = ds.imu()
-    run = run_orientation(resolve(method, "orientation"), rec, params=params)
+    run = run_orientation(resolve(method, "orientation"), rec, params=params, time_limit_s=time_limit_s)
     scored = score_orientation(run.q_enu, rec.q_true, rec.names)
     return {
         "total_rmse_deg": scored.total_rmse_deg,
@@ -82,7 +87,11 @@ def true_joints(ds: Dataset) -> list[tuple[int, int]]:
 
 
 def joint_method_metrics(
-    ds: Dataset, method: str | Estimator, params: Mapping[str, Any] | None = None
+    ds: Dataset,
+    method: str | Estimator,
+    params: Mapping[str, Any] | None = None,
+    *,
+    time_limit_s: float | None = None,
 ) -> dict[str, float]:
     """One joints estimator (any spec of :func:`simbench.estimators.resolve`) on the true
     hierarchy of a simulated session, scored as :func:`calibration_metrics` scores O'Brien's
@@ -90,12 +99,14 @@ def joint_method_metrics(
     dataset's unit scale). A joint the estimator does not return (e.g. a sphere fit of a hinge) is
     counted in ``failed_joints`` and left out of the means (NaN when all fail); an estimator that
     infers its own tree is given none and scored on the joints it has. ``params`` go to the
-    estimator over its defaults (``simbench bench`` gives a command its time limit)."""
+    estimator over its defaults; ``time_limit_s`` limits a user's estimator
+    (:func:`simbench.estimators.run_joints`)."""
     if ds.truth is None:
         raise ValueError("joint_method_metrics needs a dataset with truth (a simulated session)")
     est = resolve(method, "joints")
     data = ds.poses() if est.data == "poses" else ds.imu()
-    got = run_joints(est, data, hierarchy=ds.truth.parent_of if est.takes_hierarchy else None, params=params)
+    hierarchy = ds.truth.parent_of if est.takes_hierarchy else None
+    got = run_joints(est, data, hierarchy=hierarchy, params=params, time_limit_s=time_limit_s)
     scored = score_joints(got.joints, ds, scale=ds.position_unit_scale if est.data == "poses" else 1.0)
     centre = np.array([j.centre_error_in_parent_m for j in scored.joints])
     centre = centre[np.isfinite(centre)]
