@@ -96,6 +96,10 @@ CI_METHOD = (
 ERRORS_KEPT = 3
 ERROR_CHARS = 500
 
+#: The seed a real recording's one run is filed under (it has no seeds: n is 1, and no comparison
+#: is tested on it).
+REAL_SEED = 0
+
 #: The scorecard's file name in the output folder.
 SCORECARD = "scorecard.json"
 
@@ -275,7 +279,7 @@ def run_bench(
     jobs = [
         Job(sc.name, seed, tuple(e for e in estimators if e.kind == sc.kind), float(time_limit_s))
         for sc in chosen
-        for seed in seeds
+        for seed in ((REAL_SEED,) if sc.real else seeds)  # a real recording is one, whatever the seed
     ]
     t0 = time.perf_counter()
     done: list[dict[str, Any]] = []

@@ -12,8 +12,10 @@ from typing import Any
 import numpy as np
 
 from calibration import calibrate
+from simbench.errors import InputError
 from simbench.estimators import Estimator, resolve, run_joints, run_orientation
 from simbench.io.dataset import Dataset
+from simbench.io.imu import ImuRecording
 from simbench.score import compare_trees, score, score_joints, score_orientation
 
 #: What :func:`calibration_metrics` returns.
@@ -51,7 +53,7 @@ def calibration_metrics(ds: Dataset) -> dict[str, float]:
 
 
 def orientation_metrics(
-    ds: Dataset,
+    ds: Dataset | ImuRecording,
     method: str | Estimator,
     params: Mapping[str, Any] | None = None,
     *,
@@ -59,11 +61,14 @@ def orientation_metrics(
 ) -> dict[str, float]:
     """Orientation RMSE (total, heading, inclination; degrees) of one estimator (any spec of
     :func:`simbench.estimators.resolve`) over every sensor and sample of a simulated session,
-    against the actual sensor orientations; ``params`` over the estimator's defaults, and a user's
-    estimator's time limit (:func:`simbench.estimators.run_orientation`)."""
-    rec = ds.imu()
+    against the actual sensor orientations, or of a real recording against its reference over its
+    samples to evaluate (BROAD's ``movement``); ``params`` over the estimator's defaults, and a
+    user's estimator's time limit (:func:`simbench.estimators.run_orientation`)."""
+    rec = ds.imu() if isinstance(ds, Dataset) else ds
+    if rec.q_true is None:
+        raise InputError(f"{rec.source}: no reference orientations to score against")
     run = run_orientation(resolve(method, "orientation"), rec, params=params, time_limit_s=time_limit_s)
-    scored = score_orientation(run.q_enu, rec.q_true, rec.names)
+    scored = score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return {
         "total_rmse_deg": scored.total_rmse_deg,
         "heading_rmse_deg": scored.heading_rmse_deg,

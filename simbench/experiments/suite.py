@@ -1,7 +1,8 @@
 """The benchmark suite: a versioned, fixed set of seeded scenarios every estimator is scored on.
 
 A :class:`SuiteScenario` is a simulated session (a :class:`simbench.sim.session.SessionConfig`
-whose seed is replaced by each of the suite's seeds) and the kind of estimator it scores
+whose seed is replaced by each of the suite's seeds), or a real recording the package ships
+(:data:`DATA_DIR`, scored against its optical reference), and the kind of estimator it scores
 (``joints`` or ``orientation``). :data:`SUITE_VERSION` changes whenever a scenario, a seed or a
 metric changes, and :func:`scenario_fingerprint` hashes what makes a scenario's data (its
 session and simbench's version), so two scorecards say whether they can be compared.
@@ -16,14 +17,19 @@ import dataclasses
 import hashlib
 import json
 from dataclasses import dataclass
+from pathlib import Path
 
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset
+from simbench.io.imu import ImuRecording, read_broad
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 from simbench.versions import __version__
 
 #: The suite's version: bump it when a scenario, its seeds or a metric changes.
-SUITE_VERSION = "1"
+SUITE_VERSION = "2"
+
+#: The real recordings the package ships (``simbench/data/README.md``: sources and licences).
+DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
 #: The seeds each scenario is run with (``--quick``: the first ones, :data:`QUICK_SEEDS`).
 SEEDS = (1, 2, 3, 4, 5)
@@ -40,6 +46,8 @@ class SuiteScenario:
         config: the session; its ``seed`` is replaced by each of the suite's seeds.
         about: one line on what it tests.
         quick: part of ``--quick`` (a shorter duration is not used: the data is the suite's).
+        recording: for a real recording, its file in :data:`DATA_DIR` (``config`` is then unused):
+            one recording, scored against its own reference, the same for every seed.
     """
 
     name: str
@@ -47,6 +55,12 @@ class SuiteScenario:
     config: SessionConfig
     about: str
     quick: bool = True
+    recording: str | None = None
+
+    @property
+    def real(self) -> bool:
+        """A real recording, not a simulation."""
+        return self.recording is not None
 
 
 def _session(
@@ -103,6 +117,21 @@ SCENARIOS: tuple[SuiteScenario, ...] = (
         "a laboratory IMU beside a permanent magnet (BROAD's disturbed trials)",
         quick=False,
     ),
+    SuiteScenario(
+        "broad-02-undisturbed",
+        "orientation",
+        SessionConfig(),
+        "real: BROAD trial 02's first 60 s, slow rotation, undisturbed field; optical reference",
+        recording="broad_02_undisturbed_slow_rotation_B_60s.hdf5",
+    ),
+    SuiteScenario(
+        "broad-30-magnet",
+        "orientation",
+        SessionConfig(),
+        "real: BROAD trial 30's first 60 s, a magnet beside the path; optical reference",
+        quick=False,
+        recording="broad_30_disturbed_stationary_magnet_C_60s.hdf5",
+    ),
 )
 
 
@@ -125,9 +154,12 @@ def scenario_config(sc: SuiteScenario, seed: int) -> SessionConfig:
     return dataclasses.replace(sc.config, seed=int(seed))
 
 
-def scenario_dataset(sc: SuiteScenario | str, seed: int) -> Dataset:
-    """Simulate one seed of a scenario (with exact truth)."""
+def scenario_dataset(sc: SuiteScenario | str, seed: int) -> Dataset | ImuRecording:
+    """Simulate one seed of a scenario (with exact truth); a real recording is read (the same for
+    every seed), with its reference as ``q_true`` and the samples to score as ``evaluate``."""
     sc = scenario(sc) if isinstance(sc, str) else sc
+    if sc.real:
+        return read_broad(DATA_DIR / sc.recording)
     config = scenario_config(sc, seed)
     return run_session(config, load_session_model(config))
 
@@ -135,6 +167,9 @@ def scenario_dataset(sc: SuiteScenario | str, seed: int) -> Dataset:
 def scenario_fingerprint(sc: SuiteScenario) -> str:
     """A hash of what makes the scenario's data: its session (but the seed), the suite's seeds and
     version, and simbench's version (the simulation may change between versions)."""
-    config = dataclasses.asdict(dataclasses.replace(sc.config, seed=0))
+    if sc.real:  # the recording's own bytes
+        config: dict | str = hashlib.sha256((DATA_DIR / sc.recording).read_bytes()).hexdigest()
+    else:
+        config = dataclasses.asdict(dataclasses.replace(sc.config, seed=0))
     doc = {"suite": SUITE_VERSION, "simbench": __version__, "seeds": SEEDS, "kind": sc.kind, "config": config}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]

@@ -39,7 +39,7 @@ import numpy as np
 
 from calibration import calibrate, detect_slip, fit_joint
 from calibration.errors import CalibrationError
-from calibration.methods import JOINT_METHODS, estimate_obrien_eiv
+from calibration.methods import estimate_obrien_eiv
 from calibration.uncertainty import holds_truth, joint_covariance
 from simbench.estimators import DEFAULT_ORIENTATION as DEFAULT_METHOD
 from simbench.estimators import names, resolve
@@ -454,13 +454,18 @@ def coverage_study(path: Path = COVERAGE_STUDY) -> dict[str, Any] | None:
     }
 
 
+#: The joint-centre methods the report compares on the same sessions: every built-in that
+#: estimates from poses (the registry's; :mod:`simbench.estimators.builtin`).
+POSE_JOINT_METHODS = tuple(n for n in names("joints", plugins=False) if resolve(n).data == "poses")
+
+
 def _methods_session(model: str, preset: str, seed: int, duration_s: float) -> dict[str, Any]:
     """One session of the methods comparison: every method's metrics and the regions' hits."""
     config = SessionConfig(model=model, motion="exercise", duration_s=duration_s, seed=seed, sensors=preset)
     ds = run_session(config, load_session_model(config))
     hits = {"batch-means": [0, 0], "iid": [0, 0], "eiv": [0, 0]}
     _coverage(ds, hits)
-    return {"rows": {m: joint_method_metrics(ds, m) for m in JOINT_METHODS}, "hits": hits}
+    return {"rows": {m: joint_method_metrics(ds, m) for m in POSE_JOINT_METHODS}, "hits": hits}
 
 
 def _joint_methods(plan: Plan, run: Callable = map) -> dict[str, Any]:
@@ -474,7 +479,7 @@ def _joint_methods(plan: Plan, run: Callable = map) -> dict[str, Any]:
     sessions = iter(run(_methods_session, *zip(*jobs, strict=True)))
     for label, _, preset in METHODS_CONDITIONS:
         done = [next(sessions) for _ in seeds]
-        rows = {m: [d["rows"][m] for d in done] for m in JOINT_METHODS}
+        rows = {m: [d["rows"][m] for d in done] for m in POSE_JOINT_METHODS}
         hits = {k: [sum(d["hits"][k][i] for d in done) for i in (0, 1)] for k in done[0]["hits"]}
         out["conditions"][label] = {
             "preset": preset,

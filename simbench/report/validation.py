@@ -279,10 +279,11 @@ def _joint_methods(methods: dict[str, Any] | None) -> list[str]:
     out = [
         "## Joint-centre methods side by side",
         "",
-        f"Each method of `calibration.methods` on the joints of the true hierarchy of the same "
-        f"seeded exercise sessions ({methods['seeds']} seed(s) x {methods['duration_s']:g} s per "
-        "condition): mean joint-centre error (parent frame) and limb-length error, mm. SARA's centre "
-        "on a ball joint is an arbitrary point of an arbitrary axis: no accuracy figure. "
+        "Each built-in joints estimator that takes poses (`simbench.estimators`) on the joints of "
+        f"the true hierarchy of the same seeded exercise sessions ({methods['seeds']} seed(s) x "
+        f"{methods['duration_s']:g} s per condition): mean joint-centre error (parent frame) and "
+        "limb-length error, mm. SARA's centre on a ball joint is an arbitrary point of an "
+        "arbitrary axis: no accuracy figure. "
         "`studies/methods.py` runs more seeds and conditions.",
         "",
     ]
