@@ -1,0 +1,201 @@
+"""A user's estimators, outside the repository, through every way in: the two examples of
+``examples/estimators`` copied into a temporary folder and run from there with the installed
+package (not the checkout's folder) through ``calibrate --method``, a study, ``bench --quick``,
+``baseline --scenarios`` and the pytest plugin."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "estimators"
+SPHERE = "sphere_fit.py:estimate"
+COMMAND = "cmd:python3 pair_fit_cmd.py {poses} {hierarchy} {out}"
+
+
+def _run(folder: Path, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTEST_ADDOPTS")}
+    env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"  # python3: this venv's
+    return subprocess.run(
+        [sys.executable, *args], cwd=folder, env=env, capture_output=True, text=True, timeout=timeout
+    )
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory) -> Path:
+    """A user's folder: the two estimators, a simulated recording and its true tree."""
+    folder = tmp_path_factory.mktemp("mylab")
+    for name in ("sphere_fit.py", "pair_fit_cmd.py"):
+        shutil.copy(EXAMPLES / name, folder / name)
+    made = _run(
+        folder,
+        "-m",
+        "simbench",
+        "simulate",
+        "--model",
+        "linkage",
+        "--sensors",
+        "polhemus-liberty",
+        "--duration",
+        "6",
+        "--seed",
+        "2",
+        "--csv",
+        "poses.csv",
+        "--truth-json",
+        "truth.json",
+        "-o",
+        "ds.h5",
+    )
+    assert made.returncode == 0, made.stderr
+    truth = json.loads((folder / "truth.json").read_text())
+    (folder / "tree.json").write_text(json.dumps({j["child"]: j["parent"] for j in truth["joints"]}))
+    return folder
+
+
+def test_the_package_is_not_imported_from_the_checkout_folder(lab):
+    where = _run(lab, "-c", "import simbench, os; print(os.getcwd())")
+    assert where.returncode == 0 and Path(where.stdout.strip()) == lab
+
+
+@pytest.mark.parametrize("spec", [SPHERE, COMMAND])
+def test_calibrate_method(lab, spec):
+    out = f"cal_{'cmd' if spec == COMMAND else 'py'}.json"
+    run = _run(
+        lab,
+        "-m",
+        "simbench",
+        "calibrate",
+        "poses.csv",
+        "--hierarchy",
+        "tree.json",
+        "--method",
+        spec,
+        "--json",
+        out,
+    )
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((lab / out).read_text())
+    truth = json.loads((lab / "truth.json").read_text())
+    assert {j["child"] for j in doc["joints"]} == {j["child"] for j in truth["joints"]}
+    scored = _run(
+        lab, "-c", f"import simbench as sb; print(sb.score({out!r}, sb.read('ds.h5')).mean_centre_error_m)"
+    )
+    assert scored.returncode == 0, scored.stderr
+    assert 0 < float(scored.stdout) < 0.1  # metres: a sphere fit and a pair fit of a noisy tracker
+
+
+def test_a_study(lab):
+    (lab / "study.toml").write_text(
+        f"""name = "mine"
+seed = 1
+seeds_per_cell = 1
+estimators = ["joint:{SPHERE}", "joint:{COMMAND}", "joint:obrien"]
+metrics = ["joint_centre_error_m"]
+[base]
+model = "linkage"
+sensors = "polhemus-liberty"
+duration_s = 3.0
+rate_hz = 60.0
+[[parameter]]
+name = "sensors.tracker.position_noise_m"
+unit = "mm"
+values = [0.0, 2.0]
+"""
+    )
+    run = _run(
+        lab, "-m", "simbench", "sweep", "study.toml", "--out", "study", "--workers", "1", "--no-progress"
+    )
+    assert run.returncode == 0, run.stderr
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(lab / "study" / "results.parquet").to_pydict()
+    for spec in (SPHERE, COMMAND, "obrien"):
+        column = next(k for k in table if k.startswith("joint_centre_error_m:") and k.endswith(spec))
+        assert all(0 <= v < 0.2 for v in table[column]), (column, table[column])
+
+
+def test_bench_quick(lab):
+    run = _run(
+        lab,
+        "-m",
+        "simbench",
+        "bench",
+        "--kind",
+        "joints",
+        "--quick",
+        "--estimator",
+        SPHERE,
+        "--estimator",
+        COMMAND,
+        "--out",
+        "bench",
+        "--workers",
+        "2",
+    )
+    assert run.returncode == 0, run.stderr
+    card = json.loads((lab / "bench" / "scorecard.json").read_text())
+    scored = {r["estimator"] for r in card["rows"] if r["failures"] < r["n"] + r["failures"]}
+    assert {SPHERE, COMMAND, "obrien"} <= scored
+
+
+def test_baseline_scenarios(lab):
+    (lab / "scenarios.toml").write_text(
+        f"""[[scenario]]
+name = "linkage-sphere"
+estimator = "joint:{SPHERE}"
+model = "linkage"
+sensors = "polhemus-liberty"
+duration_s = 4.0
+seed = 1
+
+[[scenario]]
+name = "linkage-command"
+estimator = "joint:{COMMAND}"
+model = "linkage"
+sensors = "polhemus-liberty"
+duration_s = 4.0
+seed = 1
+"""
+    )
+    assert (
+        _run(lab, "-m", "simbench", "baseline", "--scenarios", "scenarios.toml", "--update").returncode == 0
+    )
+    accepted = json.loads((lab / "scenarios.baseline.json").read_text())["scenarios"]
+    assert set(accepted) == {"linkage-sphere", "linkage-command"}
+    check = _run(lab, "-m", "simbench", "baseline", "--scenarios", "scenarios.toml")
+    assert check.returncode == 0 and "no regression" in check.stdout, check.stderr
+    # a worse accepted figure in the user's file: the check fails (exit 1) and names it
+    accepted["linkage-sphere"]["centre_error_cm"] /= 2
+    (lab / "scenarios.baseline.json").write_text(json.dumps({"scenarios": accepted}))
+    worse = _run(lab, "-m", "simbench", "baseline", "--scenarios", "scenarios.toml")
+    assert worse.returncode == 1 and "linkage-sphere.centre_error_cm" in worse.stderr
+
+
+def test_the_pytest_plugin(lab):
+    (lab / "test_mine.py").write_text(
+        """from sphere_fit import estimate
+
+
+def test_sphere_fit(simbench_scenario, simbench_score, simbench_regression):
+    ds = simbench_scenario("linkage-paper", seed=1)
+    figures = simbench_score(estimate, ds)
+    cmd = simbench_score("cmd:python3 pair_fit_cmd.py {poses} {hierarchy} {out}", ds)
+    for key, got in (("sphere", figures), ("cmd", cmd)):
+        figure = {"joint_centre_error_m": got["joint_centre_error_m"]}
+        simbench_regression.check(f"{key}/linkage-paper/1", figure)
+"""
+    )
+    args = ("-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist", "test_mine.py")
+    first = _run(lab, *args)
+    assert first.returncode == 1 and "--simbench-update" in first.stdout
+    assert _run(lab, *args, "--simbench-update").returncode == 0
+    assert "sphere/linkage-paper/1" in json.loads((lab / "simbench_regression.json").read_text())["figures"]
+    again = _run(lab, *args)
+    assert again.returncode == 0, again.stdout
