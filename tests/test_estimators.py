@@ -347,3 +347,36 @@ def test_a_command_names_its_script_from_the_callers_folder(tmp_path, monkeypatc
     est = resolve(f"cmd:{sys.executable} fit.py {{poses}} {{hierarchy}} {{out}}")
     got = run_joints(est, linkage.poses(), hierarchy=linkage.truth.parent_of)
     assert set(got.joints.child) == set(linkage.truth.parent_of)
+
+
+def test_the_pose_container_estimators_receive(linkage):
+    poses = linkage.poses()
+    assert len(poses) == poses.n_frames and poses.unit == "m"
+    first = poses[:100]
+    assert len(first) == 100 and first.names == poses.names
+    np.testing.assert_array_equal(first.R_w_s, poses.R_w_s[:100])
+    moving = poses[poses.time_s > 1.0]
+    assert moving.time_s[0] > 1.0 and len(moving) < len(poses)
+    two = poses.sensors(["head", "chest"])
+    assert two.names == ("head", "chest")
+    np.testing.assert_array_equal(two.p_w_s[:, 0], poses.p_w_s[:, poses.names.index("head")])
+    mm = poses.in_unit("mm")
+    np.testing.assert_allclose(mm.p_w_s, 1000 * poses.p_w_s, rtol=1e-15)
+    # an estimate from poses in millimetres is in millimetres: the same joints, scaled
+    a = run_joints(resolve("score"), poses, hierarchy=linkage.truth.parent_of).joints.joint_in_parent
+    b = run_joints(resolve("score"), mm, hierarchy=linkage.truth.parent_of).joints.joint_in_parent
+    np.testing.assert_allclose(b, 1000 * a, rtol=1e-6, atol=1e-9)
+    made = simbench.PoseRecording.from_arrays(poses.names, poses.time_s, poses.R_w_s, poses.p_w_s)
+    np.testing.assert_array_equal(made.valid, poses.valid)
+    with pytest.raises(
+        InputError, match=r"p_w_s to have shape \(720, 6, 3\) to match R_w_s, got \(720, 6, 2\)"
+    ):
+        simbench.PoseRecording.from_arrays(poses.names, poses.time_s, poses.R_w_s, poses.p_w_s[..., :2])
+    with pytest.raises(InputError, match=r"for 3 times and 6 names"):
+        simbench.PoseRecording.from_arrays(poses.names, poses.time_s[:3], poses.R_w_s, poses.p_w_s)
+    with pytest.raises(InputError, match="sensor\\(s\\) \\['tail'\\] are not in the recording"):
+        poses.sensors(["tail"])
+    with pytest.raises(InputError, match="Expected unit to be one of"):
+        simbench.PoseRecording.from_arrays(
+            poses.names, poses.time_s, poses.R_w_s, poses.p_w_s, unit="furlong"
+        )

@@ -52,7 +52,7 @@ from calibration.methods.inertial import (
     seel_joint_position,
 )
 from calibration.methods.sara import SaraFit, sara
-from calibration.methods.score import ScoreFit, check_poses, score
+from calibration.methods.score import ScoreFit, check_pair, score
 from calibration.methods.sphere import (
     VARIANTS,
     SphereFit,
@@ -144,7 +144,7 @@ def estimate_obrien(
         CalibrationError: the fit determines fewer than five directions (no relative rotation,
             or too little for the single-axis test to locate a centre).
     """
-    pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
+    pair = check_pair(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
     fit = fit_joint(pair.R_w_p, pair.p_w_p, pair.R_w_c, pair.p_w_c, valid=pair.used)
     _check_rank(fit)
     return _obrien_estimate("obrien", fit)
@@ -184,7 +184,7 @@ def estimate_obrien_eiv(
         CalibrationError: as :func:`estimate_obrien`, or the noise swamps the motion along a
             determined direction, or too few consecutive frames to read the noise from.
     """
-    pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
+    pair = check_pair(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
     if orientation_noise_rad2 is None:
         try:
             orientation_noise_rad2 = (

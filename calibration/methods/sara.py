@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.methods.score import check_poses, frame_residuals, require_rotation, rms, stacked_system
+from calibration.methods.score import check_pair, frame_residuals, require_rotation, rms, stacked_system
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ def sara(
         CalibrationError: the child does not rotate relative to the parent (fewer than five
             directions determined, so no single axis).
     """
-    pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
+    pair = check_pair(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
     A, b = stacked_system(pair)
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     require_rotation(s, "SARA")

@@ -18,7 +18,7 @@ each weak direction against the residual's noise, while :func:`score` applies on
 the singular values (:data:`calibration.joint.SINGLE_AXIS_RATIO`) and reports the rank; for a hinge
 use SARA (:mod:`calibration.methods.sara`).
 
-The helpers :func:`check_poses`, :func:`stacked_system` and :func:`rotation_rank` are shared by the
+The helpers :func:`check_pair`, :func:`stacked_system` and :func:`rotation_rank` are shared by the
 other pose-based methods of this package.
 """
 
@@ -80,7 +80,7 @@ def check_finite(name: str, a: np.ndarray, used: np.ndarray) -> None:
         )
 
 
-def check_poses(
+def check_pair(
     R_w_p: np.ndarray,
     p_w_p: np.ndarray,
     R_w_c: np.ndarray,
@@ -242,7 +242,7 @@ def score(
         CalibrationError: the child does not rotate relative to the parent (fewer than five
             directions determined).
     """
-    pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
+    pair = check_pair(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid)
     A, b = stacked_system(pair)
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     rank = require_rotation(s, "SCoRE")

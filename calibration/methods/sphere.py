@@ -47,7 +47,7 @@ from scipy.optimize import brentq, least_squares
 
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.joint import SINGLE_AXIS_RATIO
-from calibration.methods.score import check_finite, check_poses, check_valid, frame_residuals, rms
+from calibration.methods.score import check_finite, check_pair, check_valid, frame_residuals, rms
 
 #: Fewest used frames a sphere fit accepts (four points in general position fix a sphere).
 MIN_FRAMES = 4
@@ -462,9 +462,9 @@ def sphere_joint(
         raise CalibrationInputError("Expected both R_w_c and p_w_c or neither, got only one")
     child_given = R_w_c is not None and p_w_c is not None
     if child_given:
-        pair = check_poses(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid, min_frames=MIN_FRAMES)
+        pair = check_pair(R_w_p, p_w_p, R_w_c, p_w_c, valid=valid, min_frames=MIN_FRAMES)
     else:  # the parent's pose stands in for the child's: checked once, never used
-        pair = check_poses(R_w_p, p_w_p, R_w_p, p_w_p, valid=valid, min_frames=MIN_FRAMES)
+        pair = check_pair(R_w_p, p_w_p, R_w_p, p_w_p, valid=valid, min_frames=MIN_FRAMES)
     u = pair.used
     x = _points_array(points_w, "points_w")
     if x.shape[0] != u.shape[0]:

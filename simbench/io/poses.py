@@ -27,11 +27,15 @@ from __future__ import annotations
 
 import csv
 import os
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from calibration.errors import CalibrationInputError
+from calibration.poses import check_poses
 from calibration.rotations import matrix_to_quat
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_open
@@ -92,7 +96,12 @@ def first_bad_time(time_s: np.ndarray) -> tuple[int, str] | None:
 
 @dataclass(frozen=True)
 class PoseRecording:
-    """6-DoF sensor poses over time.
+    """6-DoF sensor poses over time: the container every joints estimator receives.
+
+    Batched like scipy's ``Rotation``: ``len(poses)`` frames, ``poses[frames]`` a selection of
+    frames, ``poses.sensors(names)`` of sensors, ``poses.in_unit("mm")``; made from bare arrays by
+    :meth:`from_arrays`. It checks itself once, when made (shapes by
+    :func:`calibration.poses.check_poses`, increasing times, a known unit).
 
     Attributes:
         names: ``(sensors,)`` sensor names.
@@ -119,17 +128,91 @@ class PoseRecording:
     def __post_init__(self) -> None:
         if self.unit not in LENGTH_UNITS:
             raise InputError(f"Expected unit to be one of {sorted(LENGTH_UNITS)}, got {self.unit!r}")
-        f, n = self.time_s.shape[0], len(self.names)
-        expected = {"time_s": (f,), "R_w_s": (f, n, 3, 3), "p_w_s": (f, n, 3), "valid": (f, n)}
-        for name, shape in expected.items():
-            got = getattr(self, name).shape
-            if got != shape:
-                raise InputError(f"Expected {name} to have shape {shape}, got {got}")
-        if f > 1 and not np.all(np.diff(self.time_s) > 0):
+        time_s = self.time_s
+        if not isinstance(time_s, np.ndarray) or time_s.ndim != 1:
+            raise InputError(f"Expected time_s to have shape (frames,), got {np.shape(time_s)}")
+        try:  # the one check of pose arrays, the calibration's (calibration.poses.check_poses)
+            f, n = check_poses(self.R_w_s, self.p_w_s, self.valid)
+        except CalibrationInputError as exc:
+            raise InputError(str(exc)) from None
+        if (f, n) != (time_s.shape[0], len(self.names)):
+            raise InputError(
+                f"Expected R_w_s to have shape ({time_s.shape[0]}, {len(self.names)}, 3, 3) for "
+                f"{time_s.shape[0]} times and {len(self.names)} names, got {tuple(self.R_w_s.shape)}"
+            )
+        if self.valid is None:
+            raise InputError("Expected valid, an array of shape (frames, sensors), got None")
+        if f > 1 and not np.all(np.diff(time_s) > 0):
             raise InputError("times must be strictly increasing")
-        _, note = sample_rate(self.time_s)
+        _, note = sample_rate(time_s)
         if note is not None and note not in self.notes:  # every reader's recording says so
             object.__setattr__(self, "notes", (*self.notes, note))
+
+    @classmethod
+    def from_arrays(
+        cls,
+        names: Sequence[str],
+        time_s: Any,
+        R_w_s: Any,
+        p_w_s: Any,
+        *,
+        valid: Any = None,
+        unit: str = "m",
+        source: str = "arrays",
+    ) -> PoseRecording:
+        """A recording from bare arrays: ``time_s`` ``(F,)`` s, ``R_w_s`` ``(F, N, 3, 3)``,
+        ``p_w_s`` ``(F, N, 3)`` in ``unit``; ``valid`` ``(F, N)`` (default: where the pose is finite).
+
+        Raises:
+            InputError: shapes that do not agree (what was expected and what arrived), times that do
+                not increase, an unknown unit.
+        """
+        R = np.asarray(R_w_s, dtype=float)
+        p = np.asarray(p_w_s, dtype=float)
+        if valid is None and R.shape[:2] == p.shape[:2]:
+            valid = np.isfinite(R).all(axis=(-2, -1)) & np.isfinite(p).all(axis=-1)
+        return cls(
+            tuple(names),
+            np.asarray(time_s, dtype=float),
+            R,
+            p,
+            np.asarray(valid, dtype=bool),
+            source,
+            (),
+            unit,
+        )
+
+    def __len__(self) -> int:
+        return self.n_frames
+
+    def __getitem__(self, frames: Any) -> PoseRecording:
+        """The recording over some frames (a slice, a bool mask or indices), every sensor kept:
+        ``poses[:600]``, ``poses[poses.time_s > 10]``."""
+        t = self.time_s[frames]
+        if np.ndim(t) != 1:
+            raise InputError(f"Expected a selection of frames (slice, mask, indices), got {frames!r}")
+        return replace(
+            self, time_s=t, R_w_s=self.R_w_s[frames], p_w_s=self.p_w_s[frames], valid=self.valid[frames]
+        )
+
+    def sensors(self, names: Sequence[str]) -> PoseRecording:
+        """The recording of some sensors, in the order given.
+
+        Raises:
+            InputError: a name the recording lacks.
+        """
+        missing = [n for n in names if n not in self.names]
+        if missing:
+            raise InputError(f"sensor(s) {missing} are not in the recording ({', '.join(self.names)})")
+        k = [self.names.index(n) for n in names]
+        return replace(
+            self, names=tuple(names), R_w_s=self.R_w_s[:, k], p_w_s=self.p_w_s[:, k], valid=self.valid[:, k]
+        )
+
+    def in_unit(self, unit: str) -> PoseRecording:
+        """The same poses with positions in another length unit (``m``, ``cm``, ``mm``, ``in``)."""
+        factor = metres_per_unit(self.unit) / metres_per_unit(unit)
+        return replace(self, p_w_s=self.p_w_s * factor, unit=unit)
 
     @property
     def n_frames(self) -> int:
