@@ -526,3 +526,25 @@ def test_a_metric_with_no_value_in_a_cell_is_nan_without_a_warning():
         assert np.isnan(study_report.mean_of_known(np.array([np.nan, np.nan])))
         assert study_report.mean_of_known(np.array([1.0, np.nan, 3.0])) == 2.0
         assert np.isnan(study_report.mean_of_known(np.array([])))
+
+
+def test_a_users_estimator_in_a_study_fails_alone_and_its_file_is_fingerprinted(tmp_path):
+    """A user's estimator file beside the study: found there, its failure is its own error column
+    (the built-in beside it still scores the trial), and editing its code changes the study."""
+    fit = tmp_path / "fit.py"
+    fit.write_text("def estimate(poses, *, hierarchy=None):\n    raise RuntimeError('not yet')\n")
+    path = parameter_study(tmp_path, "duration_s", "s", "[1.0]", seeds=1)
+    path.write_text(
+        path.read_text().replace(
+            'estimators = ["calibration"]', 'estimators = ["joint:fit.py:estimate", "joint:score"]'
+        )
+    )
+    study = st.load_study(path)
+    spec = f"{tmp_path / 'fit.py'}:estimate"
+    assert study.estimators == (f"joint:{spec}", "joint:score")
+    (row,) = rows(sw.run_study(study, tmp_path / "out", workers=1))
+    assert row[f"error:{spec}"] == f"estimator '{spec}' raised RuntimeError: not yet"
+    assert 0 < row["joint_centre_error_m:score"] < 0.05 and row.get("error") is None
+    before = st.study_fingerprint(study)
+    fit.write_text("def estimate(poses, *, hierarchy=None):\n    raise RuntimeError('still not')\n")
+    assert st.study_fingerprint(st.load_study(path)) != before

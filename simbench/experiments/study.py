@@ -454,11 +454,23 @@ def trial_config(study: Study, trial: Trial) -> SessionConfig:
     )
 
 
+def _named_files(estimator: str) -> list[str]:
+    """The files an estimator entry names: a ``file.py:function``'s file, or the files a
+    ``cmd:`` line's words name (from the working directory)."""
+    spec = estimator.split(":", 1)[1] if ":" in estimator else estimator
+    if spec.startswith("cmd:"):
+        words = spec[4:].split()
+    else:
+        words = [spec.rpartition(":")[0]] if spec.rpartition(":")[0].endswith(".py") else []
+    return sorted({w for w in words if "{" not in w and Path(w).is_file()})
+
+
 def study_fingerprint(study: Study) -> str:
     """A fingerprint of the study: SHA-256 of every parsed value (the base session, the sensors,
     the parameters, seeds and estimators), the contents of the files the base names (a sensor
-    TOML, a model or motion file) and simbench's version. Two files that parse to the same study
-    share it; any changed value or named file, or another simbench version, gives another."""
+    TOML, a model or motion file) and of a user's estimator files, and simbench's version. Two
+    files that parse to the same study share it; any changed value or named file, or another
+    simbench version, gives another."""
     values = dataclasses.asdict(study)
     del values["source"]  # where the file lies is not what it asks
     # a base value naming a file (a sensor TOML, an MJCF model, a motion TOML): what it holds
@@ -467,6 +479,12 @@ def study_fingerprint(study: Study) -> str:
         key: hashlib.sha256(Path(value).read_bytes()).hexdigest()
         for key, value in named.items()
         if isinstance(value, str) and Path(value).is_file()
+    }
+    # a user's estimator in a file (file.py:function, or a script a cmd: line names): its code
+    values["estimator_files"] = {
+        word: hashlib.sha256(Path(word).read_bytes()).hexdigest()
+        for est in study.estimators
+        for word in _named_files(est)
     }
     doc = json.dumps(values, sort_keys=True, default=repr)
     return hashlib.sha256(f"simbench {__version__}\n{doc}".encode()).hexdigest()
