@@ -199,3 +199,72 @@ def test_sphere_fit(simbench_scenario, simbench_score, simbench_regression):
     assert "sphere/linkage-paper/1" in json.loads((lab / "simbench_regression.json").read_text())["figures"]
     again = _run(lab, *args)
     assert again.returncode == 0, again.stdout
+
+
+def test_an_installed_plugin(lab, tmp_path):
+    """examples/estimators/plugin as pip would install it: the module, and a dist-info whose
+    entry_points.txt holds the pyproject's simbench.estimators table (importlib.metadata finds
+    both on the path); then its name is a spec like a built-in's."""
+    import tomllib
+
+    plugin = EXAMPLES / "plugin"
+    table = tomllib.loads((plugin / "pyproject.toml").read_text())["project"]
+    site = tmp_path / "site"
+    info = site / f"{table['name'].replace('-', '_')}-{table['version']}.dist-info"
+    info.mkdir(parents=True)
+    shutil.copy(plugin / "mylab_estimators.py", site)
+    (info / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {table['name']}\nVersion: {table['version']}\n"
+    )
+    group = table["entry-points"]["simbench.estimators"]
+    (info / "entry_points.txt").write_text(
+        "[simbench.estimators]\n" + "".join(f"{k} = {v}\n" for k, v in group.items())
+    )
+    listed = _run(
+        lab,
+        "-c",
+        f"import os, sys; sys.path.insert(0, {str(site)!r}); "
+        "import simbench; print(simbench.estimators.names('joints'))",
+    )
+    assert "mylab-sphere" in listed.stdout, listed.stderr
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "simbench",
+            "calibrate",
+            "poses.csv",
+            "--hierarchy",
+            "tree.json",
+            "--method",
+            "mylab-sphere",
+            "--json",
+            "plugin.json",
+        ],
+        cwd=lab,
+        env={**os.environ, "PYTHONPATH": str(site)},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr
+    mine = json.loads((lab / "plugin.json").read_text())
+    assert mine["method"] == "mylab-sphere"
+    # the plugin is the same sphere fit as the file example: the same centres
+    ours = _run(
+        lab,
+        "-m",
+        "simbench",
+        "calibrate",
+        "poses.csv",
+        "--hierarchy",
+        "tree.json",
+        "--method",
+        SPHERE,
+        "--json",
+        "file.json",
+    )
+    assert ours.returncode == 0
+    theirs = json.loads((lab / "file.json").read_text())
+    for a, b in zip(mine["joints"], theirs["joints"], strict=True):
+        assert a["joint_in_parent"] == pytest.approx(b["joint_in_parent"], abs=1e-9)
