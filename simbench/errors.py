@@ -12,16 +12,24 @@ class InputError(ValueError):
     """A file or option is not what simbench expects (the message names what and where)."""
 
 
-def load_toml(path) -> dict:
-    """Parse a TOML file; a missing file, one that is not UTF-8 text or bad TOML is an
-    :class:`InputError` naming the file."""
+def read_text(path) -> str:
+    """A text file's contents (UTF-8); a file that cannot be read, or is not UTF-8 text, is an
+    :class:`InputError` naming the file and why."""
     path = Path(path)
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        return path.read_text(encoding="utf-8")
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror}") from None
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: {not_utf8(exc)}") from None
+
+
+def load_toml(path) -> dict:
+    """Parse a TOML file; a missing file, one that is not UTF-8 text or bad TOML is an
+    :class:`InputError` naming the file."""
+    text = read_text(path)
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import json
 import os
-from pathlib import Path
 from typing import Any
 
-from simbench.errors import InputError, not_utf8
+from simbench.errors import InputError, read_text
 
 
 def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
@@ -33,12 +32,7 @@ def read_hierarchy_json(path: str | os.PathLike[str]) -> dict[str, str]:
             raise InputError(f"{path}: sensors given a parent twice: {repeated}")
         return dict(pairs)
 
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: {not_utf8(exc)}") from None
+    text = read_text(path)
     try:
         doc = json.loads(text, object_pairs_hook=no_repeats)
     except json.JSONDecodeError as exc:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import InputError, not_utf8
+from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_write_text
 
 #: ``(quantity, unit)`` in column order within each sensor.
@@ -104,12 +104,7 @@ def read_imu_csv(path: str | os.PathLike[str]) -> ImuReadings:
             first that differs), a row of the wrong length, a field that is not a number.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: {not_utf8(exc)}") from None
+    text = read_text(path)
     numbered = [(k + 1, row) for k, row in enumerate(csv.reader(io.StringIO(text))) if row]
     numbered = [(k, row) for k, row in numbered if not row[0].startswith("#")]
     if not numbered:

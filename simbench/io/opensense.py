@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import InputError, not_utf8
+from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_write_text
 
 #: The OpenSim version whose ``.sto`` layout the writer follows (written as ``OpenSimVersion``).
@@ -131,12 +131,7 @@ def read_opensense_sto(path: str | os.PathLike[str]) -> Orientations:
             a first column not ``time``, a cell that is not 4 comma-separated numbers.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: {not_utf8(exc)}") from None
+    lines = read_text(path).splitlines()
     try:
         end = next(k for k, line in enumerate(lines) if line.strip() == "endheader")
     except StopIteration:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import InputError, not_utf8
+from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_open
 from simbench.io.imu import ImuRecording
 
@@ -52,12 +52,7 @@ def read_orientation_csv(
             given twice, a quaternion that is not of unit norm (to 1e-3), no row at all.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: {not_utf8(exc)}") from None
+    text = read_text(path)
     rows = [(k + 1, r) for k, r in enumerate(csv.reader(io.StringIO(text))) if r]
     if not rows or [c.strip().lower() for c in rows[0][1]] != list(HEADER):
         got = rows[0][1] if rows else "nothing"

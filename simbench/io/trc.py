@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbench.errors import InputError, not_utf8
+from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_write_text
 from simbench.units import LENGTH_UNITS
 
@@ -156,12 +156,7 @@ def read_trc(path: str | os.PathLike[str]) -> TrcMarkers:
             disagrees with the data (marker or frame count), a field that is not a number.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{path}: {not_utf8(exc)}") from None
+    lines = read_text(path).splitlines()
     if len(lines) < 5 or not lines[0].startswith("PathFileType"):
         raise InputError(f"{path}: not a TRC file: expected a first line starting with PathFileType")
     keys, values = lines[1].split("\t"), lines[2].split("\t")
