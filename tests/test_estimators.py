@@ -11,12 +11,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import simbench
 from calibration import SINGLE_AXIS_RATIO
 from simbench.errors import InputError
 from simbench.estimators import (
     EstimatorError,
+    joints_result,
     names,
     resolve,
     run_joints,
@@ -380,3 +383,59 @@ def test_the_pose_container_estimators_receive(linkage):
         simbench.PoseRecording.from_arrays(
             poses.names, poses.time_s, poses.R_w_s, poses.p_w_s, unit="furlong"
         )
+
+
+_VALUES = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(),
+    st.floats(allow_nan=True),
+    st.text(max_size=5),
+    st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=4),
+)
+_JOINT = st.dictionaries(
+    st.sampled_from(["parent", "child", "joint_in_parent", "joint_in_child", "units", "single_axis"]),
+    st.one_of(_VALUES, st.sampled_from(["chest", "head", "ghost"])),
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    doc=st.one_of(
+        _VALUES,
+        st.dictionaries(
+            st.sampled_from(["joints", "units"]),
+            st.one_of(
+                _VALUES,
+                st.lists(st.one_of(_JOINT, _VALUES), max_size=3),
+                st.sampled_from(["m", "mm", "parsec"]),
+            ),
+        ),
+    )
+)
+def test_whatever_an_estimator_returns_is_a_result_or_a_named_failure(doc):
+    """A user's estimator may return anything: a checked result, or an EstimatorError naming it."""
+    names = ("chest", "head", "upper_arm_l")
+    try:
+        got = joints_result(doc, "mine", names)
+    except EstimatorError as exc:
+        assert str(exc).startswith("estimator 'mine'")
+        return
+    assert np.isfinite(got.joints.joint_in_parent).all() and set(got.joints.child) <= set(names)
+
+
+@settings(max_examples=150, deadline=None)
+@given(text=st.text(alphabet="time,sensorqwxyz0123456789.-e\nnaNhead", max_size=300))
+def test_an_orientation_file_reads_or_is_refused_by_line(tmp_path_factory, text):
+    from simbench.io.orientation_csv import read_orientation_csv
+
+    path = tmp_path_factory.mktemp("o") / "out.csv"
+    path.write_text(text)
+    try:
+        q = read_orientation_csv(path, ("head", "chest"), np.array([0.0, 0.5, 1.0]))
+    except InputError as exc:
+        assert str(exc).startswith(str(path))
+        return
+    assert q.shape == (3, 2, 4)
+    finite = np.isfinite(q).all(axis=-1)
+    np.testing.assert_allclose(np.linalg.norm(q[finite], axis=-1), 1.0, atol=1e-3)

@@ -28,7 +28,7 @@ from simbench.estimators.registry import Estimator, JointsResult, OrientationRes
 from simbench.io.calibration_json import CalibrationJoints, calibration_joints, check_calibration_document
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
-from simbench.units import metres_per_unit
+from simbench.units import LENGTH_UNITS, metres_per_unit
 
 
 def check_hierarchy(
@@ -176,13 +176,15 @@ def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") 
         calibration, notes, got = got, got.warnings, joints_of(got)
     if isinstance(got, Mapping):
         where = f"estimator {name!r}'s result"
+        doc_unit = got.get("units", "m")
+        if not isinstance(doc_unit, str) or doc_unit not in LENGTH_UNITS:
+            raise EstimatorError(f"{where}: expected units one of {list(LENGTH_UNITS)}, got {doc_unit!r}")
         try:
             doc = check_calibration_document(dict(got), where)
-            doc_unit = doc.get("units", "m")
-            factor = metres_per_unit(doc_unit) / metres_per_unit(unit)
             joints = calibration_joints(doc, names, source=where)
         except InputError as exc:
             raise EstimatorError(str(exc)) from None
+        factor = metres_per_unit(doc_unit) / metres_per_unit(unit)
         got = CalibrationJoints(
             joints.parent,
             joints.child,
