@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from calibration import calibrate
-from simbench.experiments.decisions import DETECTION_TOLERANCE_S, SLIP_WINDOW_S, joint_slips, slip_trial
+from calibration.slip import SLIP_WINDOW_S
+from simbench.experiments.decisions import DETECTION_TOLERANCE_S, joint_slips, slip_trial
 from simbench.io.read import read_poses
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 

@@ -17,7 +17,7 @@ from calibration import (
     detect_slip,
 )
 from calibration.robust import LOSSES
-from calibration.slip import FALSE_ALARMS_PER_HOUR
+from calibration.slip import FALSE_ALARMS_PER_HOUR, SLIP_WINDOW_S
 from simbench.api import calibrate
 from simbench.cli.live import LiveOptions, add_follow_arguments, follow_csv
 from simbench.cli.table import format_table
@@ -134,9 +134,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument(
         "--slip-window",
         type=positive_float,
-        default=2.0,
+        default=SLIP_WINDOW_S,
         metavar="SECONDS",
-        help="slip detector window (default 2 s)",
+        help=f"slip detector window (default {SLIP_WINDOW_S:g} s)",
     )
     cal.add_argument(
         "--slip-false-alarms-per-hour",
