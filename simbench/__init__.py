@@ -24,7 +24,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 from calibration import Calibration
 from simbench import estimators
 from simbench.api import Orientations, calibrate, export, orient, read, score, simulate
-from simbench.errors import InputError
+from simbench.errors import CalibrationError, InputError
 from simbench.io.dataset import Dataset, read_dataset, write_dataset
 from simbench.io.imu import ImuRecording
 from simbench.io.marker_data import MarkerData
@@ -37,6 +37,7 @@ from simbench.versions import __version__, software_versions
 
 __all__ = [
     "Calibration",
+    "CalibrationError",
     "CalibrationScore",
     "Dataset",
     "ImuRecording",

@@ -13,7 +13,6 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from calibration import CalibrationError
 from simbench.cli import (
     baseline,
     bench,
@@ -27,7 +26,7 @@ from simbench.cli import (
     sweep,
     validate,
 )
-from simbench.errors import InputError
+from simbench.errors import CalibrationError, InputError
 from simbench.experiments.pool import one_blas_thread
 from simbench.versions import __version__
 
