@@ -174,13 +174,20 @@ def replay(
         options: the calibrator's options.
 
     Raises:
-        InputError: fewer than 2 frames, or an option the calibrator refuses.
+        InputError: fewer than 2 frames, or an option the calibrator refuses (at once).
         CalibrationError: at the end, when the frames never gave a calibration.
     """
     if rec.n_frames < 2 or not np.isfinite(rec.rate_hz):
         raise InputError(f"{source}: too few frames to replay ({rec.n_frames})")
     cal = calibrator(rec.names, rec.rate_hz, float(rec.time_s[0]), options)
-    updates = _Updates(refresh_s, cal, next_at=float(rec.time_s[0]) + refresh_s)
+    return _replay(
+        rec, cal, source, speed, _Updates(refresh_s, cal, next_at=float(rec.time_s[0]) + refresh_s)
+    )
+
+
+def _replay(
+    rec: PoseRecording, cal: StreamingCalibrator, source: str, speed: float | None, updates: _Updates
+) -> Iterator[LiveUpdate]:
     block = max(1, round(rec.rate_hz / 20))  # 50 ms of frames at a time
     for b in live_blocks(rec, block_frames=block, speed=speed):
         cal.push(b.R_w_s, b.p_w_s, b.valid)
