@@ -14,15 +14,22 @@ import sys
 import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from calibration.streaming import LiveState, StreamingCalibrator
+from simbench.api import (
+    LIVE_RATE_FRAMES,
+    LIVE_REFRESH_S,
+    LiveState,
+    LiveUpdate,
+    StreamingCalibrator,
+    follow,
+    replay,
+)
 from simbench.cli.table import text_table
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
-from simbench.experiments.live import RATE_FRAMES, REFRESH_S, LiveOptions, LiveUpdate, follow, replay
-from simbench.io.read import read_poses
 
 
 def add_replay_parser(sub: argparse._SubParsersAction) -> None:
@@ -70,14 +77,15 @@ def add_follow_arguments(cal: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=None,
         metavar="HZ",
-        help=f"with --follow: the capture rate (default: from the first {RATE_FRAMES} frames' time stamps)",
+        help=f"with --follow: the capture rate (default: from the first {LIVE_RATE_FRAMES} frames' time "
+        "stamps)",
     )
     cal.add_argument(
         "--refresh",
         type=positive_float,
-        default=REFRESH_S,
+        default=LIVE_REFRESH_S,
         metavar="SECONDS",
-        help=f"with --follow: seconds of capture between tables (default {REFRESH_S:g})",
+        help=f"with --follow: seconds of capture between tables (default {LIVE_REFRESH_S:g})",
     )
 
 
@@ -85,9 +93,9 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--refresh",
         type=positive_float,
-        default=REFRESH_S,
+        default=LIVE_REFRESH_S,
         metavar="SECONDS",
-        help=f"seconds of capture between tables (default {REFRESH_S:g})",
+        help=f"seconds of capture between tables (default {LIVE_REFRESH_S:g})",
     )
     parser.add_argument("--no-slip", action="store_true", help="no slip alerts")
 
@@ -198,14 +206,7 @@ def live_table(source: str, state: LiveState, *, final: bool = False) -> str:
 def cmd_replay(args: argparse.Namespace) -> int:
     """``simbench replay``: a pose file through the live calibration."""
     speed = parse_speed(args.rate)
-    rec = read_poses(args.input, args.units)
-    updates = replay(
-        rec,
-        source=str(args.input),
-        speed=speed,
-        refresh_s=args.refresh,
-        options=LiveOptions(slip=not args.no_slip),
-    )
+    updates = replay(args.input, units=args.units, speed=speed, refresh_s=args.refresh, slip=not args.no_slip)
     LivePrinter(str(args.input), clear=sys.stdout.isatty()).show_all(updates)
     return 0
 
@@ -216,14 +217,15 @@ def follow_csv(
     units: str = "m",
     rate_hz: float | None = None,
     timeout_s: float | None = None,
-    refresh_s: float = REFRESH_S,
-    options: LiveOptions | None = None,
+    refresh_s: float = LIVE_REFRESH_S,
     out: Callable[[str], None] = print,
     clock: Callable[[], float] = time.monotonic,
+    **options: Any,
 ) -> StreamingCalibrator | None:
     """Calibrate live from a pose CSV that another process is appending to, printing alerts and
-    tables (:func:`simbench.experiments.live.follow`) until ``timeout_s`` seconds of wall time
-    or Ctrl-C, then the final table. Returns the calibrator (``None`` when no frame arrived)."""
+    tables (:func:`simbench.api.follow`, which takes ``options``: the hierarchy, O'Brien's
+    options, slip alerts) until ``timeout_s`` seconds of wall time or Ctrl-C, then the final
+    table. Returns the calibrator (``None`` when no frame arrived)."""
     printer = LivePrinter(str(path), out=out, clear=sys.stdout.isatty())
     updates = follow(
         path,
@@ -231,8 +233,8 @@ def follow_csv(
         rate_hz=rate_hz,
         timeout_s=timeout_s,
         refresh_s=refresh_s,
-        options=options or LiveOptions(),
         clock=clock,
+        **options,
     )
     cal = printer.show_all(updates)
     if cal is None:
