@@ -39,8 +39,8 @@ of ``d`` (frames near an alert left out), refreshed every 5 s; an alert when ``|
 crosses the threshold, which is set for ``false_alarms_per_hour`` per joint (default
 :data:`calibration.slip.FALSE_ALARMS_PER_HOUR`, the batch's: ``J`` joints give ``J`` expected false
 alarms an hour under the detector's exponential-tail model). A jump of ``X`` times the threshold
-is seen ``w / X`` frames after it happens (at most ``w``; default 0.5 s). The alert names the
-sensor whose other joints jump too (or a leaf sensor whose neighbour's other joints do not;
+is seen ``w / X`` frames after it happens (at most ``w``; default :data:`LIVE_SLIP_WINDOW_S`). The
+alert names the sensor whose other joints jump too (or a leaf sensor whose neighbour's other joints do not;
 failing both, the sensor whose frame holds the jump more significantly), the least-squares change
 point within the
 last ``2 w`` frames as the time, and the change of mean across it as the size. One slip moves
@@ -102,8 +102,9 @@ FLUSH_S = 0.1
 #: Seconds between refits of the tree and joints the slip monitor uses.
 REFIT_S = 2.0
 
-#: Default slip window ``w``, seconds: an alert comes at most this late after a clear jump.
-SLIP_WINDOW_S = 0.5
+#: Default window ``w`` of the live slip monitor, seconds: an alert comes at most this late after
+#: a clear jump (the batch detector's is :data:`calibration.slip.SLIP_WINDOW_S`, looking both ways).
+LIVE_SLIP_WINDOW_S = 0.5
 
 #: Seconds of the slip statistic each joint keeps for its noise model.
 SLIP_HISTORY_S = 60.0
@@ -255,7 +256,7 @@ class StreamingCalibrator:
         single_axis_ratio: float = SINGLE_AXIS_RATIO,
         loop_factor: float = LOOP_FACTOR,
         slip: bool = True,
-        slip_window_s: float = SLIP_WINDOW_S,
+        slip_window_s: float = LIVE_SLIP_WINDOW_S,
         false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
         start_time_s: float = 0.0,
     ) -> None:

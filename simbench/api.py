@@ -10,24 +10,41 @@
 
 Everything is in memory (no temporary files) and in SI units; a tracker's unit scale factor is
 carried by the Dataset and applied by :func:`score`.
+
+This module is also the command line's one door to the layers below (``tests/
+test_cli_through_api.py``): whatever ``simbench`` does, a Python user does here too -- read a
+recording (:func:`read_poses`, :func:`read_imu`, :func:`read_hierarchy`), find slips
+(:func:`slip_reports`), write the calibration JSON (:func:`calibration_document`,
+:func:`write_calibration`), calibrate live (:func:`follow`, :func:`replay`), the unit scale
+(:func:`unit_scale`) -- and the names it needs from the estimator registry and the calibration
+core are re-exported from here.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration
+from calibration import Calibration, SlipReport, detect_slip
 from calibration import calibrate as calibrate_arrays
+from calibration import unit_scale as unit_scale_arrays
 from calibration.orientation import Priors, Skeleton
-from simbench.errors import InputError
+from calibration.scale import ScaleEstimate, rigidity
+from calibration.slip import FALSE_ALARMS_PER_HOUR, SLIP_WINDOW_S
+from calibration.streaming import LiveState, SlipAlert, StreamingCalibrator
+from simbench.errors import CalibrationError, CalibrationInputError, InputError
 from simbench.estimators import (
+    DEFAULT_JOINTS,
     DEFAULT_ORIENTATION,
+    TIME_LIMIT_S,
     Estimator,
     JointsResult,
     joints_result,
@@ -35,19 +52,34 @@ from simbench.estimators import (
     run_joints,
     run_orientation,
 )
+from simbench.estimators import names as estimator_names
 from simbench.estimators.registry import from_callable
+from simbench.experiments.live import RATE_FRAMES as LIVE_RATE_FRAMES
+from simbench.experiments.live import REFRESH_S as LIVE_REFRESH_S
+from simbench.experiments.live import LiveOptions, LiveUpdate
+from simbench.experiments.live import follow as follow_file
+from simbench.experiments.live import replay as replay_recording
+from simbench.experiments.pool import one_blas_thread
 from simbench.io.c3d import read_c3d
-from simbench.io.calibration_json import read_calibration_json
-from simbench.io.dataset import Dataset
+from simbench.io.calibration_json import calibration_to_dict, read_calibration_json
+from simbench.io.calibration_json import write_calibration_json as write_calibration
+from simbench.io.dataset import Dataset, write_dataset
+from simbench.io.dataset import truth_calibration_dict as truth_document
+from simbench.io.export import SOURCES as EXPORT_SOURCES
 from simbench.io.export import check_outputs, export_c3d_markers, export_dataset
+from simbench.io.hierarchy_json import read_hierarchy_json as read_hierarchy
 from simbench.io.imu import ImuRecording
-from simbench.io.poses import PoseRecording
-from simbench.io.read import read
+from simbench.io.orientation_csv import write_orientation_csv
+from simbench.io.poses import PoseRecording, sample_rate, write_pose_csv
+from simbench.io.read import read, read_imu, read_poses, refuse_unlocated
 from simbench.orient import (
     calibrate_magnetometers,
+    describe_fit,
     disturbed_fraction,
     estimate,
+    in_frame,
     skeleton_from_calibration,
+    skeleton_of,
 )
 from simbench.score import CalibrationScore, OrientationScore, score_joints, score_orientation
 from simbench.score import score as score_calibration
@@ -56,6 +88,14 @@ from simbench.sim.sensor_config import SensorConfig
 from simbench.sim.session import SessionConfig, run_session
 
 _DEFAULT = SessionConfig()
+
+#: O'Brien's calibration in the estimator registry: its parameters' defaults are the one place
+#: those of :func:`calibrate`, :func:`follow`, :func:`replay` and ``simbench calibrate`` come from.
+_OBRIEN = resolve(DEFAULT_JOINTS)
+
+#: The estimator a spec names (``resolve_estimator("obrien").param("hierarchy_method").default``):
+#: :func:`simbench.estimators.resolve`.
+resolve_estimator = resolve
 
 
 def _estimator(method: str | Estimator | Callable[..., Any], kind: str) -> Estimator:
@@ -141,16 +181,9 @@ def simulate(
     return add_markers(ds, MarkerConfig() if markers is True else markers, seed=config.seed)
 
 
-#: O'Brien's options of :func:`calibrate` at their defaults (refused beside another ``method``).
-_CALIBRATE_DEFAULTS = {
-    "root": None,
-    "hierarchy_method": HIERARCHY_METHODS[0],
-    "single_axis_ratio": SINGLE_AXIS_RATIO,
-    "robust": None,
-    "intervals": False,
-    "correct_rotation_noise": False,
-    "drop_noisy_frames": False,
-}
+#: O'Brien's options of :func:`calibrate` at their defaults (refused beside another ``method``):
+#: the registry's, least squares (``robust=None``) and no correction for the rotations' noise.
+_CALIBRATE_DEFAULTS = {**_OBRIEN.defaults, "robust": None, "correct_rotation_noise": False}
 
 
 def calibrate(
@@ -161,8 +194,8 @@ def calibrate(
     time_limit_s: float | None = None,
     hierarchy: Mapping[str, str] | None = None,
     root: str | None = None,
-    hierarchy_method: str = HIERARCHY_METHODS[0],
-    single_axis_ratio: float = SINGLE_AXIS_RATIO,
+    hierarchy_method: str = _CALIBRATE_DEFAULTS["hierarchy_method"],
+    single_axis_ratio: float = _CALIBRATE_DEFAULTS["single_axis_ratio"],
     robust: str | None = None,
     intervals: bool = False,
     correct_rotation_noise: bool = False,
@@ -305,6 +338,9 @@ class Orientations:
             :func:`simbench.orient.applies`) or why there is none; ``None`` when not asked for.
         disturbed: per sensor, the share of its samples whose magnetometer is still disturbed
             after calibration (:func:`simbench.orient.disturbed_fraction`).
+        field_strength_ut, inclination_deg: the reference field a built-in method took from the
+            recording, uT and degrees (NaN for other estimators).
+        notes: the recording's notes, with what the magnetometer calibration did.
     """
 
     q_w_s: np.ndarray
@@ -314,6 +350,14 @@ class Orientations:
     score: OrientationScore | None
     magnetometers: dict[str, Any] | None = None
     disturbed: dict[str, float] | None = None
+    field_strength_ut: float = math.nan
+    inclination_deg: float = math.nan
+    notes: tuple[str, ...] = ()
+
+    def in_frame(self, frame: str = "enu") -> np.ndarray:
+        """``(F, N, 4)`` the orientations in world frame ``enu`` or ``ned`` (for
+        :func:`write_orientation_csv`)."""
+        return in_frame(self.q_w_s, frame)
 
 
 def orient(
@@ -386,6 +430,9 @@ def orient(
         score=scored,
         magnetometers=fits,
         disturbed=disturbed_fraction(rec),
+        field_strength_ut=float(run.field_strength_ut),
+        inclination_deg=float(run.inclination_deg),
+        notes=tuple(rec.notes),
     )
 
 
@@ -465,4 +512,384 @@ def export(
     )
 
 
-__all__ = ["Orientations", "calibrate", "export", "orient", "read", "score", "simulate"]
+def _positive(name: str, value: Any) -> float:
+    """``value`` as a float when it is a finite number > 0, else an :class:`InputError` naming it."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (math.isfinite(value) and value > 0)
+    ):
+        raise InputError(f"Expected {name} to be a finite number > 0, got {value!r}")
+    return float(value)
+
+
+def _recording(data: Dataset | PoseRecording, what: str) -> PoseRecording:
+    rec = data.poses() if isinstance(data, Dataset) else data
+    if not isinstance(rec, PoseRecording):
+        raise InputError(f"{what}: expected a Dataset or a PoseRecording, got {type(data).__name__}")
+    return rec
+
+
+def _same_sensors(rec: PoseRecording, cal: Calibration) -> None:
+    if tuple(cal.names) != tuple(rec.names):
+        raise InputError(
+            f"the calibration's sensors ({', '.join(cal.names)}) are not the recording's "
+            f"({', '.join(rec.names)}): a calibration of another recording?"
+        )
+
+
+def slip_reports(
+    data: Dataset | PoseRecording,
+    cal: Calibration,
+    *,
+    window_s: float = SLIP_WINDOW_S,
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+) -> list[tuple[str, SlipReport]]:
+    """Slip detection on every joint of a calibration (O'Brien section 5,
+    :func:`calibration.detect_slip`): the reports ``simbench calibrate`` prints and writes.
+
+    Frames the calibration left out for their noise (``drop_noisy_frames=True``) are left out
+    here too. The window of ``window_s`` seconds becomes frames at the recording's rate (at
+    least 2, at most half the recording).
+
+    Args:
+        data: the recording that was calibrated (a Dataset: its measured poses).
+        cal: its calibration (:func:`calibrate`).
+        window_s: the detector's window, s (default :data:`calibration.slip.SLIP_WINDOW_S`).
+        false_alarms_per_hour: per joint, the expected false alarms per hour of recording when
+            no sensor moves, which sets the threshold (default
+            :data:`calibration.slip.FALSE_ALARMS_PER_HOUR`).
+
+    Returns:
+        ``(joint name, report)`` per joint (``parent-child``): the
+        :class:`calibration.SlipReport`'s events (frame, jump in the recording's length unit,
+        the sensor frame it is steady in, z) and slipped intervals (frames); ``[]`` when the
+        recording is too short (fewer than 4 frames).
+
+    Raises:
+        InputError: a window or rate that is not a finite number > 0, or a calibration of
+            other sensors.
+    """
+    rec = _recording(data, "slip_reports")
+    window_s = _positive("window_s (seconds)", window_s)
+    false_alarms_per_hour = _positive("false_alarms_per_hour", false_alarms_per_hour)
+    _same_sensors(rec, cal)
+    if cal.noisy_frames is not None:  # the frames the calibration left out for their noise
+        out = cal.noisy_frames
+        rec = dataclasses.replace(
+            rec,
+            R_w_s=np.where(out[..., None, None], np.nan, rec.R_w_s),
+            p_w_s=np.where(out[..., None], np.nan, rec.p_w_s),
+            valid=rec.valid & ~out,
+        )
+    window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
+    window = min(max(window, 2), rec.n_frames // 2)
+    if window < 2:
+        return []
+    return [
+        (
+            j.name,
+            detect_slip(
+                *rec.pair(j.parent, j.child),
+                j.fit.joint_in_parent,
+                j.fit.joint_in_child,
+                window=window,
+                rate_hz=rec.rate_hz,
+                false_alarms_per_hour=false_alarms_per_hour,
+            ),
+        )
+        for j in cal.joints
+    ]
+
+
+def calibration_document(
+    cal: Calibration | JointsResult,
+    data: Dataset | PoseRecording | None = None,
+    *,
+    slips: Sequence[tuple[str, SlipReport]] = (),
+    ranges: bool = True,
+    input_info: Mapping[str, Any] | None = None,
+    notes: Sequence[str] | None = None,
+    options: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The calibration JSON document that ``simbench calibrate --json`` writes
+    (:mod:`simbench.io.calibration_json`; :func:`write_calibration` writes it, :func:`score` and
+    ``orient(skeleton=...)`` read it back).
+
+    Args:
+        cal: O'Brien's calibration (:func:`calibrate`), or any estimator's
+            :class:`simbench.estimators.JointsResult` (the whole document of an O'Brien
+            variant; the joints alone, in metres, for the others).
+        data: the recording it came from: slip events and intervals get their times in seconds,
+            and each joint its range of motion in these poses (``ranges``).
+        slips: ``(joint name, report)`` of :func:`slip_reports`.
+        ranges: give each joint its range of motion (the skeleton orientation method keeps to
+            it); needs ``data``.
+        input_info: what was read (source, sensors, frames, rate, units), as the document's
+            ``input``.
+        notes: what the reader repaired or noticed (default: the recording's notes; for an
+            estimator's bare joints, its own notes).
+        options: the options the calibration ran with, as the document's ``options``.
+
+    Raises:
+        InputError: not a calibration, or a recording of other sensors.
+    """
+    rec = None if data is None else _recording(data, "calibration_document")
+    if isinstance(cal, JointsResult):
+        if cal.calibration is None:
+            j = cal.joints
+            return {
+                "units": "m",
+                "joints": [
+                    {
+                        "parent": j.parent[k],
+                        "child": j.child[k],
+                        "joint_in_parent": j.joint_in_parent[k].tolist(),
+                        "joint_in_child": j.joint_in_child[k].tolist(),
+                        "single_axis": bool(j.single_axis[k]),
+                    }
+                    for k in range(len(j.child))
+                ],
+                "notes": list(cal.notes if notes is None else notes),
+            }
+        cal = cal.calibration
+    if not isinstance(cal, Calibration):
+        raise InputError(f"Expected a Calibration or a JointsResult, got {type(cal).__name__}")
+    joint_ranges = None
+    if rec is not None:
+        _same_sensors(rec, cal)
+        if ranges:  # each joint's range of motion in these poses, for the skeleton orientation method
+            ranged = skeleton_of(cal).with_ranges(rec.R_w_s, rec.valid)
+            joint_ranges = {
+                cal.names[c]: (ranged.range_centre[c], float(ranged.range_rad[c])) for c in ranged.children
+            }
+    return calibration_to_dict(
+        cal,
+        ranges=joint_ranges,
+        time_s=None if rec is None else rec.time_s,
+        slips=slips,
+        input_info=None if input_info is None else dict(input_info),
+        notes=(() if rec is None else rec.notes) if notes is None else notes,
+        options=None if options is None else dict(options),
+    )
+
+
+def unit_scale(data: Dataset | PoseRecording, sensors: Sequence[str], distance_m: float) -> ScaleEstimate:
+    """The unit scale factor of a capture system from two of its sensors mounted rigidly a known
+    distance apart (O'Brien et al. 2000, section 4; ``simbench scale``), over the frames where
+    both are seen.
+
+    Args:
+        data: the recording (positions as the system reports them).
+        sensors: the two sensors' names.
+        distance_m: their true distance, m.
+
+    Returns:
+        The :class:`calibration.ScaleEstimate`: ``scale`` (multiply reported lengths by it),
+        the mean reported distance and its scaled spread, the distance per frame
+        (:func:`rigidity` of it says whether the two stayed rigid).
+
+    Raises:
+        InputError: not two different sensors of the recording, or a distance not > 0.
+        CalibrationError: too few frames with both sensors.
+    """
+    rec = _recording(data, "unit_scale")
+    distance_m = _positive("distance_m", distance_m)
+    names = list(sensors)
+    if len(names) != 2 or names[0] == names[1]:
+        raise InputError(f"unit_scale needs two different sensors, got {names}")
+    missing = [name for name in names if name not in rec.names]
+    if missing:
+        raise InputError(
+            f"{rec.source or 'the recording'}: no sensor named {missing}; sensors are {list(rec.names)}"
+        )
+    a, b = (rec.names.index(name) for name in names)
+    both = rec.valid[:, a] & rec.valid[:, b]
+    p_w_a = np.where(both[:, None], rec.p_w_s[:, a], np.nan)
+    p_w_b = np.where(both[:, None], rec.p_w_s[:, b], np.nan)
+    return unit_scale_arrays(p_w_a, p_w_b, distance_m)
+
+
+def _live_options(
+    hierarchy: Mapping[str, str] | None,
+    root: str | None,
+    hierarchy_method: str,
+    single_axis_ratio: float,
+    slip: bool,
+    false_alarms_per_hour: float,
+    refresh_s: float,
+) -> LiveOptions:
+    _positive("refresh_s (seconds)", refresh_s)
+    return LiveOptions(
+        slip=bool(slip),
+        parent_of=None if hierarchy is None else dict(hierarchy),
+        root=root,
+        hierarchy_method=hierarchy_method,
+        single_axis_ratio=single_axis_ratio,
+        false_alarms_per_hour=false_alarms_per_hour,
+    )
+
+
+def follow(
+    path: str | os.PathLike[str],
+    *,
+    units: str = "m",
+    rate_hz: float | None = None,
+    timeout_s: float | None = None,
+    refresh_s: float = LIVE_REFRESH_S,
+    hierarchy: Mapping[str, str] | None = None,
+    root: str | None = None,
+    hierarchy_method: str = _CALIBRATE_DEFAULTS["hierarchy_method"],
+    single_axis_ratio: float = _CALIBRATE_DEFAULTS["single_axis_ratio"],
+    slip: bool = True,
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+    clock: Callable[[], float] = time.monotonic,
+) -> Iterator[LiveUpdate]:
+    """O'Brien's calibration, live, of a pose CSV that a tracker's logger is still appending to
+    (``simbench calibrate --follow``; :class:`calibration.streaming.StreamingCalibrator`)::
+
+        for update in sb.follow("poses.csv", timeout_s=600):
+            if update.kind == "alert":        # a sensor may have slipped: re-fix it now
+                print(update.alert.message)
+            elif update.kind in ("state", "final"):
+                print(update.state.calibration.parent_of, [c.advice for c in update.state.coverage])
+
+    The file is read every 50 ms; the updates (:class:`simbench.experiments.live.LiveUpdate`)
+    come as the frames do: each slip alert when it is raised, the calibration so far every
+    ``refresh_s`` seconds of capture (``waiting`` while there is none), and after
+    ``timeout_s`` seconds of wall time or Ctrl-C (a ``stopped`` update) the ``final`` one. A
+    file without two complete frames ends with no ``final`` update.
+
+    Args:
+        path: the pose CSV (``time,sensor,x,y,z,qw,qx,qy,qz``; extra columns ignored).
+        units: length unit of its positions (``m``, ``cm``, ``mm``, ``in``).
+        rate_hz: the capture rate, Hz (default: from the first 64 frames' time stamps).
+        timeout_s: stop after this many seconds of wall time (``None``: at Ctrl-C only).
+        refresh_s: seconds of capture between two ``state`` updates.
+        hierarchy: a known hierarchy ``{child: parent}``; inferred when ``None``.
+        root, hierarchy_method, single_axis_ratio: O'Brien's options (:func:`calibrate`).
+        slip: raise slip alerts (a 0.5 s causal window:
+            :data:`calibration.streaming.LIVE_SLIP_WINDOW_S`).
+        false_alarms_per_hour: per joint, the rate the alert threshold is set for.
+        clock: the wall clock, s (tests pass a fake).
+
+    Raises:
+        InputError: (while iterating) a row the batch reader would refuse, naming its line, or
+            an option the calibrator refuses.
+        CalibrationError: (at the end) the frames never gave a calibration, saying why.
+    """
+    options = _live_options(
+        hierarchy, root, hierarchy_method, single_axis_ratio, slip, false_alarms_per_hour, refresh_s
+    )
+    for name, value in (("rate_hz", rate_hz), ("timeout_s (seconds)", timeout_s)):
+        if value is not None:
+            _positive(name, value)
+    return follow_file(
+        path,
+        units=units,
+        rate_hz=rate_hz,
+        timeout_s=timeout_s,
+        refresh_s=refresh_s,
+        options=options,
+        clock=clock,
+    )
+
+
+def replay(
+    data: Dataset | PoseRecording | str | os.PathLike[str],
+    *,
+    units: str | None = None,
+    speed: float | None = 1.0,
+    refresh_s: float = LIVE_REFRESH_S,
+    hierarchy: Mapping[str, str] | None = None,
+    root: str | None = None,
+    hierarchy_method: str = _CALIBRATE_DEFAULTS["hierarchy_method"],
+    single_axis_ratio: float = _CALIBRATE_DEFAULTS["single_axis_ratio"],
+    slip: bool = True,
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+) -> Iterator[LiveUpdate]:
+    """A recorded or simulated session fed frame by frame through the live calibration, paced at
+    the capture rate (``simbench replay``): the updates of :func:`follow`, the ``final`` one
+    last.
+
+    Args:
+        data: a Dataset, a pose recording, or a pose file (:func:`read_poses`).
+        units: a file's length unit (:func:`read_poses`).
+        speed: a multiple of real time (1.0: the capture rate), or ``None``: as fast as the
+            updates are taken.
+        refresh_s, hierarchy, root, hierarchy_method, single_axis_ratio, slip,
+            false_alarms_per_hour: as :func:`follow`.
+
+    Raises:
+        InputError: fewer than 2 frames, or an option the calibrator refuses.
+        CalibrationError: (at the end) the frames never gave a calibration.
+    """
+    options = _live_options(
+        hierarchy, root, hierarchy_method, single_axis_ratio, slip, false_alarms_per_hour, refresh_s
+    )
+    if speed is not None:
+        _positive("speed", speed)
+    if isinstance(data, str | os.PathLike):
+        rec, source = read_poses(data, units), str(data)
+    else:
+        rec = _recording(data, "replay")
+        source = rec.source or "the recording"
+    return replay_recording(rec, source=source, speed=speed, refresh_s=refresh_s, options=options)
+
+
+__all__ = [
+    "DEFAULT_JOINTS",
+    "DEFAULT_ORIENTATION",
+    "EXPORT_SOURCES",
+    "FALSE_ALARMS_PER_HOUR",
+    "LIVE_RATE_FRAMES",
+    "LIVE_REFRESH_S",
+    "SLIP_WINDOW_S",
+    "TIME_LIMIT_S",
+    "Calibration",
+    "CalibrationError",
+    "CalibrationInputError",
+    "Dataset",
+    "Estimator",
+    "ImuRecording",
+    "InputError",
+    "JointsResult",
+    "LiveState",
+    "LiveUpdate",
+    "MarkerConfig",
+    "Orientations",
+    "PoseRecording",
+    "Priors",
+    "ScaleEstimate",
+    "Skeleton",
+    "SlipAlert",
+    "SlipReport",
+    "StreamingCalibrator",
+    "calibrate",
+    "calibration_document",
+    "describe_fit",
+    "estimator_names",
+    "export",
+    "follow",
+    "one_blas_thread",
+    "orient",
+    "read",
+    "read_hierarchy",
+    "read_imu",
+    "read_poses",
+    "refuse_unlocated",
+    "replay",
+    "resolve_estimator",
+    "rigidity",
+    "sample_rate",
+    "score",
+    "simulate",
+    "skeleton_from_calibration",
+    "slip_reports",
+    "truth_document",
+    "unit_scale",
+    "write_calibration",
+    "write_dataset",
+    "write_orientation_csv",
+    "write_pose_csv",
+]

@@ -1,4 +1,10 @@
-"""Exceptions of the simbench package."""
+"""Exceptions of the simbench package.
+
+:class:`InputError` is simbench's own; :class:`CalibrationError` (the data cannot be calibrated)
+and its :class:`CalibrationInputError` (arrays or options the estimators refuse) are the
+calibration core's, re-exported here so that the command line and users catch every error of
+simbench from one module (``sb.CalibrationError``).
+"""
 
 from __future__ import annotations
 
@@ -6,6 +12,8 @@ import importlib
 import tomllib
 from pathlib import Path
 from types import ModuleType
+
+from calibration.errors import CalibrationError, CalibrationInputError
 
 
 class InputError(ValueError):
@@ -56,3 +64,13 @@ def optional_module(name: str, extra: str, feature: str) -> ModuleType:
         raise InputError(
             f"{feature} needs the optional package {name.split('.')[0]!r}: pip install 'simbench[{extra}]'"
         ) from None
+
+
+__all__ = [
+    "CalibrationError",
+    "CalibrationInputError",
+    "InputError",
+    "load_toml",
+    "not_utf8",
+    "optional_module",
+]

@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from calibration import calibrate
-from simbench.experiments.decisions import DETECTION_TOLERANCE_S, SLIP_WINDOW_S, joint_slips, slip_trial
+from calibration.slip import FALSE_ALARMS_PER_HOUR, SLIP_WINDOW_S
+from simbench.experiments.decisions import DETECTION_TOLERANCE_S, joint_slips, slip_trial
 from simbench.io.read import read_poses
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
@@ -150,7 +151,7 @@ def main() -> None:
         "settings": {
             "duration_s": DURATION_S,
             "window_s": WINDOW_S,
-            "false_alarms_per_hour": 1.0,
+            "false_alarms_per_hour": FALSE_ALARMS_PER_HOUR,
             "seeds": args.seeds,
             "slip_seeds": args.slip_seeds,
             "tolerance_s": TOLERANCE_S,

@@ -1,5 +1,5 @@
 """The live loop end to end: a simulated capture emitted at capture rate (simbench.sim.live),
-``simbench replay`` and ``simbench calibrate --follow`` (simbench.cli.live)."""
+``simbench replay`` and ``simbench calibrate --follow`` (simbench.cli.live, simbench.experiments.live)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,10 @@ from numpy.testing import assert_allclose
 from calibration import calibrate
 from calibration.streaming import StreamingCalibrator
 from simbench.cli import main
-from simbench.cli.live import CsvFollower, follow_csv, parse_speed
+from simbench.cli.live import follow_csv, parse_speed
 from simbench.errors import InputError
 from simbench.io.dataset import write_dataset
+from simbench.io.follow import CsvFollower
 from simbench.io.poses import CSV_COLUMNS, PoseRecording, write_pose_csv
 from simbench.io.read import read_poses
 from simbench.sim.live import live_blocks, with_slip

@@ -7,10 +7,11 @@ import tomllib
 import pytest
 
 from calibration import calibrate, detect_slip
+from calibration.slip import SLIP_WINDOW_S
 from simbench.sim.sensor_config import PRESETS_DIR, parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
-WINDOW_S = 2.0  # the CLI's default
+WINDOW_S = SLIP_WINDOW_S  # the CLI's default
 
 
 def detect(config):

@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from calibration import CalibrationError
+from simbench.api import one_blas_thread
 from simbench.cli import (
     baseline,
     bench,
@@ -27,8 +27,7 @@ from simbench.cli import (
     sweep,
     validate,
 )
-from simbench.errors import InputError
-from simbench.experiments.pool import one_blas_thread
+from simbench.errors import CalibrationError, InputError
 from simbench.versions import __version__
 
 #: The subcommands in the order ``simbench --help`` lists them; each module adds its parser.

@@ -11,8 +11,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from simbench.api import TIME_LIMIT_S
 from simbench.cli.types import positive_float, positive_int
-from simbench.estimators import TIME_LIMIT_S
 from simbench.experiments.bench import KIND_CHOICES, check_out, run_bench, write_bench
 from simbench.experiments.sweep import dask_executor
 

@@ -3,32 +3,29 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
-import numpy as np
-
-from calibration import (
-    HIERARCHY_METHODS,
-    SINGLE_AXIS_RATIO,
-    Calibration,
-    CalibrationError,
-    SlipReport,
-    detect_slip,
+from simbench.api import (
+    DEFAULT_JOINTS,
+    FALSE_ALARMS_PER_HOUR,
+    SLIP_WINDOW_S,
+    TIME_LIMIT_S,
+    Estimator,
+    JointsResult,
+    calibrate,
+    calibration_document,
+    estimator_names,
+    read_hierarchy,
+    read_poses,
+    refuse_unlocated,
+    resolve_estimator,
+    slip_reports,
+    write_calibration,
 )
-from calibration.robust import LOSSES
-from calibration.slip import FALSE_ALARMS_PER_HOUR
-from simbench.api import calibrate
-from simbench.cli.live import LiveOptions, add_follow_arguments, follow_csv
+from simbench.cli.live import add_follow_arguments, follow_csv
 from simbench.cli.table import format_table
 from simbench.cli.types import positive_float
-from simbench.errors import InputError
-from simbench.estimators import DEFAULT_JOINTS, TIME_LIMIT_S, Estimator, JointsResult, names, resolve
-from simbench.io.calibration_json import calibration_to_dict, write_calibration_json
-from simbench.io.hierarchy_json import read_hierarchy_json
-from simbench.io.poses import PoseRecording
-from simbench.io.read import read_poses, refuse_unlocated
-from simbench.orient import skeleton_of
+from simbench.errors import CalibrationError, InputError
 from simbench.units import LENGTH_UNITS, implausible_lengths
 
 #: ``--drop-noisy-frames``, as ``simbench calibrate`` and ``simbench report`` offer it.
@@ -40,7 +37,12 @@ DROP_NOISY_FRAMES_HELP = (
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``calibrate`` subcommand to ``simbench``'s subparsers."""
+    """Add the ``calibrate`` subcommand to ``simbench``'s subparsers; O'Brien's options take their
+    defaults and choices from the estimator registry (``obrien``, ``obrien-robust``)."""
+    obrien = resolve_estimator(DEFAULT_JOINTS)
+    hierarchy_method = obrien.param("hierarchy_method")
+    single_axis_ratio = obrien.param("single_axis_ratio").default
+    losses = resolve_estimator("obrien-robust").param("robust").choices or ()
     cal = sub.add_parser(
         "calibrate",
         help="joint centres, hierarchy, limb lengths and sensor offsets from sensor poses",
@@ -52,8 +54,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--method",
         default=DEFAULT_JOINTS,
         metavar="SPEC",
-        help=f"the joints estimator: {', '.join(names('joints'))} (default {DEFAULT_JOINTS}); or your "
-        "own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
+        help=f"the joints estimator: {', '.join(estimator_names('joints'))} (default {DEFAULT_JOINTS}); or "
+        "your own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
         "'cmd:COMMAND ... {poses} [{hierarchy}] {out}' (docs/estimators.md); the methods that fit a "
         "given tree need --hierarchy",
     )
@@ -75,17 +77,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
     cal.add_argument(
         "--hierarchy-method",
-        choices=HIERARCHY_METHODS,
-        default=HIERARCHY_METHODS[0],
+        choices=hierarchy_method.choices,
+        default=hierarchy_method.default,
         help=(
             "how an inferred tree weighs each pair: misfit = the joint-fit residual less its "
             "measurement noise, mst = the residual itself, O'Brien et al.'s minimum spanning tree "
-            f"(default {HIERARCHY_METHODS[0]})"
+            f"(default {hierarchy_method.default})"
         ),
     )
     cal.add_argument(
         "--robust",
-        choices=sorted(LOSSES),
+        choices=sorted(losses),
         default=None,
         help=(
             "fit joints (and an inferred hierarchy) by iteratively reweighted least squares with this "
@@ -123,20 +125,20 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument(
         "--single-axis-ratio",
         type=positive_float,
-        default=SINGLE_AXIS_RATIO,
+        default=single_axis_ratio,
         metavar="R",
         help=(
             f"hard floor of s_min/s_max below which a direction is always undetermined (default "
-            f"{SINGLE_AXIS_RATIO:g}); above it the single-axis verdict is a statistical test "
+            f"{single_axis_ratio:g}); above it the single-axis verdict is a statistical test "
             "(calibration.hinge)"
         ),
     )
     cal.add_argument(
         "--slip-window",
         type=positive_float,
-        default=2.0,
+        default=SLIP_WINDOW_S,
         metavar="SECONDS",
-        help="slip detector window (default 2 s)",
+        help=f"slip detector window (default {SLIP_WINDOW_S:g} s)",
     )
     cal.add_argument(
         "--slip-false-alarms-per-hour",
@@ -150,59 +152,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.set_defaults(func=cmd_calibrate)
 
 
-def _slip_reports(
-    rec: PoseRecording,
-    cal: Calibration,
-    window_s: float,
-    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
-) -> list[tuple[str, SlipReport]]:
-    """Slip detection on every calibrated joint; ``[]`` when the recording is too short.
-
-    Frames the calibration left out for their noise are left out here too. The window of
-    ``window_s`` seconds becomes frames at the recording's rate (at least 2, at
-    most half the recording; 0 when the rate is unknown, which skips detection). The detector's
-    threshold is set for ``false_alarms_per_hour`` per joint (:mod:`calibration.slip`).
-    """
-    if cal.noisy_frames is not None:  # the frames the calibration left out for their noise
-        out = cal.noisy_frames
-        rec = dataclasses.replace(
-            rec,
-            R_w_s=np.where(out[..., None, None], np.nan, rec.R_w_s),
-            p_w_s=np.where(out[..., None], np.nan, rec.p_w_s),
-            valid=rec.valid & ~out,
-        )
-    window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
-    window = min(max(window, 2), rec.n_frames // 2)
-    if window < 2:
-        return []
-    out = []
-    for j in cal.joints:
-        fit = j.fit
-        report = detect_slip(
-            *rec.pair(j.parent, j.child),
-            fit.joint_in_parent,
-            fit.joint_in_child,
-            window=window,
-            rate_hz=rec.rate_hz,
-            false_alarms_per_hour=false_alarms_per_hour,
-        )
-        out.append((j.name, report))
-    return out
-
-
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
     if args.follow:
         if args.method != DEFAULT_JOINTS:
             raise InputError(f"--follow calibrates live with {DEFAULT_JOINTS}, not {args.method}")
         return _follow(args)
-    est = resolve(args.method, "joints")  # a spec that names nothing is refused before reading
+    est = resolve_estimator(args.method, "joints")  # a spec that names nothing is refused before reading
     if est.data != "poses":
         raise InputError(f"{est.name!r} estimates joints from IMU data, not poses: it is not for calibrate")
     if args.method != DEFAULT_JOINTS:
         return _other_method(args, est)
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
-    parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
+    parent_of = read_hierarchy(args.hierarchy) if args.hierarchy else None
     sensors = f"its sensors: {', '.join(rec.names)}"
     if args.root is not None and args.root not in rec.names:
         raise InputError(f"--root: no sensor {args.root!r} in {args.input} ({sensors})")
@@ -226,19 +188,22 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             f"{args.input}{f' with {args.hierarchy}' if args.hierarchy else ''}: {exc}"
         ) from None
     refuse_unlocated(rec, cal, args.input)
-    slips = [] if args.no_slip else _slip_reports(rec, cal, args.slip_window, args.slip_false_alarms_per_hour)
+    slips = (
+        []
+        if args.no_slip
+        else slip_reports(
+            rec, cal, window_s=args.slip_window, false_alarms_per_hour=args.slip_false_alarms_per_hour
+        )
+    )
     print(format_table(rec, cal, slips))
     odd = implausible_lengths(cal.lengths, args.units, args.input, wide=bool(args.wide))
     if odd:
         print(f"\n  warning: {odd}")
     if args.json:
-        # each joint's range of motion in these poses, for the skeleton orientation estimator
-        ranged = skeleton_of(cal).with_ranges(rec.R_w_s, rec.valid)
-        ranges = {cal.names[c]: (ranged.range_centre[c], float(ranged.range_rad[c])) for c in ranged.children}
-        doc = calibration_to_dict(
+        # with each joint's range of motion in these poses, for the skeleton orientation estimator
+        doc = calibration_document(
             cal,
-            ranges=ranges,
-            time_s=rec.time_s,
+            rec,
             slips=slips,
             input_info={
                 "source": rec.source,
@@ -261,7 +226,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,
             },
         )
-        write_calibration_json(args.json, doc)
+        write_calibration(args.json, doc)
         print(f"\n  wrote {args.json}")
     return 0
 
@@ -299,14 +264,14 @@ def _other_method(args: argparse.Namespace, est: Estimator) -> int:
     if args.slip_window != defaults["slip_window"]:
         raise InputError("--slip-window: slip detection runs with O'Brien's calibration (the default method)")
     rec = read_poses(args.input, args.units, args.clusters, args.wide)
-    parent_of = read_hierarchy_json(args.hierarchy) if args.hierarchy else None
+    parent_of = read_hierarchy(args.hierarchy) if args.hierarchy else None
     limit = None if est.origin == "builtin" else args.time_limit
     got = calibrate(rec, method=est, hierarchy=parent_of, params=params, time_limit_s=limit)
     assert isinstance(got, JointsResult)
     if got.calibration is not None:
         refuse_unlocated(rec, got.calibration, args.input)
         print(format_table(rec, got.calibration, []))
-        doc = calibration_to_dict(got.calibration, time_s=rec.time_s, notes=rec.notes)
+        doc = calibration_document(got, rec, ranges=False)
     else:
         print(f"simbench calibrate: {rec.source}")
         print(f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   method: {est.name}")
@@ -318,32 +283,12 @@ def _other_method(args: argparse.Namespace, est: Estimator) -> int:
             print(f"  {j.parent[k] + '-' + j.child[k]:<28}{jp:>30}{jc:>30}")
         for note in (*rec.notes, *got.notes):
             print(f"  note: {note}")
-        doc = joints_document(got)
+        doc = calibration_document(got)  # the joints alone, with the estimator's notes
     doc["method"] = est.name
     if args.json:
-        write_calibration_json(args.json, doc)
+        write_calibration(args.json, doc)
         print(f"\n  wrote {args.json}")
     return 0
-
-
-def joints_document(got: JointsResult) -> dict:
-    """A calibration JSON document (the schema ``simbench calibrate --json`` writes) of any
-    estimator's joints, in metres."""
-    j = got.joints
-    return {
-        "units": "m",
-        "joints": [
-            {
-                "parent": j.parent[k],
-                "child": j.child[k],
-                "joint_in_parent": j.joint_in_parent[k].tolist(),
-                "joint_in_child": j.joint_in_child[k].tolist(),
-                "single_axis": bool(j.single_axis[k]),
-            }
-            for k in range(len(j.child))
-        ],
-        "notes": list(got.notes),
-    }
 
 
 def parser_defaults() -> dict:
@@ -376,20 +321,17 @@ def _follow(args: argparse.Namespace) -> int:
             f"{args.input}: --follow calibrates a pose CSV (.csv) that another process appends to, not a "
             f"{suffix} file; calibrate it without --follow"
         )
-    options = LiveOptions(
-        slip=not args.no_slip,
-        parent_of=read_hierarchy_json(args.hierarchy) if args.hierarchy else None,
-        root=args.root,
-        hierarchy_method=args.hierarchy_method,
-        single_axis_ratio=args.single_axis_ratio,
-        false_alarms_per_hour=args.slip_false_alarms_per_hour,
-    )
     follow_csv(
         args.input,
         units=args.units or "m",
         rate_hz=args.rate_hz,
         timeout_s=args.timeout,
         refresh_s=args.refresh,
-        options=options,
+        slip=not args.no_slip,
+        hierarchy=read_hierarchy(args.hierarchy) if args.hierarchy else None,
+        root=args.root,
+        hierarchy_method=args.hierarchy_method,
+        single_axis_ratio=args.single_axis_ratio,
+        false_alarms_per_hour=args.slip_false_alarms_per_hour,
     )
     return 0

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from simbench.api import export
+from simbench.api import EXPORT_SOURCES, export
 from simbench.errors import InputError
-from simbench.io.export import SOURCES
 from simbench.units import LENGTH_UNITS
 
 
@@ -61,13 +60,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     exp.add_argument(
         "--markers",
-        choices=SOURCES,
+        choices=EXPORT_SOURCES,
         default="measured",
         help="marker positions: measured (skin motion, camera noise) or the exact truth (default measured)",
     )
     exp.add_argument(
         "--orientations",
-        choices=SOURCES,
+        choices=EXPORT_SOURCES,
         default="measured",
         help="sensor orientations: measured, or the truth of the sensors as worn (default measured)",
     )

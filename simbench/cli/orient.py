@@ -4,26 +4,26 @@ from __future__ import annotations
 
 import argparse
 
-from calibration.errors import CalibrationInputError
-from calibration.orientation import Priors
-from simbench.cli.types import positive_float
-from simbench.errors import InputError
-from simbench.estimators import DEFAULT_ORIENTATION, TIME_LIMIT_S, names, resolve, run_orientation
-from simbench.io.orientation_csv import write_orientation_csv
-from simbench.io.read import read_imu
-from simbench.orient import (
-    calibrate_magnetometers,
+from simbench.api import (
+    DEFAULT_ORIENTATION,
+    TIME_LIMIT_S,
+    Priors,
+    Skeleton,
     describe_fit,
-    disturbed_fraction,
-    estimate,
-    in_frame,
+    estimator_names,
+    orient,
+    read_imu,
+    resolve_estimator,
     skeleton_from_calibration,
+    write_orientation_csv,
 )
-from simbench.score import score_orientation
+from simbench.cli.types import positive_float
+from simbench.errors import CalibrationInputError, InputError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add the ``orient`` subcommand to ``simbench``'s subparsers."""
+    lone_speed = resolve_estimator("skeleton").param("lone_speed_m_per_s").default
     ori = sub.add_parser(
         "orient",
         help="sensor orientations from accelerometer and magnetometer (sourceless)",
@@ -36,8 +36,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--method",
         default=DEFAULT_ORIENTATION,
         metavar="SPEC",
-        help=f"the estimator: {', '.join(names('orientation'))} (default {DEFAULT_ORIENTATION}); or your "
-        "own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
+        help=f"the estimator: {', '.join(estimator_names('orientation'))} (default {DEFAULT_ORIENTATION}); "
+        "or your own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
         "'cmd:COMMAND ... {imu} ... {out}' (docs/estimators.md)",
     )
     ori.add_argument(
@@ -71,7 +71,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="M/S",
         help="the skeleton method: the speed prior of a sensor on its own (no skeleton, or a root with "
-        f"no children), m/s (default {Priors().lone_speed:g})",
+        f"no children), m/s (default {lone_speed:g})",
     )
     ori.add_argument(
         "--smooth-hz",
@@ -86,7 +86,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_orient(args: argparse.Namespace) -> int:
     """``simbench orient``: sensor orientations from accelerometer and magnetometer."""
-    est = resolve(args.method, "orientation")  # a spec that names nothing is refused before reading
+    est = resolve_estimator(args.method, "orientation")  # a spec that names nothing is refused before reading
     if est.origin != "builtin":
         given = [
             f
@@ -112,28 +112,24 @@ def cmd_orient(args: argparse.Namespace) -> int:
             "--smooth-hz is for the per-sample and gyro-aided methods, not skeleton (it low-passes "
             "level by level itself)"
         )
-    fits = {}
     notes = rec.notes
     try:
-        if args.calibrate_mag:
-            rec, fits = calibrate_magnetometers(rec)
-        if est.origin == "builtin":
-            run = estimate(
-                rec,
-                est.name,
-                weighting=not args.no_weighting,
-                smooth_hz=args.smooth_hz,
-                skeleton=skeleton,
-                priors=priors,
-            )
-        else:
-            run = run_orientation(est, rec, skeleton=skeleton, time_limit_s=args.time_limit)
+        ori = orient(
+            rec,
+            est,
+            time_limit_s=args.time_limit,
+            skeleton=skeleton,
+            weighting=not args.no_weighting,
+            smooth_hz=args.smooth_hz,
+            calibrate_mag=args.calibrate_mag,
+            priors=priors,
+        )
     except CalibrationInputError as exc:
         if not notes:
             raise
         # what the reader noticed is often why (e.g. every sample masked)
         raise CalibrationInputError(f"{exc} (the reader's notes: {'; '.join(notes)})") from None
-    n_total = run.ok.size
+    n_total = ori.ok.size
     print(f"simbench orient: {rec.source}")
     print(
         f"  sensors: {len(rec.names)}   samples: {rec.time_s.size} at {rec.rate_hz:.6g} Hz   "
@@ -143,37 +139,36 @@ def cmd_orient(args: argparse.Namespace) -> int:
     )
     if est.origin == "builtin":
         print(
-            f"  reference field from the data: {run.field_strength_ut:.1f} uT, inclination "
-            f"{run.inclination_deg:.1f} deg; world frame of the output: {args.frame.upper()}"
+            f"  reference field from the data: {ori.field_strength_ut:.1f} uT, inclination "
+            f"{ori.inclination_deg:.1f} deg; world frame of the output: {args.frame.upper()}"
         )
     else:
         print(f"  world frame of the output: {args.frame.upper()} (the estimator's ENU converted)")
     masked = int((~rec.valid).sum())
-    print(f"  estimated {int(run.ok.sum())} of {n_total} sensor samples ({masked} masked by the reader)")
-    for note in rec.notes:
+    print(f"  estimated {int(ori.ok.sum())} of {n_total} sensor samples ({masked} masked by the reader)")
+    for note in ori.notes:  # the reader's, and what the magnetometer calibration did
         print(f"  note: {note}")
-    for name, fit in fits.items():
+    for name, fit in (ori.magnetometers or {}).items():
         print(f"  magnetometer {name}: {describe_fit(fit)}")
-    disturbed = {n: f for n, f in disturbed_fraction(rec).items() if f > 0}
+    disturbed = {n: f for n, f in (ori.disturbed or {}).items() if f > 0}
     if disturbed:
         listed = ", ".join(f"{n} {100 * f:.1f} %" for n, f in disturbed.items())
         print(f"  magnetic disturbance left after calibration (share of each sensor's samples): {listed}")
-    if rec.q_true is not None:
+    if ori.score is not None:  # the recording has a reference
         print("\n  error against the reference (BROAD definitions, both in ENU), RMSE in degrees")
         print(f"  {'sensor':<16}{'total':>9}{'heading':>9}{'inclin.':>9}{'samples':>9}")
-        scored = score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
-        for name, s in scored.per_sensor.items():
+        for name, s in ori.score.per_sensor.items():
             print(
                 f"  {name:<16}{s['total_deg']:>9.2f}{s['heading_deg']:>9.2f}{s['inclination_deg']:>9.2f}"
                 f"{s['samples']:>9}"
             )
     if args.csv:
-        write_orientation_csv(args.csv, rec, in_frame(run.q_enu, args.frame))
+        write_orientation_csv(args.csv, rec, ori.in_frame(args.frame))
         print(f"\n  wrote {args.csv}")
     return 0
 
 
-def skeleton_line(skeleton, priors: Priors) -> str:
+def skeleton_line(skeleton: Skeleton | None, priors: Priors) -> str:
     """What the skeleton method stands on, for the header."""
     speed = f", speed prior {priors.lone_speed:g} m/s" if priors.lone_speed is not None else ""
     if skeleton is None:

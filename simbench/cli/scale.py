@@ -4,13 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
-from calibration import CalibrationError, unit_scale
-from calibration.scale import rigidity
+from simbench.api import read_poses, rigidity, unit_scale
 from simbench.cli.types import positive_float
-from simbench.errors import InputError
-from simbench.io.read import read_poses
+from simbench.errors import CalibrationError, InputError
 from simbench.units import LENGTH_UNITS, metres_per_unit
 
 
@@ -45,13 +41,9 @@ def cmd_scale(args: argparse.Namespace) -> int:
         raise InputError(f"{args.input}: no sensor named {missing}; sensors are {list(rec.names)}")
     if args.sensors[0] == args.sensors[1]:
         raise InputError("--sensors needs two different sensors")
-    a, b = (rec.names.index(name) for name in args.sensors)
-    both = rec.valid[:, a] & rec.valid[:, b]
-    p_w_a = np.where(both[:, None], rec.p_w_s[:, a], np.nan)
-    p_w_b = np.where(both[:, None], rec.p_w_s[:, b], np.nan)
     known = args.distance * metres_per_unit(args.units or "m")
     try:
-        est = unit_scale(p_w_a, p_w_b, known)
+        est = unit_scale(rec, args.sensors, known)
     except CalibrationError as exc:  # too few frames with both sensors
         raise InputError(f"{args.input}: sensors {args.sensors[0]} and {args.sensors[1]}: {exc}") from None
     print(f"simbench scale: {rec.source}, sensors {args.sensors[0]} and {args.sensors[1]}")

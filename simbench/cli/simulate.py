@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from simbench.api import simulate
+from simbench.api import (
+    MarkerConfig,
+    simulate,
+    truth_document,
+    write_calibration,
+    write_dataset,
+    write_pose_csv,
+)
 from simbench.cli.types import non_negative_float, positive_float, seed
 from simbench.errors import InputError
-from simbench.io.atomic import atomic_write_text
-from simbench.io.dataset import truth_calibration_dict, write_dataset
-from simbench.io.poses import write_pose_csv
-from simbench.sim.marker_clusters import MarkerConfig
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -141,6 +143,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         write_pose_csv(args.csv, ds.poses())
         print(f"  wrote {args.csv}")
     if args.truth_json:
-        atomic_write_text(args.truth_json, json.dumps(truth_calibration_dict(ds), indent=2) + "\n")
+        write_calibration(args.truth_json, truth_document(ds))
         print(f"  wrote {args.truth_json}")
     return 0

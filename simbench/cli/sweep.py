@@ -14,8 +14,7 @@ from simbench.cli.types import positive_int
 from simbench.errors import InputError
 from simbench.experiments.study import load_study, trials
 from simbench.experiments.sweep import dask_executor, finished, run_study
-from simbench.io.atomic import atomic_write_text
-from simbench.report.study import plot_study, summary_markdown
+from simbench.report.study import plot_study, write_summary
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -60,7 +59,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     plots = plot_study(study, table, out)
-    atomic_write_text(out / "summary.md", summary_markdown(study, table, plots))
+    write_summary(study, table, plots, out)
     failed = sum(1 for e in table.to_pydict().get("error", []) if e)
     without = f" ({failed} without metrics: see summary.md)" if failed else ""
     print(f"simbench sweep {study.name}: {table.num_rows} of {total} trials in {out}{without}")

@@ -6,8 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from calibration import Calibration, SlipReport
-from simbench.io.poses import PoseRecording, sample_rate
+from simbench.api import Calibration, PoseRecording, SlipReport, sample_rate
 
 
 def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str, SlipReport]]) -> str:

@@ -28,13 +28,12 @@ import numpy as np
 
 from calibration import calibrate, detect_slip, fit_joint
 from calibration.clusters import find_clusters
+from calibration.slip import SLIP_WINDOW_S
 from simbench.sim.markers import simulate_marker_chain
 from simbench.sim.sensor_config import PRESETS_DIR, parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 from simbench.sim.synthetic import messy_joint
 
-#: The slip detector's window, s (the CLI's default).
-SLIP_WINDOW_S = 2.0
 #: Targets (issue 12).
 FALSE_ALARMS_TARGET_PER_HOUR = 6.0
 DETECTION_TARGET = {1: 0.95, 2: 0.99, 3: 0.99}
@@ -79,7 +78,8 @@ class DecisionPlan:
 
 
 def joint_slips(rec: Any, cal: Any) -> list[tuple[Any, Any]]:
-    """``(joint, SlipReport)`` of every joint of a calibration, the detector's defaults.
+    """``(joint, SlipReport)`` of every joint of a calibration, the detector's defaults (its window
+    :data:`calibration.slip.SLIP_WINDOW_S`).
 
     Args:
         rec: the recording (:class:`calibration.poses.PoseRecording`).

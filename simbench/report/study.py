@@ -14,6 +14,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from calibration.quantiles import norm_ppf
+from simbench.io.atomic import atomic_write_text
 from simbench.report.plots import PALETTE, SEQUENTIAL_CMAP, figure_axes, panel_grid, save_figure
 from simbench.units import UNITS
 
@@ -300,3 +301,10 @@ def summary_markdown(study: StudyDescription, table: Any, plots: list[Path]) -> 
         lines += _joint_centre_findings(study, data, names)
     lines += ["", *[f"![{p.stem}]({p.name})" for p in plots], ""]
     return "\n".join(lines)
+
+
+def write_summary(study: StudyDescription, table: Any, plots: list[Path], out: Path) -> Path:
+    """Write :func:`summary_markdown` to ``out/summary.md``, atomically; returns its path."""
+    path = Path(out) / "summary.md"
+    atomic_write_text(path, summary_markdown(study, table, plots))
+    return path
