@@ -40,6 +40,7 @@ import numpy as np
 from calibration import calibrate, detect_slip, fit_joint
 from calibration.errors import CalibrationError
 from calibration.methods import estimate_obrien_eiv
+from calibration.slip import SLIP_WINDOW_S
 from calibration.uncertainty import holds_truth, joint_covariance
 from simbench.estimators import DEFAULT_ORIENTATION as DEFAULT_METHOD
 from simbench.estimators import names, resolve
@@ -148,7 +149,7 @@ def _slip(plan: Plan) -> dict[str, Any]:
     rec = ds.poses()
     cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid)
     j = next(j for j in cal.joints if j.child == "forearm_l")
-    window = min(round(2.0 * rec.rate_hz), rec.n_frames // 4)  # 2 s, the CLI's default
+    window = min(round(SLIP_WINDOW_S * rec.rate_hz), rec.n_frames // 4)  # the detector's default
     rep = detect_slip(
         *rec.pair(j.parent, j.child),
         j.fit.joint_in_parent,
