@@ -48,6 +48,7 @@ from simbench.estimators import (
     Estimator,
     JointsResult,
     joints_result,
+    orientation_result,
     resolve,
     run_joints,
     run_orientation,
@@ -69,7 +70,7 @@ from simbench.io.export import SOURCES as EXPORT_SOURCES
 from simbench.io.export import check_outputs, export_c3d_markers, export_dataset
 from simbench.io.hierarchy_json import read_hierarchy_json as read_hierarchy
 from simbench.io.imu import ImuRecording
-from simbench.io.orientation_csv import write_orientation_csv
+from simbench.io.orientation_csv import read_orientation_csv, write_orientation_csv
 from simbench.io.poses import PoseRecording, sample_rate, write_pose_csv
 from simbench.io.read import read, read_imu, read_poses, refuse_unlocated
 from simbench.orient import (
@@ -280,23 +281,42 @@ def calibrate(
 
 
 def score(
-    cal: Calibration | JointsResult | Mapping[str, Any] | str | os.PathLike[str],
-    ds: Dataset,
+    cal: Calibration | JointsResult | Mapping[str, Any] | str | os.PathLike[str] | np.ndarray | Orientations,
+    ds: Dataset | ImuRecording,
     *,
     scale: float | None = None,
-) -> CalibrationScore:
-    """An estimate of joints against the truth of the session it came from: limb lengths, joint
-    centres (both sensor frames), the hierarchy (wrong edges named), in metres (``scale`` metres
-    per tracker unit; default the dataset's ``position_unit_scale``).
+) -> CalibrationScore | OrientationScore:
+    """An estimate against the truth of the recording it came from.
+
+    Joints: limb lengths, joint centres (both sensor frames), the hierarchy (wrong edges named), in
+    metres (``scale`` metres per tracker unit; default the dataset's ``position_unit_scale``).
+    Orientations: BROAD's errors (total, heading, inclination RMSE, degrees) over the samples to
+    evaluate, against a simulated session's actual orientations or a real recording's reference.
 
     Args:
-        cal: a :class:`calibration.Calibration`, any estimator's
+        cal: joints: a :class:`calibration.Calibration`, any estimator's
             :class:`simbench.estimators.JointsResult` (:func:`calibrate` with ``method``), or an
             estimate made anywhere: a calibration document (``joints`` with ``parent``, ``child``,
             ``joint_in_parent``, ``joint_in_child``; ``units``) or the path of its JSON file.
-        ds: the simulated session.
-        scale: metres per tracker unit.
+            Orientations: :class:`Orientations` (:func:`orient`), or made anywhere: ``(F, N, 4)``
+            scalar-first quaternions of ``R_w_s`` in ENU (NaN where not estimated) or the path of
+            an orientation CSV (``time,sensor,qw,qx,qy,qz``, ``.csv``).
+        ds: the simulated session, or for orientations an IMU recording with a reference (a BROAD
+            trial from :func:`read`).
+        scale: metres per tracker unit (joints).
+
+    Raises:
+        InputError: an estimate of other sensors or samples, quaternions not of unit norm, a
+            recording without truth, a file that cannot be read.
     """
+    if isinstance(cal, Orientations | np.ndarray | list) or (
+        isinstance(cal, str | os.PathLike) and Path(cal).suffix.lower() == ".csv"
+    ):
+        return _score_orientations(cal, ds)
+    if not isinstance(ds, Dataset):
+        raise InputError(
+            f"joints are scored against a simulated session (a Dataset), got {type(ds).__name__}"
+        )
     if scale is not None and not (isinstance(scale, int | float) and np.isfinite(scale) and scale > 0):
         raise InputError(f"Expected scale (metres per tracker unit) to be a finite number > 0, got {scale!r}")
     if isinstance(cal, Calibration):
@@ -358,6 +378,31 @@ class Orientations:
         """``(F, N, 4)`` the orientations in world frame ``enu`` or ``ned`` (for
         :func:`write_orientation_csv`)."""
         return in_frame(self.q_w_s, frame)
+
+
+def _score_orientations(
+    estimate: Orientations | np.ndarray | list | str | os.PathLike[str], data: Dataset | ImuRecording
+) -> OrientationScore:
+    """Orientations made anywhere against a recording's reference (:func:`score`)."""
+    rec = data.imu() if isinstance(data, Dataset) else data
+    if not isinstance(rec, ImuRecording):
+        raise InputError(
+            f"orientations are scored against a Dataset or an ImuRecording, got {type(data).__name__}"
+        )
+    if rec.q_true is None:
+        raise InputError(f"{rec.source}: no reference orientations to score against")
+    if isinstance(estimate, Orientations):
+        if estimate.names != rec.names:
+            raise InputError(
+                f"orientations of sensors {list(estimate.names)}, not the recording's {list(rec.names)}"
+            )
+        q = estimate.q_w_s
+    elif isinstance(estimate, str | os.PathLike):
+        q = read_orientation_csv(estimate, rec.names, rec.time_s)
+    else:
+        q = estimate
+    q = orientation_result(q, "the orientations given", rec).q_enu
+    return score_orientation(q, rec.q_true, rec.names, rec.evaluate)
 
 
 def orient(

@@ -439,3 +439,28 @@ def test_an_orientation_file_reads_or_is_refused_by_line(tmp_path_factory, text)
     assert q.shape == (3, 2, 4)
     finite = np.isfinite(q).all(axis=-1)
     np.testing.assert_allclose(np.linalg.norm(q[finite], axis=-1), 1.0, atol=1e-3)
+
+
+def test_orientations_made_anywhere_are_scored(tmp_path):
+    """sb.score takes orientations from anywhere: an array, an orientation CSV, sb.orient's result;
+    against a simulated session's truth or a real recording's reference (the package's BROAD
+    excerpt), with the same figures as sb.orient's own score."""
+    from simbench.experiments.suite import DATA_DIR
+    from simbench.io.orientation_csv import write_orientation_csv
+
+    broad = simbench.read(DATA_DIR / "broad_02_undisturbed_slow_rotation_B_60s.hdf5")
+    ori = simbench.orient(broad, "triad", calibrate_mag=False)
+    from_array = simbench.score(ori.q_w_s, broad)
+    assert from_array.total_rmse_deg == ori.score.total_rmse_deg
+    assert simbench.score(ori, broad).total_rmse_deg == ori.score.total_rmse_deg
+    write_orientation_csv(tmp_path / "mine.csv", broad, ori.q_w_s)
+    assert simbench.score(tmp_path / "mine.csv", broad).total_rmse_deg == pytest.approx(
+        ori.score.total_rmse_deg, rel=1e-12
+    )
+    rec = _tiny_imu()
+    sim = simbench.orient(rec, "fontaine", calibrate_mag=False)
+    assert simbench.score(sim.q_w_s, rec).total_rmse_deg == sim.score.total_rmse_deg
+    with pytest.raises(InputError, match=r"expected quaternions of shape \(\d+, 1, 4\)"):
+        simbench.score(np.ones((3, 1, 4)), broad)
+    with pytest.raises(InputError, match="unit quaternions"):
+        simbench.score(2 * ori.q_w_s, broad)
