@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.joint import LOCATED_RANK
 from calibration.pairs import PairStatistics
 from calibration.poses import CHUNK_FRAMES, iter_chunks
 from calibration.rotations import matrix_to_rotvec
@@ -340,7 +341,7 @@ def motion_warnings(
     chi = np.array([c for _, c in pairs], dtype=np.int64)
     rank = np.array([fit.rank for fit in fits])
     unc = np.full(len(fits), np.inf)  # fewer than 5 directions kept: the centre is not located
-    checked = np.flatnonzero(rank >= 5)
+    checked = np.flatnonzero(rank >= LOCATED_RANK)
     if checked.size:
         if block_sums is not None:
             unc[checked] = jackknife_standard_error(block_sums[:, checked], rank[checked])
@@ -357,7 +358,7 @@ def motion_warnings(
         how = (
             f"the data determine only {fit.rank} of its 6 directions (condition "
             f"{fit_condition(fit.singular_values, 6):.3g})"
-            if fit.rank < 5
+            if fit.rank < LOCATED_RANK
             else f"fit condition {fit_condition(fit.singular_values, fit.rank):.3g}, centre standard "
             f"error {unc[k] * 1e3:.3g} mm by block jackknife ({100 * unc[k] / sep:.0f} % of the "
             f"{sep * 1e3:.3g} mm between the sensors)"

@@ -54,6 +54,10 @@ from calibration.hinge import (
 #: below it the statistical test (:mod:`calibration.hinge`) would compare rounding errors.
 SINGLE_AXIS_RATIO = 1e-4
 
+#: The fewest of a joint's 6 coordinates the motion must determine for its centre to be located:
+#: a single-axis joint leaves one free (its centre a point of the axis); fewer is no joint located.
+LOCATED_RANK = 5
+
 #: Fewest frames a joint fit accepts (two frames give 6 equations for 6 unknowns).
 MIN_FRAMES = 3
 

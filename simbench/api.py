@@ -36,6 +36,7 @@ import numpy as np
 from calibration import Calibration, SlipReport, detect_slip
 from calibration import calibrate as calibrate_arrays
 from calibration import unit_scale as unit_scale_arrays
+from calibration.joint import LOCATED_RANK
 from calibration.orientation import Priors, Skeleton
 from calibration.scale import ScaleEstimate, rigidity
 from calibration.slip import FALSE_ALARMS_PER_HOUR, SLIP_WINDOW_S
@@ -889,6 +890,7 @@ __all__ = [
     "FALSE_ALARMS_PER_HOUR",
     "LIVE_RATE_FRAMES",
     "LIVE_REFRESH_S",
+    "LOCATED_RANK",
     "SLIP_WINDOW_S",
     "TIME_LIMIT_S",
     "Calibration",

@@ -43,7 +43,7 @@ import numpy as np
 
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.joint import JointFit, fit_joint
+from calibration.joint import LOCATED_RANK, JointFit, fit_joint
 from calibration.methods.inertial import (
     InertialAxis,
     InertialFit,
@@ -207,10 +207,10 @@ def estimate_obrien_eiv(
 
 
 def _check_rank(fit: JointFit) -> None:
-    if fit.rank < 5:
+    if fit.rank < LOCATED_RANK:
         raise CalibrationError(
             f"O'Brien's fit needs the child to rotate relative to the parent: the motion determines "
-            f"{fit.rank} of the 6 coordinates of the joint (needs 5)"
+            f"{fit.rank} of the 6 coordinates of the joint (needs {LOCATED_RANK})"
         )
 
 

@@ -55,6 +55,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from calibration.errors import CalibrationError, CalibrationInputError
+from calibration.joint import LOCATED_RANK
 from calibration.methods.score import check_finite, check_valid
 from calibration.rotations import skew
 
@@ -359,7 +360,7 @@ def seel_joint_position(
     J = jacobian(x)
     s = np.linalg.svd(J, compute_uv=False)
     rank = int(np.count_nonzero(s >= RANK_RATIO * s[0])) if s[0] > 0 else 0
-    if rank < 5:
+    if rank < LOCATED_RANK:
         raise CalibrationError(
             f"The inertial joint fit needs the sensors to rotate relative to each other: the motion "
             f"determines {rank} of the 6 coordinates (needs 5; s_5/s_max = {s[4] / max(s[0], 1e-300):.2e}, "

@@ -21,6 +21,7 @@ import numpy as np
 from simbench.api import (
     LIVE_RATE_FRAMES,
     LIVE_REFRESH_S,
+    LOCATED_RANK,
     LiveState,
     LiveUpdate,
     StreamingCalibrator,
@@ -187,7 +188,7 @@ def live_table(source: str, state: LiveState, *, final: bool = False) -> str:
                 " ".join(f"{v * 1e3:7.1f}" for v in fit.joint_in_parent),
                 " ".join(f"{v * 1e3:7.1f}" for v in fit.joint_in_child),
                 f"{fit.rms_residual * 1e3:.2f}",
-                "single" if fit.single_axis else ("none" if fit.rank < 5 else "-"),
+                "single" if fit.single_axis else ("none" if fit.rank < LOCATED_RANK else "-"),
                 " ".join(f"{v:.0f}" for v in cov.rotation_rms_deg),
                 cov.advice,
             ]

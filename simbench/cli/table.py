@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from simbench.api import Calibration, PoseRecording, SlipReport, sample_rate
+from simbench.api import LOCATED_RANK, Calibration, PoseRecording, SlipReport, sample_rate
 
 
 def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str, SlipReport]]) -> str:
@@ -37,7 +37,7 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
         fit = j.fit
         mx = np.nanmax(fit.frame_residual) if fit.frame_residual is not None else float("nan")
         cond = f"{fit.condition:.3g}" if np.isfinite(fit.condition) else "inf"
-        axis = "single" if fit.single_axis else ("none" if fit.rank < 5 else "-")
+        axis = "single" if fit.single_axis else ("none" if fit.rank < LOCATED_RANK else "-")
         rows.append(
             [
                 j.parent + " -> " + j.child,
@@ -57,7 +57,7 @@ def format_table(rec: PoseRecording, cal: Calibration, slips: Sequence[tuple[str
     if any(j.uncertainty is not None for j in cal.joints):
         lines += _interval_lines(cal)
     # a joint the motion does not locate (fewer than 5 of 6 directions) has no centre to measure from
-    unlocated = {j.name for j in cal.joints if j.fit.rank < 5}
+    unlocated = {j.name for j in cal.joints if j.fit.rank < LOCATED_RANK}
     rows = []
     for k, x in enumerate(cal.lengths):
         if unlocated & {x.joint_a, x.joint_b}:

@@ -31,6 +31,7 @@ import numpy as np
 
 from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration, CalibrationError
 from calibration import calibrate as calibrate_arrays
+from calibration.joint import LOCATED_RANK
 from calibration.methods import JOINT_METHODS, JointEstimate, estimate_inertial
 from calibration.orientation import Priors, Skeleton
 from calibration.robust import LOSSES
@@ -93,7 +94,27 @@ def _obrien(
     cal = calibrate_arrays(
         poses.R_w_s, poses.p_w_s, poses.names, valid=poses.valid, parent_of=hierarchy, **options
     )
-    return JointsResult(joints_of(cal), calibration=cal, notes=cal.warnings)
+    # a joint whose motion locates fewer than 5 of its 6 coordinates has no centre to give (the
+    # one-pair fit refuses it too): left out of the joints, named; the calibration keeps it
+    unlocated = [j for j in cal.joints if j.fit.rank < LOCATED_RANK]
+    notes = tuple(
+        f"joint {j.name} not located: the motion determines {j.fit.rank} of the 6 coordinates of the "
+        f"joint (needs {LOCATED_RANK})"
+        for j in unlocated
+    )
+    joints = joints_of(cal)
+    if unlocated:
+        keep = np.array([j.fit.rank >= LOCATED_RANK for j in cal.joints])
+        joints = CalibrationJoints(
+            tuple(p for p, k in zip(joints.parent, keep, strict=True) if k),
+            tuple(c for c, k in zip(joints.child, keep, strict=True) if k),
+            joints.parent_index[keep],
+            joints.child_index[keep],
+            joints.joint_in_parent[keep],
+            joints.joint_in_child[keep],
+            joints.single_axis[keep],
+        )
+    return JointsResult(joints, calibration=cal, notes=(*cal.warnings, *notes))
 
 
 def _obrien_variant(**fixed: Any) -> Callable[..., JointsResult]:

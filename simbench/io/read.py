@@ -19,6 +19,7 @@ import numpy as np
 
 from calibration import Calibration
 from calibration.diagnostics import rotation_ranges
+from calibration.joint import LOCATED_RANK
 from calibration.poses import CHUNK_FRAMES
 from simbench.errors import InputError
 from simbench.io.c3d import c3d_poses, read_cluster_spec
@@ -174,7 +175,7 @@ def refuse_unlocated(rec: PoseRecording, cal: Calibration | Any, source: str) ->
         InputError: naming the file, each joint with the directions its motion determines and its
             range of relative rotation (degrees, along its principal axes).
     """
-    if not cal.joints or any(j.fit.rank >= 5 for j in cal.joints):
+    if not cal.joints or any(j.fit.rank >= LOCATED_RANK for j in cal.joints):
         return
     index = {name: k for k, name in enumerate(rec.names)}
     parent = np.array([index[j.parent] for j in cal.joints])
