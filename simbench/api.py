@@ -415,7 +415,7 @@ def orient(
     skeleton: Skeleton | Calibration | str | os.PathLike[str] | None = None,
     weighting: bool = True,
     smooth_hz: float | None = None,
-    calibrate_mag: bool = True,
+    calibrate_mag: bool | None = None,
     priors: Priors | None = None,
 ) -> Orientations:
     """Sensor orientations from accelerometer and magnetometer, scored against the truth when
@@ -439,7 +439,9 @@ def orient(
         weighting: Fontaine's disturbance weighting.
         smooth_hz: zero-phase smoothing cutoff, Hz (``None``: none).
         calibrate_mag: calibrate each magnetometer from the recording's own samples first
-            (:func:`simbench.orient.calibrate_magnetometers`; applied only where it pays).
+            (:func:`simbench.orient.calibrate_magnetometers`; applied only where it pays);
+            ``None``: on for the built-in methods (their ``calibrate_mag`` parameter's default),
+            off for a user's estimator, which gets the readings as recorded.
         priors: for the ``skeleton`` method, the residuals' standard deviations
             (:class:`calibration.orientation.Priors`), e.g. ``Priors(lone_speed=1.5)`` for a
             sensor on its own that moves slowly, ``Priors(lone_speed=None)`` for the white prior
@@ -459,6 +461,8 @@ def orient(
     if est.origin == "builtin" and params is not None:
         raise InputError(f"{est.name!r}: the built-in methods take their options as keyword arguments")
     fits = None
+    if calibrate_mag is None:
+        calibrate_mag = bool(est.defaults.get("calibrate_mag", False))
     if calibrate_mag:
         rec, fits = calibrate_magnetometers(rec)
     if est.origin == "builtin":

@@ -61,9 +61,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ori.add_argument(
         "--calibrate-mag",
         action=argparse.BooleanOptionalAction,
-        default=True,
+        default=None,
         help="fit each magnetometer's hard and soft iron to the recording's own samples and apply it "
-        "where the samples determine it and it steadies the field strength (default: on)",
+        "where the samples determine it and it steadies the field strength (default: on for the "
+        "built-in methods; off for your own, which get the readings as recorded)",
     )
     ori.add_argument(
         "--lone-speed",

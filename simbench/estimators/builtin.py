@@ -47,7 +47,7 @@ from simbench.estimators.registry import (
 from simbench.io.calibration_json import CalibrationJoints
 from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
-from simbench.orient import estimate
+from simbench.orient import calibrate_magnetometers, estimate
 
 #: The default joints estimator (``simbench calibrate``, ``sb.calibrate``).
 DEFAULT_JOINTS = "obrien"
@@ -196,9 +196,13 @@ def _inertial(imu: ImuRecording, *, hierarchy: Mapping[str, str], hinge: bool = 
 
 
 def _orientation(method: str) -> Callable[..., OrientationResult]:
-    def run(imu: ImuRecording, *, skeleton: Skeleton | None = None, **options: Any) -> OrientationResult:
+    def run(
+        imu: ImuRecording, *, skeleton: Skeleton | None = None, calibrate_mag: bool = True, **options: Any
+    ) -> OrientationResult:
         if "lone_speed_m_per_s" in options:
             options["priors"] = Priors(lone_speed=options.pop("lone_speed_m_per_s"))
+        if calibrate_mag:  # as simbench orient and sb.orient do by default
+            imu, _ = calibrate_magnetometers(imu)
         got = estimate(imu, method, skeleton=skeleton, **options)
         return OrientationResult(got.q_enu, got.ok, got.field_strength_ut, got.inclination_deg)
 
@@ -207,6 +211,12 @@ def _orientation(method: str) -> Callable[..., OrientationResult]:
 
 
 _WEIGHTING = Param("weighting", True, help="Fontaine's disturbance weighting of the accelerometer")
+_CALIBRATE_MAG = Param(
+    "calibrate_mag",
+    True,
+    help="fit each magnetometer's hard and soft iron to the recording's own samples first, applied "
+    "where the samples determine it and it steadies the field strength",
+)
 _SMOOTH = Param("smooth_hz", None, unit="hz", help="zero-phase low-pass cutoff of the inputs (none: none)")
 
 
@@ -264,6 +274,7 @@ def _register_all() -> None:
             "orientation",
             _orientation("skeleton"),
             (
+                _CALIBRATE_MAG,
                 Param(
                     "lone_speed_m_per_s",
                     Priors().lone_speed,
@@ -277,11 +288,26 @@ def _register_all() -> None:
         )
     )
     for name, params, needs, summary in (
-        ("triad", (_SMOOTH,), {"rate"}, "TRIAD: the two-vector fix per sample"),
-        ("fontaine", (_WEIGHTING, _SMOOTH), {"rate"}, "Fontaine et al.: Gauss-Newton per sample"),
-        ("wahba", (_WEIGHTING, _SMOOTH), {"rate"}, "Wahba's problem per sample (closed form)"),
-        ("mahony", (_SMOOTH,), {"rate", "gyro"}, "Mahony's complementary filter (gyro-aided)"),
-        ("vqf", (_SMOOTH,), {"rate", "gyro"}, "VQF (Laidig and Seel 2023), offline (gyro-aided reference)"),
+        ("triad", (_CALIBRATE_MAG, _SMOOTH), {"rate"}, "TRIAD: the two-vector fix per sample"),
+        (
+            "fontaine",
+            (_CALIBRATE_MAG, _WEIGHTING, _SMOOTH),
+            {"rate"},
+            "Fontaine et al.: Gauss-Newton per sample",
+        ),
+        (
+            "wahba",
+            (_CALIBRATE_MAG, _WEIGHTING, _SMOOTH),
+            {"rate"},
+            "Wahba's problem per sample (closed form)",
+        ),
+        ("mahony", (_CALIBRATE_MAG, _SMOOTH), {"rate", "gyro"}, "Mahony's complementary filter (gyro-aided)"),
+        (
+            "vqf",
+            (_CALIBRATE_MAG, _SMOOTH),
+            {"rate", "gyro"},
+            "VQF (Laidig and Seel 2023), offline (gyro-aided reference)",
+        ),
     ):
         register(Estimator(name, "orientation", _orientation(name), params, frozenset(needs), summary))
 

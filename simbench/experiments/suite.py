@@ -31,9 +31,10 @@ SUITE_VERSION = "2"
 #: The real recordings the package ships (``simbench/data/README.md``: sources and licences).
 DATA_DIR = Path(__file__).resolve().parents[1] / "data"
 
-#: The seeds each scenario is run with (``--quick``: the first ones, :data:`QUICK_SEEDS`).
+#: The seeds each scenario is run with (``--quick``: the first ones, :data:`QUICK_SEEDS`: three,
+#: the fewest the scorecard's paired test is run on).
 SEEDS = (1, 2, 3, 4, 5)
-QUICK_SEEDS = 2
+QUICK_SEEDS = 3
 
 
 @dataclass(frozen=True)
