@@ -22,6 +22,7 @@ from pathlib import Path
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset
 from simbench.io.imu import ImuRecording, read_broad
+from simbench.sim.sensor_config import parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 from simbench.versions import __version__
 
@@ -83,6 +84,25 @@ SCENARIOS: tuple[SuiteScenario, ...] = (
         "joints",
         _session("linkage", "single-axis", "polhemus-liberty", 20.0),
         "the linkage moved about one axis per joint (hinge-like motion)",
+    ),
+    SuiteScenario(
+        "linkage-slip",
+        "joints",
+        SessionConfig(
+            model="linkage",
+            motion="exercise",
+            duration_s=20.0,
+            sensors=parse_sensor_config(
+                {
+                    "name": "linkage-slip",
+                    "tracker": {"position_noise_m": 0.002, "transmitter_pos": [0.0, -0.8, 1.0]},
+                    "skin": {"slip": [{"sensor": "forearm_l", "time_s": 10.0, "offset_m": [0.0, 0.03, 0.0]}]},
+                },
+                "the suite's slip scenario",
+            ),
+        ),
+        "a slip: the left forearm's sensor moves 3 cm on its segment halfway through",
+        quick=False,
     ),
     SuiteScenario(
         "humanoid-skin-exercise",
