@@ -268,3 +268,22 @@ def test_an_installed_plugin(lab, tmp_path):
     theirs = json.loads((lab / "file.json").read_text())
     for a, b in zip(mine["joints"], theirs["joints"], strict=True):
         assert a["joint_in_parent"] == pytest.approx(b["joint_in_parent"], abs=1e-9)
+
+
+def test_orient_method_on_a_real_recording(lab):
+    """A user's orientation function in a file, on the BROAD excerpt the package ships: the
+    command writes its orientations and scores them against the optical reference."""
+    from simbench.experiments.suite import DATA_DIR
+
+    (lab / "level.py").write_text(
+        "import numpy as np\n\n\ndef estimate(imu):\n"
+        "    return np.tile([1.0, 0.0, 0.0, 0.0], (imu.time_s.size, len(imu.names), 1))\n"
+    )
+    trial = DATA_DIR / "broad_02_undisturbed_slow_rotation_B_60s.hdf5"
+    run = _run(
+        lab, "-m", "simbench", "orient", str(trial), "--method", "level.py:estimate", "--csv", "level.csv"
+    )
+    assert run.returncode == 0, run.stderr
+    assert "method: level.py:estimate" in run.stdout and "error against the reference" in run.stdout
+    lines = (lab / "level.csv").read_text().splitlines()
+    assert lines[0] == "time,sensor,qw,qx,qy,qz" and len(lines) == 1 + 17143
