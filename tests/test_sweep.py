@@ -548,3 +548,17 @@ def test_a_users_estimator_in_a_study_fails_alone_and_its_file_is_fingerprinted(
     before = st.study_fingerprint(study)
     fit.write_text("def estimate(poses, *, hierarchy=None):\n    raise RuntimeError('still not')\n")
     assert st.study_fingerprint(st.load_study(path)) != before
+
+
+def test_a_users_estimator_that_hangs_is_stopped_at_the_time_limit(tmp_path, monkeypatch):
+    monkeypatch.setattr(sw, "TIME_LIMIT_S", 1.0)  # the workers are forked: they see it
+    (tmp_path / "slow.py").write_text(
+        "import time\n\ndef estimate(poses, *, hierarchy=None):\n    time.sleep(60)\n"
+    )
+    path = parameter_study(tmp_path, "duration_s", "s", "[1.0]", seeds=1)
+    path.write_text(
+        path.read_text().replace('estimators = ["calibration"]', 'estimators = ["joint:slow.py:estimate"]')
+    )
+    (row,) = rows(sw.run_study(st.load_study(path), tmp_path / "out", workers=1))
+    spec = f"{tmp_path / 'slow.py'}:estimate"
+    assert row[f"error:{spec}"] == f"estimator '{spec}' did not return within its time limit of 1 s; stopped"

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from simbench.errors import InputError, load_toml, not_utf8
-from simbench.estimators import names, resolve
+from simbench.estimators import TIME_LIMIT_S, names, resolve
 from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
 from simbench.experiments.realism import realism_ratios, run_realism
 from simbench.experiments.walk_hierarchy import walk_trial
@@ -52,7 +52,7 @@ def _calibration_metrics(ds: Dataset) -> dict[str, float]:
 
 def _orientation_metrics(method: str) -> Callable[[Dataset], dict[str, float]]:
     def metrics(ds: Dataset) -> dict[str, float]:
-        m = orientation_metrics(ds, method)
+        m = orientation_metrics(ds, method, time_limit_s=TIME_LIMIT_S)
         return {"total_rmse_deg": m["total_rmse_deg"], "heading_rmse_deg": m["heading_rmse_deg"]}
 
     return metrics
@@ -179,7 +179,7 @@ def _spec_metrics(estimator: str) -> Callable[[Dataset], dict[str, float]] | Non
     if kind == "joint" and spec:
 
         def joints(ds: Dataset) -> dict[str, float]:
-            m = joint_method_metrics(ds, spec)
+            m = joint_method_metrics(ds, spec, time_limit_s=TIME_LIMIT_S)
             return {
                 "centre_error_cm": m["joint_centre_error_m"] * 100,
                 "length_error_cm": m["limb_length_error_m"] * 100,

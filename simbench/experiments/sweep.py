@@ -26,7 +26,7 @@ from typing import Any
 
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, optional_module
-from simbench.estimators import EstimatorError
+from simbench.estimators import TIME_LIMIT_S, EstimatorError
 from simbench.experiments.metrics import calibration_metrics, joint_method_metrics, orientation_metrics
 from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.experiments.study import Study, Trial, check_study, study_fingerprint, trial_config, trials
@@ -54,7 +54,9 @@ def run_trial(study: Study, trial: Trial) -> dict[str, Any]:
     A trial whose session or estimates cannot be made from its values (an ``InputError`` or
     ``CalibrationError``: e.g. a tracker that drops nearly every pose) is a row too, without
     metrics, its ``error`` the reason headed by the trial's id, cell and values: the study goes
-    on and the summary counts it. Any other error stops the study.
+    on and the summary counts it. Any other error stops the study. A user's estimator that fails
+    (raises, or runs past :data:`simbench.estimators.TIME_LIMIT_S`) is an ``error:<spec>`` column
+    of the row, the other estimators' metrics kept.
     """
     t0 = time.perf_counter()
     with one_blas_thread():
@@ -93,11 +95,11 @@ def _run_trial(study: Study, trial: Trial) -> dict[str, Any]:
         kind, spec = est.split(":", 1)
         try:
             if kind == "joint":
-                got = joint_method_metrics(ds, spec)
+                got = joint_method_metrics(ds, spec, time_limit_s=TIME_LIMIT_S)
                 row.update({f"{k}:{spec}": v for k, v in got.items()})
             else:
                 key = f"orientation_rmse_deg:{spec}" if several else "orientation_rmse_deg"
-                row[key] = orientation_metrics(ds, spec)["total_rmse_deg"]
+                row[key] = orientation_metrics(ds, spec, time_limit_s=TIME_LIMIT_S)["total_rmse_deg"]
         except EstimatorError as exc:  # a user's estimator failed on this trial: named, the rest go on
             row[f"error:{spec}"] = str(exc)
     row["run_time_s"] = time.perf_counter() - t0
