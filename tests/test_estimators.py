@@ -464,3 +464,18 @@ def test_orientations_made_anywhere_are_scored(tmp_path):
         simbench.score(np.ones((3, 1, 4)), broad)
     with pytest.raises(InputError, match="unit quaternions"):
         simbench.score(2 * ori.q_w_s, broad)
+
+
+def test_a_users_estimator_cannot_change_the_data(tmp_path, linkage):
+    """The next estimator gets the data as recorded: a user's that writes into its input fails,
+    named, and the poses are unchanged."""
+    path = _write(
+        tmp_path / "vandal.py",
+        "def estimate(poses, *, hierarchy=None):\n    poses.p_w_s[:] = 0.0\n    return {'joints': []}\n",
+    )
+    poses = linkage.poses()
+    before = poses.p_w_s.copy()
+    with pytest.raises(EstimatorError, match="raised ValueError: assignment destination is read-only"):
+        run_joints(resolve(f"{path}:estimate"), poses)
+    np.testing.assert_array_equal(poses.p_w_s, before)
+    assert poses.p_w_s.flags.writeable  # the caller's own arrays stay writable

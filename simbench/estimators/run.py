@@ -10,6 +10,7 @@ and goes on.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import signal
 import threading
@@ -81,11 +82,26 @@ def _time_limit(seconds: float | None) -> Iterator[None]:
         signal.signal(signal.SIGALRM, previous)
 
 
+def read_only(data: Any) -> Any:
+    """The recording with every array a read-only view: a user's estimator that writes into its
+    input raises (named) instead of changing the data the next estimator gets."""
+    changes = {}
+    for f in dataclasses.fields(data):
+        value = getattr(data, f.name)
+        if isinstance(value, np.ndarray):
+            view = value.view()
+            view.flags.writeable = False
+            changes[f.name] = view
+    return dataclasses.replace(data, **changes)
+
+
 def _call(est: Estimator, time_limit_s: float | None, data: Any, kwargs: dict[str, Any]) -> Any:
-    """Call the estimator on its data; a user's exception, or a Python estimator still running
-    after ``time_limit_s`` (a command keeps its own limit), becomes an :class:`EstimatorError`."""
+    """Call the estimator on its data (a user's on a read-only view of it); a user's exception,
+    or a Python estimator still running after ``time_limit_s`` (a command keeps its own limit),
+    becomes an :class:`EstimatorError`."""
     if est.origin == "builtin":
         return est.fn(data, **kwargs)
+    data = read_only(data)
     limit = None if est.origin == "command" else time_limit_s
     try:
         with _time_limit(limit):
