@@ -479,3 +479,40 @@ def test_a_users_estimator_cannot_change_the_data(tmp_path, linkage):
         run_joints(resolve(f"{path}:estimate"), poses)
     np.testing.assert_array_equal(poses.p_w_s, before)
     assert poses.p_w_s.flags.writeable  # the caller's own arrays stay writable
+
+
+def test_joints_returned_as_arrays_get_the_documents_checks():
+    from simbench.io.calibration_json import CalibrationJoints
+
+    names = ("chest", "head")
+
+    def joints(parent, child, jp):
+        return CalibrationJoints(
+            (parent,),
+            (child,),
+            np.array([0]),
+            np.array([1]),
+            np.array([jp]),
+            np.zeros((1, 3)),
+            np.array([False]),
+        )
+
+    assert joints_result(joints("chest", "head", [0.0, 0.0, 0.1]), "mine", names).joints.child == ("head",)
+    with pytest.raises(EstimatorError, match=r"joints of a sensor with itself: \['head'\]"):
+        joints_result(joints("head", "head", [0.0, 0.0, 0.1]), "mine", names)
+    with pytest.raises(EstimatorError, match="3 finite numbers within 1e\\+06"):
+        joints_result(joints("chest", "head", [0.0, 0.0, 1e300]), "mine", names)
+    with pytest.raises(EstimatorError, match=r"of shape \(1, 3\), got \(1, 2\)"):
+        joints_result(
+            CalibrationJoints(
+                ("chest",),
+                ("head",),
+                np.array([0]),
+                np.array([1]),
+                np.zeros((1, 2)),
+                np.zeros((1, 3)),
+                np.array([False]),
+            ),
+            "mine",
+            names,
+        )

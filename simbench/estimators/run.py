@@ -178,11 +178,14 @@ def run_joints(
 
 
 def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") -> JointsResult:
-    """What a joints estimator returned, as a checked :class:`JointsResult` in ``unit``.
+    """What a joints estimator returned, as a checked :class:`JointsResult` in ``unit``: every
+    form goes through the calibration document's one check
+    (:func:`simbench.io.calibration_json.check_calibration_document`).
 
     Raises:
-        EstimatorError: not one of the accepted types, a malformed document, sensors the data
-            lacks, centres that are not finite.
+        EstimatorError: not one of the accepted types, a malformed document (centres not finite or
+            beyond reach, a sensor the child of two joints or joined with itself), sensors the data
+            lacks, an unknown unit.
     """
     calibration = None
     notes: tuple[str, ...] = ()
@@ -190,50 +193,67 @@ def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") 
         calibration, notes, got = got.calibration, got.notes, got.joints
     if isinstance(got, Calibration):
         calibration, notes, got = got, got.warnings, joints_of(got)
-    if isinstance(got, Mapping):
-        where = f"estimator {name!r}'s result"
-        doc_unit = got.get("units", "m")
-        if not isinstance(doc_unit, str) or doc_unit not in LENGTH_UNITS:
-            raise EstimatorError(f"{where}: expected units one of {list(LENGTH_UNITS)}, got {doc_unit!r}")
-        try:
-            doc = check_calibration_document(dict(got), where)
-            joints = calibration_joints(doc, names, source=where)
-        except InputError as exc:
-            raise EstimatorError(str(exc)) from None
-        factor = metres_per_unit(doc_unit) / metres_per_unit(unit)
-        got = CalibrationJoints(
-            joints.parent,
-            joints.child,
-            joints.parent_index,
-            joints.child_index,
-            joints.joint_in_parent * factor,
-            joints.joint_in_child * factor,
-            joints.single_axis,
-        )
-    if not isinstance(got, CalibrationJoints):
+    if isinstance(got, CalibrationJoints):
+        got = _document(got, unit, name)
+    if not isinstance(got, Mapping):
         raise EstimatorError(
             f"estimator {name!r} returned a {type(got).__name__}; expected a calibration document "
             "(dict with 'joints'), a JointsResult, a CalibrationJoints or a Calibration"
         )
-    wrong = sorted({*got.parent, *got.child} - set(names))
-    if wrong:
+    where = f"estimator {name!r}'s result"
+    doc_unit = got.get("units", "m")
+    if not isinstance(doc_unit, str) or doc_unit not in LENGTH_UNITS:
+        raise EstimatorError(f"{where}: expected units one of {list(LENGTH_UNITS)}, got {doc_unit!r}")
+    try:
+        doc = check_calibration_document(dict(got), where)
+        joints = calibration_joints(doc, names, source=where)
+    except InputError as exc:
+        raise EstimatorError(str(exc)) from None
+    factor = metres_per_unit(doc_unit) / metres_per_unit(unit)
+    joints = CalibrationJoints(
+        joints.parent,
+        joints.child,
+        joints.parent_index,
+        joints.child_index,
+        joints.joint_in_parent * factor,
+        joints.joint_in_child * factor,
+        joints.single_axis,
+    )
+    return JointsResult(joints, calibration=calibration, notes=tuple(notes))
+
+
+def _document(joints: CalibrationJoints, unit: str, name: str) -> dict[str, Any]:
+    """A :class:`CalibrationJoints` as the calibration document (in ``unit``) it stands for.
+
+    Raises:
+        EstimatorError: arrays that do not agree with the joints' names.
+    """
+    n = len(joints.child)
+    jp = np.asarray(joints.joint_in_parent, dtype=float)
+    jc = np.asarray(joints.joint_in_child, dtype=float)
+    if (
+        jp.shape != (n, 3)
+        or jc.shape != (n, 3)
+        or len(joints.parent) != n
+        or np.shape(joints.single_axis) != (n,)
+    ):
         raise EstimatorError(
-            f"estimator {name!r} returned joints of sensor(s) {wrong} the data lacks ({', '.join(names)})"
+            f"estimator {name!r}: expected {n} joints' joint_in_parent and joint_in_child of shape ({n}, 3), "
+            f"got {jp.shape} and {jc.shape} for {len(joints.parent)} parents"
         )
-    for field in ("joint_in_parent", "joint_in_child"):
-        x = np.asarray(getattr(got, field), dtype=float)
-        if x.shape != (len(got.child), 3):
-            raise EstimatorError(
-                f"estimator {name!r}: expected {field} of shape ({len(got.child)}, 3), got {x.shape}"
-            )
-        bad = ~np.isfinite(x).all(axis=1)
-        if bad.any():
-            k = int(np.flatnonzero(bad)[0])
-            raise EstimatorError(
-                f"estimator {name!r} returned a {field} that is not finite for joint "
-                f"{got.parent[k]}-{got.child[k]}: {x[k].tolist()}"
-            )
-    return JointsResult(got, calibration=calibration, notes=tuple(notes))
+    return {
+        "units": unit,
+        "joints": [
+            {
+                "parent": joints.parent[k],
+                "child": joints.child[k],
+                "joint_in_parent": jp[k].tolist(),
+                "joint_in_child": jc[k].tolist(),
+                "single_axis": bool(joints.single_axis[k]),
+            }
+            for k in range(n)
+        ],
+    }
 
 
 def run_orientation(
