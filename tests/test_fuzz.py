@@ -1939,3 +1939,42 @@ def test_study_parser_returns_a_checked_study_or_names_the_file(tmp_path_factory
         assert isinstance(study, Study)
         if len(trials(study)) <= 50:
             _only_input_errors(path, lambda: check_study(study))
+
+
+SMALL_BVH = """HIERARCHY
+ROOT hips
+{
+  OFFSET 0.0 90.0 0.0
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+  JOINT knee
+  {
+    OFFSET 0.0 -40.0 0.0
+    CHANNELS 3 Zrotation Xrotation Yrotation
+    End Site
+    {
+      OFFSET 0.0 -40.0 0.0
+    }
+  }
+}
+MOTION
+Frames: 3
+Frame Time: 0.01
+0.0 90.0 0.0 0.0 0.0 0.0 10.0 20.0 30.0
+0.5 90.0 0.0 1.0 2.0 3.0 11.0 21.0 31.0
+1.0 90.0 0.0 2.0 4.0 6.0 12.0 22.0 32.0
+"""
+
+
+@PROPERTY
+@given(data=mutated(SMALL_BVH, separator=" ", values=FIELD_VALUES))
+def test_bvh_reader_returns_a_motion_or_names_the_file(tmp_path_factory, data: bytes) -> None:
+    from simbench.io.bvh import read_bvh
+
+    path = tmp_path_factory.mktemp("bvh") / "clip.bvh"
+    path.write_bytes(data)
+    got = _only_input_errors(path, lambda: read_bvh(path))
+    if got is not None:
+        R = got.R_parent_joint
+        assert R.shape == (got.n_frames, len(got.names), 3, 3) and np.isfinite(R).all()
+        np.testing.assert_allclose(R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape), atol=1e-9)
+        assert np.isfinite(got.offset_m).all() and got.frame_time_s > 0
