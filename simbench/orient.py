@@ -21,7 +21,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import vqf
@@ -246,11 +248,12 @@ def skeleton_of(cal: Calibration) -> Skeleton:
 
 
 def skeleton_from_calibration(
-    source: str | os.PathLike[str] | Calibration, names: tuple[str, ...]
+    source: str | os.PathLike[str] | Calibration | Mapping[str, Any], names: tuple[str, ...]
 ) -> Skeleton:
     """The skeleton of a calibration JSON (``simbench calibrate --json``, or a dataset's
-    ``--truth-json``), or of a calibration in memory (:func:`simbench.calibrate`, read as its JSON
-    would be), over a recording's sensors: its tree and its joints in the sensors' frames.
+    ``--truth-json``), or of a calibration in memory (:func:`simbench.calibrate`, or a calibration
+    document such as :func:`simbench.io.dataset.truth_calibration_dict`'s, read as its JSON would
+    be), over a recording's sensors: its tree and its joints in the sensors' frames.
 
     The calibration must be of the same sensors mounted as in the recording (e.g. made from the
     session's magnetic-tracker poses, or from an earlier session without re-mounting). Sensors
@@ -269,6 +272,9 @@ def skeleton_from_calibration(
     elif isinstance(source, str | os.PathLike):
         doc = read_calibration_json(source)
         where = source
+    elif isinstance(source, Mapping):
+        where = "the calibration given"
+        doc = check_calibration_document(dict(source), where)
     else:
         raise InputError(
             "skeleton: expected a Skeleton, a Calibration (simbench.calibrate) or the path of a "

@@ -516,3 +516,18 @@ def test_joints_returned_as_arrays_get_the_documents_checks():
             "mine",
             names,
         )
+
+
+def test_the_true_skeleton_goes_to_estimators_that_take_one():
+    from simbench.experiments.metrics import orientation_metrics, true_skeleton
+
+    config = SessionConfig(
+        model="linkage", motion="exercise", duration_s=2.0, seed=1, sensors="mems-industrial", rate_hz=50.0
+    )
+    ds = run_session(config, load_session_model(config))
+    skeleton = true_skeleton(ds)
+    names = list(ds.sensors)
+    got = {names[c]: names[skeleton.parent[c]] for c in skeleton.children}
+    assert got == ds.truth.parent_of
+    # a method that takes none is scored as before, the skeleton not passed to it
+    assert orientation_metrics(ds, "triad", skeleton=skeleton) == orientation_metrics(ds, "triad")

@@ -10,6 +10,7 @@ user's own) is a *failure* of that (estimator, scenario, seed), its message kept
 **Metrics** (lower is better, SI units in their names): joints scenarios
 ``joint_centre_error_m`` and ``limb_length_error_m`` (:func:`metrics.joint_method_metrics`, the true
 hierarchy given to estimators that take one), orientation scenarios ``orientation_rmse_deg``
+(the true skeleton given to estimators that take one, on simulated scenarios)
 (:func:`metrics.orientation_metrics`' ``total_rmse_deg``). A metric that is not finite (every
 joint left out) counts as a failure for that metric.
 
@@ -46,7 +47,7 @@ from simbench.errors import InputError
 from simbench.estimators import TIME_LIMIT_S, names, resolve
 from simbench.estimators.command import PREFIX
 from simbench.experiments import suite
-from simbench.experiments.metrics import joint_method_metrics, orientation_metrics
+from simbench.experiments.metrics import joint_method_metrics, orientation_metrics, true_skeleton
 from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.io.atomic import atomic_write_text
 from simbench.report.markdown import markdown_table, markdown_to_html
@@ -193,6 +194,9 @@ def run_job(job: Job) -> dict[str, Any]:
         sc = suite.scenario(job.scenario)
         ds = suite.scenario_dataset(sc, job.seed)
         simulate_s = time.perf_counter() - t0
+        # an orientation estimator that takes a skeleton is given the true one where the truth
+        # scores it, as a joints estimator is given the true tree (a real recording has none)
+        skeleton = true_skeleton(ds) if sc.kind == "orientation" and not sc.real else None
         results = []
         for est in job.estimators:
             t1 = time.perf_counter()
@@ -204,7 +208,9 @@ def run_job(job: Job) -> dict[str, Any]:
                     row["metrics"] = {m: float(got[m]) for m in METRICS["joints"]}
                     row["joints_left_out"] = int(got["failed_joints"])
                 else:
-                    got = orientation_metrics(ds, resolve(est.spec, "orientation"), time_limit_s=limit)
+                    got = orientation_metrics(
+                        ds, resolve(est.spec, "orientation"), time_limit_s=limit, skeleton=skeleton
+                    )
                     row["metrics"] = {"orientation_rmse_deg": float(got["total_rmse_deg"])}
             except Exception as exc:  # any failure of an estimator on this dataset: kept, the run goes on
                 row["metrics"] = {}

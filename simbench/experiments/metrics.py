@@ -12,10 +12,12 @@ from typing import Any
 import numpy as np
 
 from calibration import calibrate
+from calibration.orientation import Skeleton
 from simbench.errors import InputError
 from simbench.estimators import Estimator, resolve, run_joints, run_orientation
-from simbench.io.dataset import Dataset
+from simbench.io.dataset import Dataset, truth_calibration_dict
 from simbench.io.imu import ImuRecording
+from simbench.orient import skeleton_from_calibration
 from simbench.score import compare_trees, score, score_joints, score_orientation
 
 #: What :func:`calibration_metrics` returns.
@@ -58,22 +60,33 @@ def orientation_metrics(
     params: Mapping[str, Any] | None = None,
     *,
     time_limit_s: float | None = None,
+    skeleton: Skeleton | None = None,
 ) -> dict[str, float]:
     """Orientation RMSE (total, heading, inclination; degrees) of one estimator (any spec of
     :func:`simbench.estimators.resolve`) over every sensor and sample of a simulated session,
     against the actual sensor orientations, or of a real recording against its reference over its
     samples to evaluate (BROAD's ``movement``); ``params`` over the estimator's defaults, and a
-    user's estimator's time limit (:func:`simbench.estimators.run_orientation`)."""
+    user's estimator's time limit (:func:`simbench.estimators.run_orientation`); ``skeleton``
+    goes to an estimator that takes one (:func:`true_skeleton` for the session's own)."""
     rec = ds.imu() if isinstance(ds, Dataset) else ds
     if rec.q_true is None:
         raise InputError(f"{rec.source}: no reference orientations to score against")
-    run = run_orientation(resolve(method, "orientation"), rec, params=params, time_limit_s=time_limit_s)
+    est = resolve(method, "orientation")
+    skeleton = skeleton if est.takes_skeleton else None
+    run = run_orientation(est, rec, skeleton=skeleton, params=params, time_limit_s=time_limit_s)
     scored = score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
     return {
         "total_rmse_deg": scored.total_rmse_deg,
         "heading_rmse_deg": scored.heading_rmse_deg,
         "inclination_rmse_deg": scored.inclination_rmse_deg,
     }
+
+
+def true_skeleton(ds: Dataset) -> Skeleton:
+    """A simulated session's true skeleton over its IMUs (its true tree and joint centres in the
+    sensors' frames): what an orientation estimator that takes a skeleton is given where a
+    scenario scores on the truth, as a joints estimator is given the true tree."""
+    return skeleton_from_calibration(truth_calibration_dict(ds), tuple(ds.sensors))
 
 
 #: What :func:`joint_method_metrics` returns.
