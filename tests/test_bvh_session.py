@@ -6,6 +6,8 @@ expected poses come from the file's numbers composed independently of the reader
 
 from __future__ import annotations
 
+import re
+
 import mujoco
 import numpy as np
 import pytest
@@ -13,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 import simbench as sb
 from calibration.rotations import quat_to_matrix
+from simbench.cli import main
 from simbench.errors import InputError
 from simbench.io.bvh import Y_UP_TO_Z_UP, read_bvh
 from simbench.sim.bvh_model import DENSITY_KG_M3, bvh_mjcf, capsule_radius
@@ -181,3 +184,21 @@ def test_bad_inputs_are_clear_errors(clip, tmp_path):
         sb.simulate(motion=str(tmp_path / "none.bvh"))
     with pytest.raises(InputError, match=r"give a \.bvh motion"):
         sb.SessionConfig(model="bvh", motion="exercise")
+
+
+def test_cli_simulate_motion_bvh_writes_a_dataset(clip, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "clip.bvh").write_text(clip[0].read_text())
+    assert main(["simulate", "--motion", "clip.bvh", "--sensors", "mems-industrial", "-o", "out.h5"]) == 0
+    out = capsys.readouterr().out
+    assert "model bvh, motion bvh:clip.bvh" in out and "300 at 100 Hz   played back" in out
+    ds = sb.read_dataset(tmp_path / "out.h5")
+    assert ds.sensors == ("hips", "chest", "head") and ds.time_s.size == 300
+    code = main(["simulate", "--motion", "clip.bvh", "--model", "linkage", "-o", "x.h5"])
+    err = capsys.readouterr().err
+    assert code != 0 and re.search("own skeleton", err), err
+    # lengths in metres: the skeleton is a hundred times larger
+    argv = ["simulate", "--motion", "clip.bvh", "--motion-units", "m", "--duration", "1", "-o", "m.h5"]
+    assert main(argv) == 0
+    big = sb.read_dataset(tmp_path / "m.h5")
+    np.testing.assert_allclose(big.truth.p_w_b[:, 0], ds.truth.p_w_b[:100, 0] * 100, rtol=1e-12, atol=1e-12)
