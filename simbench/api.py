@@ -86,6 +86,8 @@ from simbench.orient import (
 from simbench.score import CalibrationScore, OrientationScore, score_joints, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.marker_clusters import MarkerConfig, add_markers
+from simbench.sim.plan import session_defaults
+from simbench.sim.playback import DEFAULT_CUTOFF_HZ as BVH_CUTOFF_HZ
 from simbench.sim.sensor_config import SensorConfig
 from simbench.sim.session import SessionConfig, run_session
 
@@ -110,34 +112,44 @@ def _estimator(method: str | Estimator | Callable[..., Any], kind: str) -> Estim
 
 
 def simulate(
-    model: str = _DEFAULT.model,
+    model: str | None = None,
     motion: str = _DEFAULT.motion,
     *,
     sensors: str | SensorConfig = _DEFAULT.sensors,
-    duration_s: float = _DEFAULT.duration_s,
-    rate_hz: float = _DEFAULT.rate_hz,
+    duration_s: float | None = None,
+    rate_hz: float | None = None,
     seed: int = _DEFAULT.seed,
     sensors_on: Sequence[str] | None = None,
     placement: Mapping[str, Sequence[float]] | None = None,
     markers: MarkerConfig | bool = False,
+    motion_units: str = "cm",
+    motion_cutoff_hz: float = BVH_CUTOFF_HZ,
 ) -> Dataset:
-    """Simulate a capture session with MuJoCo physics and the chosen sensors.
+    """Simulate a capture session with MuJoCo physics and the chosen sensors, or play back a
+    recorded BVH motion on its own skeleton.
 
     Args:
-        model: ``linkage``, ``humanoid``, ``dm_control:NAME`` or an MJCF file path.
-        motion: ``exercise``, ``walk``, ``gait`` (humanoids), ``single-axis``, ``static`` or a program
-            TOML path.
+        model: ``linkage`` (the default), ``humanoid``, ``dm_control:NAME`` or an MJCF file path;
+            with a BVH motion left out (or ``bvh``): the clip's own skeleton
+            (:mod:`simbench.sim.bvh_model`).
+        motion: ``exercise``, ``walk``, ``gait`` (humanoids), ``single-axis``, ``static``, a program
+            TOML path, or a BVH file (``.bvh``) played back kinematically, its poses exact
+            (:mod:`simbench.sim.playback`).
         sensors: a preset name (``ideal``, ``ascension-flock``, ``polhemus-liberty``,
             ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``), a configuration TOML
             path or a :class:`~simbench.sim.sensor_config.SensorConfig`.
-        duration_s: session length, s.
-        rate_hz: capture rate, Hz.
+        duration_s: session length, s (default 20; a BVH motion: the whole clip).
+        rate_hz: capture rate, Hz (default 120; a BVH motion: the clip's, another one resamples
+            its smoothed motion and must be above twice ``motion_cutoff_hz``).
         seed: seed of every random draw of the session (same seed, same data).
         sensors_on: bodies carrying a sensor (default: the model's).
         placement: ``{sensor: (dx, dy, dz)}`` shifts of sensors in their body frames, m.
         markers: optical marker clusters on every sensor's segment (``True``: 4 per segment, no
             skin motion or camera noise; a :class:`~simbench.sim.marker_clusters.MarkerConfig` to
             choose), drawn from their own stream of ``seed``; ``False``: none.
+        motion_units: a BVH motion's length unit (``cm`` by convention; ``m``, ``mm``, ``in``).
+        motion_cutoff_hz: a BVH motion's smoothing cutoff, Hz: its velocities and accelerations
+            (gyroscopes, accelerometers) come from a Savitzky-Golay smoothing below it.
 
     Returns:
         The Dataset: ``measured`` data as the instruments give it (positions in the tracker's
@@ -148,7 +160,7 @@ def simulate(
             f"Expected markers to be True, False or a MarkerConfig, got {type(markers).__name__}"
         )
     for name, value in (("model", model), ("motion", motion)):
-        if not isinstance(value, str):
+        if not isinstance(value, str) and not (name == "model" and value is None):
             raise InputError(
                 f"Expected {name} to be a name or a file path (a string), got {type(value).__name__}"
             )
@@ -165,6 +177,14 @@ def simulate(
             raise InputError(
                 f"placement {name!r}: expected a finite shift (dx, dy, dz) in metres, got {shift!r}"
             )
+    for name, value in (
+        ("duration_s", duration_s),
+        ("rate_hz", rate_hz),
+        ("motion_cutoff_hz", motion_cutoff_hz),
+    ):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int | float | np.number)):
+            raise InputError(f"Expected {name} to be a number, got {value!r}")
+    model, duration_s, rate_hz = session_defaults(model, motion, duration_s, rate_hz, motion_units)
     config = SessionConfig(
         model=model,
         motion=motion,
@@ -176,6 +196,8 @@ def simulate(
         placement=tuple(
             (name, (float(v[0]), float(v[1]), float(v[2]))) for name, v in sorted((placement or {}).items())
         ),
+        motion_units=motion_units,
+        motion_cutoff_hz=float(motion_cutoff_hz),
     )
     ds = run_session(config)
     if markers is False:
@@ -888,6 +910,7 @@ def replay(
 
 
 __all__ = [
+    "BVH_CUTOFF_HZ",
     "DEFAULT_JOINTS",
     "DEFAULT_ORIENTATION",
     "EXPORT_SOURCES",

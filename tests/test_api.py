@@ -134,7 +134,7 @@ def test_api_arguments_of_the_wrong_kind_are_named(flock):
     for kwargs, message in (
         ({"placement": {"chest": (0.0, 0.0)}}, r"placement 'chest': expected a finite shift \(dx, dy, dz\)"),
         ({"placement": {"chest": (0.0, float("nan"), 0.0)}}, "placement 'chest': expected a finite shift"),
-        ({"model": None}, "Expected model to be a name or a file path"),
+        ({"model": 3}, "Expected model to be a name or a file path"),
         ({"sensors": {"tracker": {}}}, "Expected sensors to be a preset name, a TOML path or a SensorConfig"),
         ({"seed": 1.7}, "Expected seed to be an integer, got 1.7"),
     ):

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from simbench.api import (
+    BVH_CUTOFF_HZ,
     MarkerConfig,
     simulate,
     truth_document,
@@ -27,19 +28,44 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     sim.add_argument(
         "--model",
-        default="linkage",
-        help="linkage, humanoid, dm_control:NAME or an MJCF .xml path (default linkage)",
+        default=None,
+        help="linkage, humanoid, dm_control:NAME or an MJCF .xml path (default linkage; a .bvh motion "
+        "moves its own skeleton: leave it out or give bvh)",
     )
     sim.add_argument(
         "--motion",
         default="exercise",
-        help="exercise, walk, gait (humanoids), single-axis, static, or a program .toml (default exercise)",
+        help="exercise, walk, gait (humanoids), single-axis, static, a program .toml, or a .bvh clip played "
+        "back kinematically on its own skeleton (default exercise)",
     )
     sim.add_argument(
-        "--duration", type=positive_float, default=20.0, metavar="SECONDS", help="session length (default 20)"
+        "--motion-units",
+        default="cm",
+        choices=("m", "cm", "mm", "in"),
+        help="a .bvh motion's length unit (default cm)",
     )
     sim.add_argument(
-        "--rate", type=positive_float, default=120.0, metavar="HZ", help="capture rate (default 120)"
+        "--motion-cutoff",
+        type=positive_float,
+        default=BVH_CUTOFF_HZ,
+        metavar="HZ",
+        help="a .bvh motion's smoothing cutoff for velocities and accelerations (Savitzky-Golay; default "
+        f"{BVH_CUTOFF_HZ:g})",
+    )
+    sim.add_argument(
+        "--duration",
+        type=positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="session length (default 20; a .bvh motion: the whole clip)",
+    )
+    sim.add_argument(
+        "--rate",
+        type=positive_float,
+        default=None,
+        metavar="HZ",
+        help="capture rate (default 120; a .bvh motion: the clip's; another rate resamples its smoothed "
+        "motion)",
     )
     sim.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     sim.add_argument(
@@ -89,7 +115,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         if out is not None and Path(out).is_dir():
             raise InputError(f"cannot write {out}: it is a folder")
     for option, value in (("--model", args.model), ("--motion", args.motion), ("--sensors", args.sensors)):
-        if not value.strip():
+        if value is not None and not value.strip():
             raise InputError(f"{option}: expected a name or a file, got {value!r}")
     bodies = None
     if args.sensors_on is not None:
@@ -119,16 +145,22 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         seed=args.seed,
         sensors_on=bodies,
         markers=markers,
+        motion_units=args.motion_units,
+        motion_cutoff_hz=args.motion_cutoff,
     )
     meta = ds.meta
     print(
-        f"simbench simulate: model {args.model}, motion {meta['program']}, sensors {meta['sensor_model']}, "
-        f"seed {args.seed}"
+        f"simbench simulate: model {meta['model']}, motion {meta['program']}, sensors "
+        f"{meta['sensor_model']}, seed {args.seed}"
     )
-    print(
-        f"  sensors: {len(ds.sensors)}   samples: {meta['n_samples']} at {args.rate:g} Hz   physics: "
-        f"{1 / meta['physics_timestep_s']:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
+    played = meta.get("playback")
+    stage = (
+        f"played back (kinematic; rates smoothed below {played['cutoff_hz']:g} Hz, Savitzky-Golay window "
+        f"{played['window_frames']} frames{', resampled' if played['resampled'] else ''})"
+        if played
+        else f"physics: {1 / meta['physics_timestep_s']:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
     )
+    print(f"  sensors: {len(ds.sensors)}   samples: {meta['n_samples']} at {meta['rate_hz']:g} Hz   {stage}")
     print(f"  sensors on: {', '.join(ds.sensors)}")
     if ds.markers is not None:
         print(

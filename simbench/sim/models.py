@@ -301,6 +301,7 @@ def load_capture_model(
     mount: Mount | None = None,
     placement: Mapping[str, Sequence[float]] | None = None,
     joint_play_m: float = 0.0,
+    spec: mujoco.MjSpec | None = None,
 ) -> CaptureModel:
     """Load a model and equip it for capture sessions (see the module docstring).
 
@@ -314,13 +315,15 @@ def load_capture_model(
             in the body frame, m (placement studies).
         joint_play_m: free play of every joint between sensor bodies, m (half the clearance
             per axis; 0 = none): :mod:`simbench.sim.play`.
+        spec: the model already as a spec (a BVH clip's skeleton, :mod:`simbench.sim.bvh_model`),
+            named ``source``; ``None``: read ``source``.
 
     Raises:
         InputError: unknown model or body names, bodies not joined by single joints.
     """
     if not (np.isfinite(joint_play_m) and joint_play_m >= 0):
         raise InputError(f"joint play must be a finite number >= 0 m, got {joint_play_m!r}")
-    spec = read_spec(source)
+    spec = read_spec(source) if spec is None else spec
     base = compile_spec(spec, source)
     names = list(sensor_bodies) if sensor_bodies is not None else _default_sensor_bodies(base)
     unknown = sorted(set(placement or {}) - set(names))

@@ -19,6 +19,7 @@ from simbench.errors import InputError
 from simbench.sim.models import CaptureModel
 from simbench.sim.physics_cache import cache_folder, load_run, physics_key, store_run
 from simbench.sim.plan import SessionPlan
+from simbench.sim.playback import run_playback
 from simbench.sim.programs import joint_targets, root_pose
 
 #: Physics steps per rollout call (bounds memory: states and sensor rows of one chunk).
@@ -156,11 +157,16 @@ def run_physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[s
     Inside :func:`simbench.sim.physics_cache.physics_cache` a run already made (the same model,
     program and steps, whatever the sensors) is read back instead of computed again.
 
+    A session whose motion is a recording (``plan.playback``) is played back, not simulated
+    (:func:`simbench.sim.playback.run_playback`: the same rows).
+
     Returns:
         ``(sensordata, warnings)``: ``(n_samples, nsensordata)`` MuJoCo's sensor data at the
         samples (addresses in ``cm.adr``, ``cm.clock_adr``), and ``{warning name: count}`` of
         MuJoCo's warnings.
     """
+    if plan.playback is not None:
+        return run_playback(cm, plan.playback)
     folder = cache_folder()
     key = physics_key(cm, plan, plan.timestep, (SETTLE_S, CHUNK_STEPS)) if folder is not None else ""
     if folder is not None and (kept := load_run(folder, key)) is not None:

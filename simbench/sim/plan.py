@@ -11,11 +11,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from simbench.errors import InputError
+from simbench.sim.bvh_model import BVH_MODEL, bvh_spec, is_bvh, read_clip
 from simbench.sim.models import CaptureModel, Mount, joint_sensor_indices, load_capture_model
+from simbench.sim.playback import (
+    DEFAULT_CUTOFF_HZ,
+    Playback,
+    clip_rate_hz,
+    default_duration_s,
+    plan_playback,
+)
 from simbench.sim.programs import BUILTIN_PROGRAMS, Program, builtin_program, load_program
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 
@@ -29,8 +38,11 @@ class SessionConfig:
     """What a capture session is asked to be.
 
     Attributes:
-        model: model name (``linkage``, ``humanoid``, ``dm_control:NAME``, an MJCF path).
-        motion: built-in program name or a program TOML path.
+        model: model name (``linkage``, ``humanoid``, ``dm_control:NAME``, an MJCF path), or
+            ``bvh``: the skeleton of a BVH motion (:mod:`simbench.sim.bvh_model`), which it must be
+            with a BVH motion.
+        motion: built-in program name, a program TOML path, or a BVH clip (``.bvh``) played back
+            kinematically (:mod:`simbench.sim.playback`).
         duration_s: session length, s (> 0).
         rate_hz: capture rate, Hz (> 0, at most the model's physics rate).
         seed: seed of the session's ``numpy.random.Generator``.
@@ -38,6 +50,8 @@ class SessionConfig:
         sensors: sensor preset name, configuration TOML path, or a :class:`SensorConfig`
             (:mod:`simbench.sim.sensor_config`).
         placement: ``((sensor, (dx, dy, dz)), ...)`` sensor shifts in their body frames, m.
+        motion_units: a BVH motion's length unit (``cm``, ``m``, ``mm``, ``in``).
+        motion_cutoff_hz: a BVH motion's smoothing cutoff for velocities and accelerations, Hz.
     """
 
     model: str = "linkage"
@@ -48,6 +62,8 @@ class SessionConfig:
     sensor_bodies: tuple[str, ...] | None = None
     sensors: str | SensorConfig = "ideal"
     placement: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    motion_units: str = "cm"
+    motion_cutoff_hz: float = DEFAULT_CUTOFF_HZ
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration_s) and self.duration_s > 0):
@@ -56,6 +72,15 @@ class SessionConfig:
             raise InputError(f"rate must be > 0 Hz, got {self.rate_hz}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
             raise InputError(f"seed must be an integer in [0, 2^63), got {self.seed!r}")
+        if is_bvh(self.motion) and self.model != BVH_MODEL:
+            raise InputError(
+                f"motion {self.motion}: a BVH clip moves its own skeleton: leave the model at its default "
+                f"or give {BVH_MODEL!r}, got {self.model!r}"
+            )
+        if self.model == BVH_MODEL and not is_bvh(self.motion):
+            raise InputError(f"model {BVH_MODEL!r} is a BVH clip's own skeleton: give a .bvh motion")
+        if not (math.isfinite(self.motion_cutoff_hz) and self.motion_cutoff_hz > 0):
+            raise InputError(f"motion cutoff must be > 0 Hz, got {self.motion_cutoff_hz}")
 
     def as_dict(self) -> dict:
         """JSON-ready copy."""
@@ -68,7 +93,39 @@ class SessionConfig:
             "sensor_bodies": None if self.sensor_bodies is None else list(self.sensor_bodies),
             "sensors": self.sensors if isinstance(self.sensors, str) else self.sensors.as_dict(),
             "placement": {k: list(v) for k, v in self.placement},
+            "motion_units": self.motion_units,
+            "motion_cutoff_hz": self.motion_cutoff_hz,
         }
+
+
+def session_defaults(
+    model: str | None, motion: str, duration_s: float | None, rate_hz: float | None, motion_units: str = "cm"
+) -> tuple[str, float, float]:
+    """``(model, duration_s, rate_hz)`` of a session, the ones not given (``None``) filled in.
+
+    A BVH motion: its own skeleton (``bvh``; another model is refused), the clip's rate and the
+    whole clip at the rate. Otherwise ``linkage``, 20 s, 120 Hz (:class:`SessionConfig`'s).
+
+    Raises:
+        InputError: a model beside a BVH motion; what reading the clip refuses.
+    """
+    default = SessionConfig()
+    if not is_bvh(motion):
+        return (
+            default.model if model is None else model,
+            default.duration_s if duration_s is None else duration_s,
+            default.rate_hz if rate_hz is None else rate_hz,
+        )
+    if model not in (None, BVH_MODEL):
+        raise InputError(
+            f"motion {motion}: a BVH clip moves its own skeleton: leave the model at its default or give "
+            f"{BVH_MODEL!r}, got {model!r}"
+        )
+    clip = read_clip(motion, motion_units)
+    rate = clip_rate_hz(clip) if rate_hz is None else rate_hz
+    if not (math.isfinite(rate) and rate > 0):
+        raise InputError(f"rate must be > 0 Hz, got {rate}")
+    return BVH_MODEL, default_duration_s(clip, rate) if duration_s is None else duration_s, rate
 
 
 @dataclass(frozen=True)
@@ -84,6 +141,8 @@ class SessionPlan:
         sensor_config: the sensor configuration (resolved from a preset, file or object).
         streams: independent random generators for the ``skin``, ``tracker`` and ``imu`` models
             (so that switching one imperfection on does not change another's draws).
+        playback: the recorded motion played back instead of physics (a BVH motion), or ``None``;
+            ``program`` is then only its name, one step per sample at the capture period.
     """
 
     program: Program
@@ -93,6 +152,7 @@ class SessionPlan:
     n_samples: int
     sensor_config: SensorConfig
     streams: dict[str, np.random.Generator]
+    playback: Playback | None = None
 
 
 def steps_per_sample(model_timestep: float, rate_hz: float) -> tuple[int, float]:
@@ -140,15 +200,30 @@ def _sensor_config(config: SessionConfig) -> SensorConfig:
     return config.sensors if isinstance(config.sensors, SensorConfig) else load_sensor_config(config.sensors)
 
 
+def _check_playback_sensors(config: SessionConfig, sensor_config: SensorConfig) -> None:
+    """A played-back motion has no physics: sensors on a sprung mount or joints with play need it."""
+    if _mount_of(sensor_config) is not None or sensor_config.joints.play_m > 0:
+        raise InputError(
+            f"{sensors_source(config)}: a sprung soft-tissue mount and joint play move by physics; a BVH "
+            f"motion ({config.motion}) is played back kinematically: choose sensors without them"
+        )
+
+
 def load_session_model(config: SessionConfig) -> CaptureModel:
-    """The capture model a session needs (with the soft-tissue mount its sensors ask for)."""
+    """The capture model a session needs (with the soft-tissue mount its sensors ask for); a BVH
+    motion's own skeleton for a BVH motion."""
     sensor_config = _sensor_config(config)
+    spec = None
+    if config.model == BVH_MODEL:
+        _check_playback_sensors(config, sensor_config)
+        spec = bvh_spec(read_clip(config.motion, config.motion_units))
     return load_capture_model(
-        config.model,
+        config.motion if spec is not None else config.model,
         sensor_bodies=config.sensor_bodies,
         mount=_mount_of(sensor_config),
         placement=dict(config.placement),
         joint_play_m=sensor_config.joints.play_m,
+        spec=spec,
     )
 
 
@@ -212,7 +287,15 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     n_samples = math.floor(samples + 1e-9)
     if n_samples < 2:
         raise InputError(f"duration {config.duration_s} s at {config.rate_hz} Hz gives fewer than 2 samples")
-    k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
+    playback = None
+    if config.model == BVH_MODEL:
+        _check_playback_sensors(config, sensor_config)
+        clip = read_clip(config.motion, config.motion_units)
+        playback = plan_playback(clip, config.rate_hz, config.duration_s, config.motion_cutoff_hz)
+        n_samples = playback.time_s.size
+        k, dt = 1, 1.0 / config.rate_hz
+    else:
+        k, dt = steps_per_sample(float(cm.model.opt.timestep), config.rate_hz)
     latency = sensor_config.tracker.latency_s
     if latency >= (n_samples - 1) / config.rate_hz:
         raise InputError(
@@ -221,9 +304,12 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
         )
     seeds = np.random.SeedSequence(config.seed).spawn(5)
     motion_rng = np.random.default_rng(seeds[0])
-    program = _program(config, cm, motion_rng)
+    if playback is None:
+        program = _program(config, cm, motion_rng)
+    else:
+        program = Program(name=f"bvh:{Path(config.motion).name}", phases=(), root="still", neutral={})
     root_phases = np.random.default_rng(seeds[1]).uniform(0, 2 * np.pi, 12)
     streams = {
         name: np.random.default_rng(s) for name, s in zip(("skin", "tracker", "imu"), seeds[2:], strict=True)
     }
-    return SessionPlan(program, root_phases, k, dt, n_samples, sensor_config, streams)
+    return SessionPlan(program, root_phases, k, dt, n_samples, sensor_config, streams, playback)
