@@ -277,8 +277,8 @@ def skeleton_from_calibration(
         doc = check_calibration_document(dict(source), where)
     else:
         raise InputError(
-            "skeleton: expected a Skeleton, a Calibration (simbench.calibrate) or the path of a "
-            f"calibration JSON, got {type(source).__name__}"
+            "skeleton: expected a Skeleton, a Calibration (simbench.calibrate), a calibration document "
+            f"or the path of a calibration JSON, got {type(source).__name__}"
         )
     units = doc.get("units", "m")
     if units != "m":

@@ -573,8 +573,13 @@ def test_a_calibration_in_memory_is_the_skeleton_its_json_gives(tmp_path):
     assert (from_memory.parent >= 0).sum() == 15
     run = sb.orient(ds, skeleton=cal)
     assert run.method == "skeleton" and np.isfinite(run.q_w_s).all()
-    with pytest.raises(sb.InputError, match=r"expected a Skeleton, a Calibration .* got dict"):
-        sb.orient(ds, skeleton={"joints": []})
+    with pytest.raises(sb.InputError, match=r"expected a Skeleton, a Calibration .* got int"):
+        sb.orient(ds, skeleton=42)
+    # a calibration document is read as its JSON would be: a malformed one is named
+    with pytest.raises(
+        sb.InputError, match=r'the calibration given: not a calibration JSON: expected .* "joints" list'
+    ):
+        sb.orient(ds, skeleton={"joints": "none"})
     # the checks a file gets: a centre that is not finite is named, not solved with
     first = cal.joints[0]
     lost = dataclasses.replace(first, fit=dataclasses.replace(first.fit, joint_in_parent=np.full(3, np.nan)))
