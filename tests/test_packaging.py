@@ -47,11 +47,12 @@ def test_wheel_holds_every_model_and_preset(wheel):
     package = ROOT / "simbench"
     shipped = [
         p.relative_to(ROOT).as_posix()
-        for sub in ("models", "sim/presets")
+        for sub in ("models", "sim/presets", "data")
         for p in (package / sub).rglob("*")
         if p.is_file()
     ]
-    assert len(shipped) >= 12  # 2 models x (xml, scene, README) + README + 6 presets
+    # 2 models x (xml, scene, README) + README + 6 presets + the BROAD excerpts, README, licence
+    assert len(shipped) >= 16
     assert sorted(set(shipped) - names) == []
     assert {"simbench/py.typed", "calibration/py.typed", "simbench/versions.py"} <= names
     assert not any(n.startswith(("tests/", "benchmarks/", "reports/")) for n in names)
