@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import ast
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -292,44 +291,6 @@ def test_api_calibrate_and_score_take_any_estimator(linkage, tmp_path):
         simbench.calibrate(linkage, method="score")
     with pytest.raises(InputError, match="options of O'Brien's calibration"):
         simbench.calibrate(linkage, method="score", robust="tukey", hierarchy=linkage.truth.parent_of)
-
-
-def test_calibrate_command_line_with_a_users_estimator(tmp_path, linkage):
-    from simbench.io.poses import write_pose_csv
-
-    write_pose_csv(tmp_path / "poses.csv", linkage.poses())
-    (tmp_path / "tree.json").write_text(json.dumps(linkage.truth.parent_of))
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            "calibrate",
-            "poses.csv",
-            "--hierarchy",
-            "tree.json",
-            "--method",
-            f"{EXAMPLES / 'sphere_fit.py'}:estimate",
-            "--json",
-            "out.json",
-        ],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert run.returncode == 0, run.stderr
-    doc = json.loads((tmp_path / "out.json").read_text())
-    assert doc["method"].endswith("sphere_fit.py:estimate")
-    assert {j["child"] for j in doc["joints"]} == set(linkage.truth.parent_of)
-    bad = subprocess.run(
-        [sys.executable, "-m", "simbench", "calibrate", "poses.csv", "--method", "score"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert bad.returncode == 2 and "give one (--hierarchy FILE.json)" in bad.stderr
 
 
 def test_a_python_estimator_past_its_time_limit_is_stopped(tmp_path, linkage):

@@ -19,8 +19,14 @@ SPHERE = "sphere_fit.py:estimate"
 COMMAND = "cmd:python3 pair_fit_cmd.py {poses} {hierarchy} {out}"
 
 
-def _run(folder: Path, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+def _run(
+    folder: Path, *args: str, timeout: float = 300, path: Path | None = None
+) -> subprocess.CompletedProcess:
+    """``python ARGS`` in ``folder``, with this environment's python3 first on PATH and no
+    PYTHONPATH but ``path`` when given (a folder laid out as pip installs a package)."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTEST_ADDOPTS")}
+    if path is not None:
+        env["PYTHONPATH"] = str(path)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"  # python3: this venv's
     return subprocess.run(
         [sys.executable, *args], cwd=folder, env=env, capture_output=True, text=True, timeout=timeout
@@ -89,6 +95,9 @@ def test_calibrate_method(lab, spec):
     )
     assert scored.returncode == 0, scored.stderr
     assert 0 < float(scored.stdout) < 0.1  # metres: a sphere fit and a pair fit of a noisy tracker
+    # a method that fits a given tree, given none: refused, saying how to give one
+    bad = _run(lab, "-m", "simbench", "calibrate", "poses.csv", "--method", spec)
+    assert bad.returncode == 2 and "give one (--hierarchy FILE.json)" in bad.stderr
 
 
 def test_a_study(lab):
@@ -227,25 +236,11 @@ def test_an_installed_plugin(lab, tmp_path):
         "import simbench; print(simbench.estimators.names('joints'))",
     )
     assert "mylab-sphere" in listed.stdout, listed.stderr
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            "calibrate",
-            "poses.csv",
-            "--hierarchy",
-            "tree.json",
-            "--method",
-            "mylab-sphere",
-            "--json",
-            "plugin.json",
-        ],
-        cwd=lab,
-        env={**os.environ, "PYTHONPATH": str(site)},
-        capture_output=True,
-        text=True,
-        timeout=120,
+    run = _run(
+        lab,
+        *("-m", "simbench", "calibrate", "poses.csv", "--hierarchy", "tree.json"),
+        *("--method", "mylab-sphere", "--json", "plugin.json"),
+        path=site,
     )
     assert run.returncode == 0, run.stderr
     mine = json.loads((lab / "plugin.json").read_text())
