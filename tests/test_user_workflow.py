@@ -33,6 +33,12 @@ def _run(
     )
 
 
+def _calibrate(folder: Path, spec: str, out: str, path: Path | None = None) -> subprocess.CompletedProcess:
+    """``simbench calibrate poses.csv --hierarchy tree.json --method SPEC --json OUT`` in ``folder``."""
+    args = ("-m", "simbench", "calibrate", "poses.csv", "--hierarchy", "tree.json", "--method", spec)
+    return _run(folder, *args, "--json", out, path=path)
+
+
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory) -> Path:
     """A user's folder: the two estimators, a simulated recording and its true tree."""
@@ -73,19 +79,7 @@ def test_the_package_is_not_imported_from_the_checkout_folder(lab):
 @pytest.mark.parametrize("spec", [SPHERE, COMMAND])
 def test_calibrate_method(lab, spec):
     out = f"cal_{'cmd' if spec == COMMAND else 'py'}.json"
-    run = _run(
-        lab,
-        "-m",
-        "simbench",
-        "calibrate",
-        "poses.csv",
-        "--hierarchy",
-        "tree.json",
-        "--method",
-        spec,
-        "--json",
-        out,
-    )
+    run = _calibrate(lab, spec, out)
     assert run.returncode == 0, run.stderr
     doc = json.loads((lab / out).read_text())
     truth = json.loads((lab / "truth.json").read_text())
@@ -236,29 +230,12 @@ def test_an_installed_plugin(lab, tmp_path):
         "import simbench; print(simbench.estimators.names('joints'))",
     )
     assert "mylab-sphere" in listed.stdout, listed.stderr
-    run = _run(
-        lab,
-        *("-m", "simbench", "calibrate", "poses.csv", "--hierarchy", "tree.json"),
-        *("--method", "mylab-sphere", "--json", "plugin.json"),
-        path=site,
-    )
+    run = _calibrate(lab, "mylab-sphere", "plugin.json", path=site)
     assert run.returncode == 0, run.stderr
     mine = json.loads((lab / "plugin.json").read_text())
     assert mine["method"] == "mylab-sphere"
     # the plugin is the same sphere fit as the file example: the same centres
-    ours = _run(
-        lab,
-        "-m",
-        "simbench",
-        "calibrate",
-        "poses.csv",
-        "--hierarchy",
-        "tree.json",
-        "--method",
-        SPHERE,
-        "--json",
-        "file.json",
-    )
+    ours = _calibrate(lab, SPHERE, "file.json")
     assert ours.returncode == 0
     theirs = json.loads((lab / "file.json").read_text())
     for a, b in zip(mine["joints"], theirs["joints"], strict=True):

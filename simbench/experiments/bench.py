@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from simbench.errors import InputError
+from simbench.errors import InputError, read_text
 from simbench.estimators import TIME_LIMIT_S, names, resolve
 from simbench.estimators.command import PREFIX
 from simbench.experiments import suite
@@ -563,10 +563,11 @@ def load_scorecard(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     if path.is_dir():
         path = path / SCORECARD
+    if not path.is_file():
+        raise InputError(f"{path}: no such scorecard")
+    text = read_text(path)  # unreadable or not UTF-8: named
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such scorecard") from None
+        doc = json.loads(text)
     except ValueError as exc:
         raise InputError(f"{path}: not JSON: {exc}") from None
     if not isinstance(doc, dict) or "rows" not in doc or "suite_version" not in doc:
