@@ -122,24 +122,28 @@ def simulate(
     sensors_on: Sequence[str] | None = None,
     placement: Mapping[str, Sequence[float]] | None = None,
     markers: MarkerConfig | bool = False,
-    motion_units: str = "cm",
+    motion_units: str | None = None,
     motion_cutoff_hz: float = BVH_CUTOFF_HZ,
+    motion_clusters: str | None = None,
 ) -> Dataset:
     """Simulate a capture session with MuJoCo physics and the chosen sensors, or play back a
-    recorded BVH motion on its own skeleton.
+    recorded motion.
 
     Args:
         model: ``linkage`` (the default), ``humanoid``, ``dm_control:NAME`` or an MJCF file path;
-            with a BVH motion left out (or ``bvh``): the clip's own skeleton
-            (:mod:`simbench.sim.bvh_model`).
+            with a recorded motion left out: the model it brings (a BVH clip's skeleton ``bvh``, a
+            pose trajectory's bodies ``poses``) or names (a ``qpos`` archive), ``humanoid`` for
+            OpenSim joint angles.
         motion: ``exercise``, ``walk``, ``gait`` (humanoids), ``single-axis``, ``static``, a program
-            TOML path, or a BVH file (``.bvh``) played back kinematically, its poses exact
-            (:mod:`simbench.sim.playback`).
+            TOML path, or a recorded motion played back kinematically, its poses exact
+            (:mod:`simbench.sim.motion_source`): a BVH clip (``.bvh``), a ``qpos`` series
+            (``.npz``, ``.csv``), OpenSim joint angles (``.mot``, ``.sto``), pose trajectories (a
+            pose CSV, a C3D file of marker clusters, a BROAD-layout ``.hdf5`` trial).
         sensors: a preset name (``ideal``, ``ascension-flock``, ``polhemus-liberty``,
             ``mems-consumer``, ``mems-industrial``, ``skin-paper-human``), a configuration TOML
             path or a :class:`~simbench.sim.sensor_config.SensorConfig`.
-        duration_s: session length, s (default 20; a BVH motion: the whole clip).
-        rate_hz: capture rate, Hz (default 120; a BVH motion: the clip's, another one resamples
+        duration_s: session length, s (default 20; a recorded motion: the whole recording).
+        rate_hz: capture rate, Hz (default 120; a recorded motion: its own, another one resamples
             its smoothed motion and must be above twice ``motion_cutoff_hz``).
         seed: seed of every random draw of the session (same seed, same data).
         sensors_on: bodies carrying a sensor (default: the model's).
@@ -147,9 +151,11 @@ def simulate(
         markers: optical marker clusters on every sensor's segment (``True``: 4 per segment, no
             skin motion or camera noise; a :class:`~simbench.sim.marker_clusters.MarkerConfig` to
             choose), drawn from their own stream of ``seed``; ``False``: none.
-        motion_units: a BVH motion's length unit (``cm`` by convention; ``m``, ``mm``, ``in``).
-        motion_cutoff_hz: a BVH motion's smoothing cutoff, Hz: its velocities and accelerations
-            (gyroscopes, accelerometers) come from a Savitzky-Golay smoothing below it.
+        motion_units: a recorded motion's length unit (``m``, ``cm``, ``mm``, ``in``); default the
+            file's convention (BVH centimetres, a pose CSV metres, a C3D file its own).
+        motion_cutoff_hz: a recorded motion's smoothing cutoff, Hz: its velocities and
+            accelerations (gyroscopes, accelerometers) come from a Savitzky-Golay smoothing below it.
+        motion_clusters: a C3D motion's marker cluster spec (TOML); default: found automatically.
 
     Returns:
         The Dataset: ``measured`` data as the instruments give it (positions in the tracker's
@@ -184,7 +190,14 @@ def simulate(
     ):
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float | np.number)):
             raise InputError(f"Expected {name} to be a number, got {value!r}")
-    model, duration_s, rate_hz = session_defaults(model, motion, duration_s, rate_hz, motion_units)
+    model, duration_s, rate_hz = session_defaults(
+        model,
+        motion,
+        duration_s,
+        rate_hz,
+        motion_units,
+        None if motion_clusters is None else str(motion_clusters),
+    )
     config = SessionConfig(
         model=model,
         motion=motion,
@@ -198,6 +211,7 @@ def simulate(
         ),
         motion_units=motion_units,
         motion_cutoff_hz=float(motion_cutoff_hz),
+        motion_clusters=None if motion_clusters is None else str(motion_clusters),
     )
     ds = run_session(config)
     if markers is False:

@@ -29,27 +29,37 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     sim.add_argument(
         "--model",
         default=None,
-        help="linkage, humanoid, dm_control:NAME or an MJCF .xml path (default linkage; a .bvh motion "
-        "moves its own skeleton: leave it out or give bvh)",
+        help="linkage, humanoid, dm_control:NAME or an MJCF .xml path (default linkage; a recorded motion: "
+        "the model it brings (a .bvh clip's skeleton, a pose trajectory's bodies) or names (a .npz), "
+        "humanoid for OpenSim angles)",
     )
     sim.add_argument(
         "--motion",
         default="exercise",
-        help="exercise, walk, gait (humanoids), single-axis, static, a program .toml, or a .bvh clip played "
-        "back kinematically on its own skeleton (default exercise)",
+        metavar="PROGRAM|FILE",
+        help="exercise, walk, gait (humanoids), single-axis, static, a program .toml, or a recorded motion "
+        "played back kinematically: a .bvh clip, a qpos series (.npz, .csv), OpenSim angles (.mot, .sto), "
+        "pose trajectories (a pose .csv, a .c3d of marker clusters, a BROAD-layout .hdf5) (default exercise)",
     )
     sim.add_argument(
         "--motion-units",
-        default="cm",
+        default=None,
         choices=("m", "cm", "mm", "in"),
-        help="a .bvh motion's length unit (default cm)",
+        help="a recorded motion's length unit (default the file's convention: .bvh cm, pose .csv m, .c3d "
+        "its POINT:UNITS)",
+    )
+    sim.add_argument(
+        "--motion-clusters",
+        default=None,
+        metavar="SPEC.toml",
+        help="a .c3d motion's marker clusters ([clusters] spec; default found automatically)",
     )
     sim.add_argument(
         "--motion-cutoff",
         type=positive_float,
         default=BVH_CUTOFF_HZ,
         metavar="HZ",
-        help="a .bvh motion's smoothing cutoff for velocities and accelerations (Savitzky-Golay; default "
+        help="a recorded motion's smoothing cutoff for velocities and accelerations (Savitzky-Golay; default "
         f"{BVH_CUTOFF_HZ:g})",
     )
     sim.add_argument(
@@ -57,14 +67,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=None,
         metavar="SECONDS",
-        help="session length (default 20; a .bvh motion: the whole clip)",
+        help="session length (default 20; a recorded motion: the whole recording)",
     )
     sim.add_argument(
         "--rate",
         type=positive_float,
         default=None,
         metavar="HZ",
-        help="capture rate (default 120; a .bvh motion: the clip's; another rate resamples its smoothed "
+        help="capture rate (default 120; a recorded motion: its own; another rate resamples its smoothed "
         "motion)",
     )
     sim.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
@@ -147,6 +157,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         markers=markers,
         motion_units=args.motion_units,
         motion_cutoff_hz=args.motion_cutoff,
+        motion_clusters=args.motion_clusters,
     )
     meta = ds.meta
     print(

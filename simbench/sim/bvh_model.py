@@ -30,9 +30,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from calibration.rotations import matrix_to_quat
 from simbench.errors import InputError
 from simbench.io.bvh import BvhMotion, read_bvh
 from simbench.sim.instrument import default_site_frame
+from simbench.sim.recorded import RecordedMotion, Track
 
 #: The model name of a BVH clip's own skeleton (``SessionConfig.model`` with a ``.bvh`` motion).
 BVH_MODEL = "bvh"
@@ -166,3 +168,20 @@ def bvh_spec(motion: BvhMotion) -> mujoco.MjSpec:
         return mujoco.MjSpec.from_string(xml)
     except Exception as exc:  # mujoco raises ValueError with the parser's message
         raise InputError(f"{motion.source}: MuJoCo could not read its skeleton: {exc}") from None
+
+
+def bvh_recorded(motion: BvhMotion) -> RecordedMotion:
+    """The clip as the tracks of its skeleton's joints: the root's free joint (its offset plus
+    position channels, and its rotation), a ball joint per other joint (the quaternion of its
+    ``R_parent_joint``)."""
+    quat = matrix_to_quat(motion.R_parent_joint)
+    root = motion.offset_m[0] + motion.translation_m[:, 0]
+    tracks = [Track(motion.names[0], "free", np.concatenate([root, quat[:, 0]], axis=1))]
+    tracks += [Track(name, "ball", quat[:, k]) for k, name in enumerate(motion.names) if k > 0]
+    return RecordedMotion(
+        source=motion.source,
+        frame_time_s=motion.frame_time_s,
+        tracks=tuple(tracks),
+        valid=np.ones(motion.n_frames, dtype=bool),
+        format="bvh",
+    )

@@ -23,7 +23,10 @@ a dm_control suite model as ``dm_control:NAME``, or a path to an ``.xml`` file:
 
 Sensor bodies must be joined by single joints: between a sensor body and the nearest sensor
 body above it exactly one body may carry joints (1 ball joint or 1-3 hinges through one point),
-so that every sensor pair of the hierarchy is a rotary joint with a fixed centre.
+so that every sensor pair of the hierarchy is a rotary joint with a fixed centre. The one
+exception is a model of free bodies only, none joined (a pose trajectory's bodies,
+:mod:`simbench.sim.pose_model`, one or more): it has no joints and no hierarchy, and is only
+played back.
 """
 
 from __future__ import annotations
@@ -206,7 +209,7 @@ def _sensor_body_ids(base: mujoco.MjModel, names: Sequence[str], source: str) ->
         ids.append(body_id)
     if len(set(ids)) != len(ids):
         raise InputError(f"model {source}: sensor bodies named twice: {names}")
-    if len(ids) < 2:
+    if len(ids) < 2 and not (ids and _free_root(base, ids[0])):
         raise InputError(f"model {source}: a capture needs at least 2 sensor bodies, got {names}")
     return tuple(sorted(ids))
 
@@ -236,6 +239,8 @@ def _sensor_tree(base: mujoco.MjModel, bodies: tuple[int, ...], source: str) -> 
             )
         joint_body[body_id] = with_joints[0]
     roots = [body_id for body_id in bodies if body_id not in parent_of]
+    if len(roots) > 1 and not parent_of and all(_free_root(base, r) for r in roots):
+        return _SensorTree(bodies, parent_of, joint_body, joints)  # free bodies: a pose trajectory's
     if len(roots) != 1:
         raise InputError(
             f"model {source}: the sensor bodies must form one tree, found several roots: "

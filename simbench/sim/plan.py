@@ -16,8 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from simbench.errors import InputError
-from simbench.sim.bvh_model import BVH_MODEL, bvh_spec, is_bvh, read_clip
 from simbench.sim.models import CaptureModel, Mount, joint_sensor_indices, load_capture_model
+from simbench.sim.motion_source import (
+    MotionSource,
+    check_units,
+    is_recorded,
+    load_motion,
+    motion_format,
+    own_model,
+)
 from simbench.sim.playback import (
     DEFAULT_CUTOFF_HZ,
     Playback,
@@ -27,6 +34,10 @@ from simbench.sim.playback import (
 )
 from simbench.sim.programs import BUILTIN_PROGRAMS, Program, builtin_program, load_program
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
+
+POSES_WHAT = (
+    "the bodies of a pose trajectory: give a pose CSV, a C3D file of marker clusters or a BROAD-layout trial"
+)
 
 #: The most samples a session may record (10 million: a day at 120 Hz; each sample of each sensor
 #: holds some hundred numbers of truth and measurement).
@@ -38,11 +49,13 @@ class SessionConfig:
     """What a capture session is asked to be.
 
     Attributes:
-        model: model name (``linkage``, ``humanoid``, ``dm_control:NAME``, an MJCF path), or
-            ``bvh``: the skeleton of a BVH motion (:mod:`simbench.sim.bvh_model`), which it must be
-            with a BVH motion.
-        motion: built-in program name, a program TOML path, or a BVH clip (``.bvh``) played back
-            kinematically (:mod:`simbench.sim.playback`).
+        model: model name (``linkage``, ``humanoid``, ``dm_control:NAME``, an MJCF path), or the
+            model a recorded motion brings: ``bvh`` (a BVH clip's skeleton,
+            :mod:`simbench.sim.bvh_model`), ``poses`` (a pose trajectory's bodies,
+            :mod:`simbench.sim.pose_model`), which it must be with such a motion.
+        motion: built-in program name, a program TOML path, or a recorded motion file played back
+            kinematically (:mod:`simbench.sim.motion_source`: BVH, ``qpos`` series, OpenSim
+            joint angles, pose trajectories; :mod:`simbench.sim.playback`).
         duration_s: session length, s (> 0).
         rate_hz: capture rate, Hz (> 0, at most the model's physics rate).
         seed: seed of the session's ``numpy.random.Generator``.
@@ -50,8 +63,10 @@ class SessionConfig:
         sensors: sensor preset name, configuration TOML path, or a :class:`SensorConfig`
             (:mod:`simbench.sim.sensor_config`).
         placement: ``((sensor, (dx, dy, dz)), ...)`` sensor shifts in their body frames, m.
-        motion_units: a BVH motion's length unit (``cm``, ``m``, ``mm``, ``in``).
-        motion_cutoff_hz: a BVH motion's smoothing cutoff for velocities and accelerations, Hz.
+        motion_units: a recorded motion's length unit (``cm``, ``m``, ``mm``, ``in``), or ``None``:
+            the file's convention (BVH centimetres, a pose CSV metres, a C3D file its own).
+        motion_cutoff_hz: a recorded motion's smoothing cutoff for velocities and accelerations, Hz.
+        motion_clusters: a C3D motion's marker cluster spec (TOML), or ``None``: found automatically.
     """
 
     model: str = "linkage"
@@ -62,8 +77,9 @@ class SessionConfig:
     sensor_bodies: tuple[str, ...] | None = None
     sensors: str | SensorConfig = "ideal"
     placement: tuple[tuple[str, tuple[float, float, float]], ...] = ()
-    motion_units: str = "cm"
+    motion_units: str | None = None
     motion_cutoff_hz: float = DEFAULT_CUTOFF_HZ
+    motion_clusters: str | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration_s) and self.duration_s > 0):
@@ -72,13 +88,16 @@ class SessionConfig:
             raise InputError(f"rate must be > 0 Hz, got {self.rate_hz}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
             raise InputError(f"seed must be an integer in [0, 2^63), got {self.seed!r}")
-        if is_bvh(self.motion) and self.model != BVH_MODEL:
+        own = own_model(self.motion) if is_recorded(self.motion) else None
+        if own is not None and self.model != own:
             raise InputError(
-                f"motion {self.motion}: a BVH clip moves its own skeleton: leave the model at its default "
-                f"or give {BVH_MODEL!r}, got {self.model!r}"
+                f"motion {self.motion}: a {motion_format(self.motion)} recording moves its own model: leave "
+                f"the model at its default or give {own!r}, got {self.model!r}"
             )
-        if self.model == BVH_MODEL and not is_bvh(self.motion):
-            raise InputError(f"model {BVH_MODEL!r} is a BVH clip's own skeleton: give a .bvh motion")
+        for name, what in (("bvh", "a BVH clip's own skeleton: give a .bvh motion"), ("poses", POSES_WHAT)):
+            if self.model == name and own != name:
+                raise InputError(f"model {name!r} is {what}")
+        check_units(self.motion_units)
         if not (math.isfinite(self.motion_cutoff_hz) and self.motion_cutoff_hz > 0):
             raise InputError(f"motion cutoff must be > 0 Hz, got {self.motion_cutoff_hz}")
 
@@ -95,37 +114,47 @@ class SessionConfig:
             "placement": {k: list(v) for k, v in self.placement},
             "motion_units": self.motion_units,
             "motion_cutoff_hz": self.motion_cutoff_hz,
+            "motion_clusters": self.motion_clusters,
         }
+
+    def recorded(self) -> MotionSource | None:
+        """The recorded motion and its model (read once per file), or ``None`` for a program."""
+        if not is_recorded(self.motion):
+            return None
+        return load_motion(self.motion, self.model, self.motion_units, self.motion_clusters)
 
 
 def session_defaults(
-    model: str | None, motion: str, duration_s: float | None, rate_hz: float | None, motion_units: str = "cm"
+    model: str | None,
+    motion: str,
+    duration_s: float | None,
+    rate_hz: float | None,
+    motion_units: str | None = None,
+    motion_clusters: str | None = None,
 ) -> tuple[str, float, float]:
     """``(model, duration_s, rate_hz)`` of a session, the ones not given (``None``) filled in.
 
-    A BVH motion: its own skeleton (``bvh``; another model is refused), the clip's rate and the
-    whole clip at the rate. Otherwise ``linkage``, 20 s, 120 Hz (:class:`SessionConfig`'s).
+    A recorded motion: the model it brings or names (:func:`simbench.sim.motion_source.default_model`;
+    another model beside one it brings is refused), its own rate and the whole recording at the
+    rate. Otherwise ``linkage``, 20 s, 120 Hz (:class:`SessionConfig`'s).
 
     Raises:
-        InputError: a model beside a BVH motion; what reading the clip refuses.
+        InputError: a model beside a motion that brings its own; what reading the motion refuses.
     """
     default = SessionConfig()
-    if not is_bvh(motion):
+    if not is_recorded(motion):
         return (
             default.model if model is None else model,
             default.duration_s if duration_s is None else duration_s,
             default.rate_hz if rate_hz is None else rate_hz,
         )
-    if model not in (None, BVH_MODEL):
-        raise InputError(
-            f"motion {motion}: a BVH clip moves its own skeleton: leave the model at its default or give "
-            f"{BVH_MODEL!r}, got {model!r}"
-        )
-    clip = read_clip(motion, motion_units)
+    check_units(motion_units)
+    source = load_motion(motion, model, motion_units, motion_clusters)
+    clip = source.recorded
     rate = clip_rate_hz(clip) if rate_hz is None else rate_hz
     if not (math.isfinite(rate) and rate > 0):
         raise InputError(f"rate must be > 0 Hz, got {rate}")
-    return BVH_MODEL, default_duration_s(clip, rate) if duration_s is None else duration_s, rate
+    return source.model, default_duration_s(clip, rate) if duration_s is None else duration_s, rate
 
 
 @dataclass(frozen=True)
@@ -141,7 +170,7 @@ class SessionPlan:
         sensor_config: the sensor configuration (resolved from a preset, file or object).
         streams: independent random generators for the ``skin``, ``tracker`` and ``imu`` models
             (so that switching one imperfection on does not change another's draws).
-        playback: the recorded motion played back instead of physics (a BVH motion), or ``None``;
+        playback: the recorded motion played back instead of physics, or ``None``;
             ``program`` is then only its name, one step per sample at the capture period.
     """
 
@@ -204,19 +233,20 @@ def _check_playback_sensors(config: SessionConfig, sensor_config: SensorConfig) 
     """A played-back motion has no physics: sensors on a sprung mount or joints with play need it."""
     if _mount_of(sensor_config) is not None or sensor_config.joints.play_m > 0:
         raise InputError(
-            f"{sensors_source(config)}: a sprung soft-tissue mount and joint play move by physics; a BVH "
-            f"motion ({config.motion}) is played back kinematically: choose sensors without them"
+            f"{sensors_source(config)}: a sprung soft-tissue mount and joint play move by physics; a "
+            f"recorded motion ({config.motion}) is played back kinematically: choose sensors without them"
         )
 
 
 def load_session_model(config: SessionConfig) -> CaptureModel:
-    """The capture model a session needs (with the soft-tissue mount its sensors ask for); a BVH
-    motion's own skeleton for a BVH motion."""
+    """The capture model a session needs (with the soft-tissue mount its sensors ask for); a
+    recorded motion's own model for a motion that brings one."""
     sensor_config = _sensor_config(config)
+    source = config.recorded()
     spec = None
-    if config.model == BVH_MODEL:
+    if source is not None:
         _check_playback_sensors(config, sensor_config)
-        spec = bvh_spec(read_clip(config.motion, config.motion_units))
+        spec = source.spec()
     return load_capture_model(
         config.motion if spec is not None else config.model,
         sensor_bodies=config.sensor_bodies,
@@ -288,10 +318,10 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     if n_samples < 2:
         raise InputError(f"duration {config.duration_s} s at {config.rate_hz} Hz gives fewer than 2 samples")
     playback = None
-    if config.model == BVH_MODEL:
+    source = config.recorded()
+    if source is not None:
         _check_playback_sensors(config, sensor_config)
-        clip = read_clip(config.motion, config.motion_units)
-        playback = plan_playback(clip, config.rate_hz, config.duration_s, config.motion_cutoff_hz)
+        playback = plan_playback(source.recorded, config.rate_hz, config.duration_s, config.motion_cutoff_hz)
         n_samples = playback.time_s.size
         k, dt = 1, 1.0 / config.rate_hz
     else:
@@ -307,7 +337,8 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     if playback is None:
         program = _program(config, cm, motion_rng)
     else:
-        program = Program(name=f"bvh:{Path(config.motion).name}", phases=(), root="still", neutral={})
+        name = f"{source.recorded.format}:{Path(config.motion).name}"
+        program = Program(name=name, phases=(), root="still", neutral={})
     root_phases = np.random.default_rng(seeds[1]).uniform(0, 2 * np.pi, 12)
     streams = {
         name: np.random.default_rng(s) for name, s in zip(("skin", "tracker", "imu"), seeds[2:], strict=True)

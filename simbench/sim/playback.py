@@ -1,15 +1,17 @@
-"""Kinematic playback of a recorded motion: the session's "physics" stage when a BVH clip moves it.
+"""Kinematic playback of a recorded motion: the session's "physics" stage when a recording moves it.
 
-The recorded motion is the truth, exactly: at every capture sample ``qpos`` is set from the clip
-(the root's free joint from its position and rotation, each ball joint from the quaternion of its
-``R_parent_joint``) and MuJoCo's inverse dynamics (``mj_inverse``, with ``qvel`` and ``qacc``
-given) computes the bodies and the same sensors a physics session reads; the rows returned are
-those :func:`simbench.sim.physics.run_physics` returns, so readings, skin, sensor models and the
+The recorded motion (:class:`~simbench.sim.recorded.RecordedMotion`: a BVH clip, a ``qpos``
+series, OpenSim joint angles, rigid-body pose trajectories) is the truth, exactly: at every
+capture sample ``qpos`` is set from the recording (each track's joint: a free joint's position and
+quaternion, a ball joint's quaternion, a hinge's angle, a slide's displacement) and MuJoCo's
+inverse dynamics (``mj_inverse``, with ``qvel`` and ``qacc`` given) computes the bodies and the
+same sensors a physics session reads; the rows returned are those
+:func:`simbench.sim.physics.run_physics` returns, so readings, skin, sensor models and the
 Dataset are made as in any session.
 
 **Velocities and accelerations** (what the gyroscopes and accelerometers feel) are not finite
 differences of the recorded poses, which amplify their rounding and noise: every recorded signal
-(the root's position, each joint's quaternion made sign-continuous) is smoothed by a
+(positions, angles, each quaternion made sign-continuous) is smoothed by a
 Savitzky-Golay filter of degree :data:`POLYORDER` whose derivatives give the velocities and
 accelerations (``scipy.signal.savgol_filter``). Its window is the shortest whose gain at the
 cutoff (:data:`DEFAULT_CUTOFF_HZ` unless given) is at most ``1/sqrt(2)`` (-3 dB): the motion's
@@ -37,10 +39,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from calibration.rotations import matrix_to_quat
 from simbench.errors import InputError
-from simbench.io.bvh import BvhMotion
 from simbench.sim.models import CaptureModel
+from simbench.sim.recorded import RecordedMotion, Track
 
 #: The smoothing's default cutoff, Hz: 6 Hz, the usual low-pass of human movement kinematics
 #: (Winter, Biomechanics and Motor Control of Human Movement, 4th ed. 2009, sec. 2.2.4.4).
@@ -59,14 +60,14 @@ class Playback:
     """What a playback session plays, fixed when it is planned.
 
     Attributes:
-        motion: the clip.
+        motion: the recording.
         cutoff_hz: the smoothing's cutoff, Hz.
         window: the Savitzky-Golay window, frames (odd).
         time_s: ``(n,)`` the samples' times, s.
         frames: ``(n,)`` the clip's frame of each sample, or ``None`` when resampled.
     """
 
-    motion: BvhMotion
+    motion: RecordedMotion
     cutoff_hz: float
     window: int
     time_s: np.ndarray
@@ -76,7 +77,10 @@ class Playback:
         """JSON-ready summary (the Dataset's metadata)."""
         return {
             "source": self.motion.source,
+            "format": self.motion.format,
             "frames": self.motion.n_frames,
+            "frames_filled": int(np.count_nonzero(~self.motion.valid)),
+            "start_s": self.motion.start_s,
             "frame_time_s": self.motion.frame_time_s,
             "smoothing": "savitzky-golay",
             "cutoff_hz": self.cutoff_hz,
@@ -86,17 +90,17 @@ class Playback:
         }
 
 
-def clip_rate_hz(motion: BvhMotion) -> float:
+def clip_rate_hz(motion: RecordedMotion) -> float:
     """The clip's frame rate, Hz."""
     return 1.0 / motion.frame_time_s
 
 
-def same_rate(motion: BvhMotion, rate_hz: float) -> bool:
+def same_rate(motion: RecordedMotion, rate_hz: float) -> bool:
     """``rate_hz`` is the clip's own (within :data:`SAME_RATE`)."""
     return abs(rate_hz * motion.frame_time_s - 1.0) <= SAME_RATE
 
 
-def default_duration_s(motion: BvhMotion, rate_hz: float) -> float:
+def default_duration_s(motion: RecordedMotion, rate_hz: float) -> float:
     """The whole clip at ``rate_hz``: its last sample at or before the clip's last frame, s."""
     return (motion.n_frames - 1) * motion.frame_time_s + 1.0 / rate_hz
 
@@ -138,7 +142,7 @@ def savgol_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: str =
 
 
 def plan_playback(
-    motion: BvhMotion, rate_hz: float, duration_s: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ
+    motion: RecordedMotion, rate_hz: float, duration_s: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ
 ) -> Playback:
     """The samples of a playback session, checked against the clip.
 
@@ -216,87 +220,87 @@ def _hermite5(y: np.ndarray, dy: np.ndarray, ddy: np.ndarray, h: float, t: np.nd
 
 
 @dataclass(frozen=True)
-class PlaybackState:
-    """The clip's generalised coordinates at the samples.
+class TrackState:
+    """One track's coordinates at the samples (:class:`~simbench.sim.recorded.Track`).
 
     Attributes:
-        root_pos, root_vel, root_acc: ``(n, 3)`` the root's position (m), velocity (m/s) and
-            acceleration (m/s^2) in world.
-        quat: ``(n, J, 4)`` each joint's quaternion, wxyz (the root's: world; the others': in the parent).
-        omega, domega: ``(n, J, 3)`` each joint's angular velocity (rad/s) and acceleration
-            (rad/s^2) in its own frame.
+        qpos: ``(n, w)`` the joint's ``qpos`` (quaternions normalised).
+        qvel: ``(n, d)`` its ``qvel``: a free joint's linear velocity in world (m/s) then angular
+            velocity in its own frame (rad/s); a ball joint's angular velocity in its own frame; a
+            hinge's or slide's rate.
+        qacc: ``(n, d)`` the derivative of ``qvel``.
     """
 
-    root_pos: np.ndarray
-    root_vel: np.ndarray
-    root_acc: np.ndarray
-    quat: np.ndarray
-    omega: np.ndarray
-    domega: np.ndarray
+    qpos: np.ndarray
+    qvel: np.ndarray
+    qacc: np.ndarray
 
 
-def playback_state(playback: Playback) -> PlaybackState:
-    """The poses, velocities and accelerations of the samples (module docstring)."""
+def playback_state(playback: Playback) -> list[TrackState]:
+    """The poses, velocities and accelerations of the samples, one per track (module docstring)."""
     from scipy.signal import savgol_filter  # scipy.signal: 0.6 s of every start of the command line
 
     motion = playback.motion
-    f, j = motion.n_frames, len(motion.names)
-    root = motion.offset_m[0] + motion.translation_m[:, 0]
-    quat = _continuous(matrix_to_quat(motion.R_parent_joint))
-    raw = np.concatenate([root, quat.reshape(f, -1)], axis=1)
+    raw = []
+    for track in motion.tracks:
+        values = np.array(track.values, dtype=float)
+        cols = track.quaternion_columns
+        if cols is not None:
+            values[:, cols] = _continuous(values[:, cols])
+        raw.append(values)
+    widths = np.cumsum([0] + [r.shape[1] for r in raw])
+    raw_all = np.concatenate(raw, axis=1)
     smooth = [
         savgol_filter(
-            raw, playback.window, POLYORDER, deriv=d, delta=motion.frame_time_s, axis=0, mode="interp"
+            raw_all, playback.window, POLYORDER, deriv=d, delta=motion.frame_time_s, axis=0, mode="interp"
         )
         for d in range(3)
     ]
     if playback.frames is not None:
         at = [x[playback.frames] for x in smooth]
-        pose = raw[playback.frames]
+        pose = raw_all[playback.frames]
     else:
         at = _hermite5(*smooth, motion.frame_time_s, playback.time_s)
         pose = at[0]
-    n = playback.time_s.size
-    q = [x[:, 3:].reshape(n, j, 4) for x in at]
-    omega, domega = angular_rates(*q)
-    quat = pose[:, 3:].reshape(n, j, 4)
-    return PlaybackState(
-        root_pos=pose[:, :3],
-        root_vel=at[1][:, :3],
-        root_acc=at[2][:, :3],
-        quat=quat / np.linalg.norm(quat, axis=-1, keepdims=True),
-        omega=omega,
-        domega=domega,
-    )
+    states = []
+    for k, track in enumerate(motion.tracks):
+        cols = slice(widths[k], widths[k + 1])
+        qpos, d1, d2 = pose[:, cols].copy(), at[1][:, cols], at[2][:, cols]
+        q = track.quaternion_columns
+        if q is None:
+            states.append(TrackState(qpos, d1.copy(), d2.copy()))
+            continue
+        omega, domega = angular_rates(at[0][:, cols][:, q], d1[:, q], d2[:, q])
+        qpos[:, q] /= np.linalg.norm(qpos[:, q], axis=-1, keepdims=True)
+        lin = slice(0, q.start)  # a free joint's position
+        qvel = np.concatenate([d1[:, lin], omega], axis=1)
+        states.append(TrackState(qpos, qvel, np.concatenate([d2[:, lin], domega], axis=1)))
+    return states
 
 
 def run_playback(cm: CaptureModel, playback: Playback) -> tuple[np.ndarray, dict[str, int]]:
-    """The session's sensor data played back from the clip (the rows of
+    """The session's sensor data played back from the recording (the rows of
     :func:`simbench.sim.physics.run_physics`).
 
     Returns:
         ``(sensordata, warnings)``: ``(n, nsensordata)`` MuJoCo's sensors at the samples, and
         ``{warning name: count}`` of MuJoCo's warnings.
+
+    Raises:
+        InputError: a track naming a joint the model does not have, or of another kind.
     """
     m = cm.model
-    state = playback_state(playback)
+    states = playback_state(playback)
     n = playback.time_s.size
     qpos = np.tile(m.qpos0, (n, 1))
     qvel = np.zeros((n, m.nv))
     qacc = np.zeros((n, m.nv))
-    for k, name in enumerate(playback.motion.names):
-        jnt = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+    for track, state in zip(playback.motion.tracks, states, strict=True):
+        jnt = joint_of(m, track, playback.motion.source, cm.source)
         q, v = int(m.jnt_qposadr[jnt]), int(m.jnt_dofadr[jnt])
-        if k == 0:  # the free root: position and linear rates in world, angular in its own frame
-            qpos[:, q : q + 3], qvel[:, v : v + 3], qacc[:, v : v + 3] = (
-                state.root_pos,
-                state.root_vel,
-                state.root_acc,
-            )
-            q, v = q + 3, v + 3
-        qpos[:, q : q + 4] = state.quat[:, k]
-        qvel[:, v : v + 3] = state.omega[:, k]
-        qacc[:, v : v + 3] = state.domega[:, k]
+        qpos[:, q : q + state.qpos.shape[1]] = state.qpos
+        qvel[:, v : v + state.qvel.shape[1]] = state.qvel
+        qacc[:, v : v + state.qacc.shape[1]] = state.qacc
     d = mujoco.MjData(m)
     sensordata = np.empty((n, m.nsensordata))
     for i in range(n):
@@ -306,3 +310,39 @@ def run_playback(cm: CaptureModel, playback: Playback) -> tuple[np.ndarray, dict
         sensordata[i] = d.sensordata
     warnings = {mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(d.warning) if w.number > 0}
     return sensordata, warnings
+
+
+_KIND = {
+    mujoco.mjtJoint.mjJNT_FREE: "free",
+    mujoco.mjtJoint.mjJNT_BALL: "ball",
+    mujoco.mjtJoint.mjJNT_HINGE: "hinge",
+    mujoco.mjtJoint.mjJNT_SLIDE: "slide",
+}
+
+
+def joint_kind(m: mujoco.MjModel, jnt: int) -> str:
+    """``free``, ``ball``, ``hinge`` or ``slide``: the kind of joint ``jnt`` of ``m``."""
+    return _KIND[mujoco.mjtJoint(int(m.jnt_type[jnt]))]
+
+
+def joint_of(m: mujoco.MjModel, track: Track, source: str, model_source: str) -> int:
+    """The id of the joint a track moves in ``m``.
+
+    Raises:
+        InputError: naming the recording, the model and its joints, when the joint is not there or
+            not of the track's kind.
+    """
+    jnt = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, track.joint)
+    if jnt < 0:
+        names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
+        raise InputError(
+            f"{source}: joint {track.joint!r} is not in the model {model_source}; its joints: "
+            f"{', '.join(str(x) for x in names)}"
+        )
+    kind = joint_kind(m, jnt)
+    if kind != track.kind:
+        raise InputError(
+            f"{source}: joint {track.joint!r} is a {kind} joint in the model {model_source}, the recording "
+            f"gives {track.kind} coordinates"
+        )
+    return jnt
