@@ -338,6 +338,7 @@ def load_capture_model(
     _check_joints(base, tree, source)
     sensors = tuple(_body_name(base, body_id) for body_id in tree.bodies)
     root = tree.bodies[0]
+    children = [b for b in tree.bodies if b in tree.parent_of]  # bodies[1:] but in a forest of free bodies
     for actuator in list(spec.actuators):
         spec.delete(actuator)
     for sensor in list(spec.sensors):
@@ -348,8 +349,8 @@ def load_capture_model(
     if free_root:
         add_root_driver(spec, base, root)
     if joint_play_m > 0:
-        add_play(spec, [_body_name(base, tree.joint_body[b]) for b in tree.bodies[1:]], joint_play_m)
-    add_actuators(spec, base, [j for b in tree.bodies[1:] for j in tree.joints[tree.joint_body[b]]])
+        add_play(spec, [_body_name(base, tree.joint_body[b]) for b in children], joint_play_m)
+    add_actuators(spec, base, [j for b in children for j in tree.joints[tree.joint_body[b]]])
     set_tracking_gains(spec, compile_spec(spec, source))
     model = compile_spec(spec, source)
     model.opt.magnetic[:] = EARTH_FIELD_UT
@@ -359,7 +360,7 @@ def load_capture_model(
         model=model,
         sensors=sensors,
         parent_of={_body_name(base, c): _body_name(base, p) for c, p in tree.parent_of.items()},
-        articulations=tuple(_articulation(base, model, tree, body_id) for body_id in tree.bodies[1:]),
+        articulations=tuple(_articulation(base, model, tree, body_id) for body_id in children),
         site_ids=np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, s) for s in bone_sites]),
         body_ids=np.array([mujoco.mj_name2id(model, _BODY, name) for name in sensors]),
         mocap_id=int(model.body_mocapid[driver]) if free_root else -1,
