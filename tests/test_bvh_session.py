@@ -6,6 +6,7 @@ expected poses come from the file's numbers composed independently of the reader
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import mujoco
@@ -19,6 +20,7 @@ from simbench.cli import main
 from simbench.errors import InputError
 from simbench.io.bvh import Y_UP_TO_Z_UP, read_bvh
 from simbench.sim.bvh_model import DENSITY_KG_M3, bvh_mjcf, capsule_radius
+from simbench.sim.sensor_config import load_sensor_config
 from tests.test_bvh import ORDERS, _bvh
 
 C = Y_UP_TO_Z_UP
@@ -178,8 +180,12 @@ def test_bad_inputs_are_clear_errors(clip, tmp_path):
         sb.simulate(motion=path, rate_hz=10.0)
     with pytest.raises(InputError, match=r"the clip lasts 300 frames.*at most 3 s"):
         sb.simulate(motion=path, duration_s=5.0)
-    with pytest.raises(InputError, match="played back kinematically"):
-        sb.simulate(motion=path, sensors="skin-paper-human")
+    ideal = load_sensor_config("ideal")
+    with_play = dataclasses.replace(ideal, joints=dataclasses.replace(ideal.joints, play_m=0.001))
+    with pytest.raises(
+        InputError, match=r"joint play moves by contact physics.*sets every joint kinematically"
+    ):
+        sb.simulate(motion=path, sensors=with_play)
     with pytest.raises(InputError, match="does not exist"):
         sb.simulate(motion=str(tmp_path / "none.bvh"))
     with pytest.raises(InputError, match=r"give a \.bvh motion"):

@@ -19,9 +19,9 @@ from calibration.rotations import quat_to_matrix
 from simbench.cli import main
 from simbench.errors import InputError
 from simbench.io.qpos import model_joints, write_qpos_npz
+from simbench.io.recorded import fill_gaps, frame_grid
 from simbench.sim.mjcf import compile_spec, read_spec
 from simbench.sim.pose_model import read_broad_poses
-from simbench.sim.recorded import fill_gaps, frame_grid
 
 RATE = 100.0
 FRAMES = 200
@@ -337,3 +337,67 @@ def test_c3d_marker_clusters_move_bodies_rigidly_with_the_segments_they_ride(tmp
             "fji,fj->fi", R_true[:, segment], ds.truth.rigid.p_w_s[:, k] - truth.truth.p_w_b[:, segment]
         )
         assert np.abs(r - r[0]).max() < 1e-5, cluster
+
+
+def test_a_study_varies_sensors_on_a_recorded_motion(tmp_path):
+    from simbench.experiments import study as st
+    from simbench.experiments import sweep as sw
+    from tests.test_bvh import _bvh
+    from tests.test_bvh_session import FRAME_TIME, _smooth_clip
+
+    angles, root = _smooth_clip(400)
+    (tmp_path / "clip.bvh").write_text(_bvh(angles, root, FRAME_TIME))
+    path = tmp_path / "study.toml"
+    path.write_text(
+        'name = "recorded"\nseed = 1\nseeds_per_cell = 2\nestimators = ["calibration"]\n'
+        'metrics = ["joint_centre_error_m"]\n[base]\nmotion = "clip.bvh"\nsensors = "ascension-flock"\n'
+        '[sampling]\nkind = "grid"\n[[parameter]]\nname = "sensors.tracker.position_noise_m"\nunit = "mm"\n'
+        "values = [0.0, 12.0]\n"
+    )
+    study = st.load_study(path)
+    base = st.base_session(study)
+    assert (
+        base.model == "bvh" and base.rate_hz == pytest.approx(100.0) and base.duration_s == pytest.approx(4.0)
+    )
+    data = sw.run_study(study, tmp_path / "out", workers=1).to_pydict()
+    noise = np.array(data["sensors.tracker.position_noise_m"])
+    err = np.array(data["joint_centre_error_m"])
+    assert len(err) == 4 and np.isfinite(err).all()
+    assert err[noise > 0].mean() > 2.0 * err[noise == 0].mean()
+
+
+def test_a_sprung_mount_rings_on_a_recorded_motion_as_the_analytic_oscillator(tmp_path):
+    import dataclasses
+
+    from simbench.sim.sensor_config import load_sensor_config
+
+    # one body shaken along world x at 2 Hz, 2 cm amplitude, not turning
+    rate, frames, f_hz, amp = 200.0, 800, 2.0, 0.02
+    t = np.arange(frames) / rate
+    p = np.zeros((frames, 1, 3))
+    p[:, 0, 0] = amp * np.sin(2 * np.pi * f_hz * t)
+    p[:, 0, 2] = 1.0
+    q = np.tile([1.0, 0, 0, 0], (frames, 1, 1))
+    path = tmp_path / "shake.csv"
+    _pose_csv(path, t, p, q, names=("box",))
+    k, mass, zeta = 2000.0, 0.03, 0.3
+    ideal = load_sensor_config("ideal")
+    skin = dataclasses.replace(
+        ideal.skin, mount_stiffness_n_per_m=k, mount_damping_ratio=zeta, mount_mass_kg=mass
+    )
+    sensors = dataclasses.replace(ideal, skin=skin, name="mounted")
+    ds = sb.simulate(motion=str(path), sensors=sensors, motion_cutoff_hz=10.0)
+    rel = ds.truth.actual.p_w_s[:, 0] - ds.truth.rigid.p_w_s[:, 0]
+    # base-excited oscillator: x'' + 2 zeta w0 x' + w0^2 x = -a_base; steady state after ~10/(zeta w0)
+    w0, w = np.sqrt(k / mass), 2 * np.pi * f_hz
+    gain = w * w * amp / np.hypot(w0 * w0 - w * w, 2 * zeta * w0 * w)
+    phase = np.arctan2(2 * zeta * w0 * w, w0 * w0 - w * w)
+    expected_x = gain * np.sin(w * t - phase)
+    settled = t > 0.5
+    end = t < t[-1] - 0.3  # the smoothing's one-sided window at the end
+    sel = settled & end
+    assert np.abs(rel[sel, 0] - expected_x[sel]).max() < 0.02 * gain
+    # gravity sags the mount by g / w0^2 (0.15 mm)
+    g = -mujoco.MjModel.from_xml_string("<mujoco/>").opt.gravity[2]
+    np.testing.assert_allclose(rel[sel, 2], -g / w0**2, rtol=0.01)
+    assert np.abs(rel[sel, 1]).max() < 1e-9

@@ -44,7 +44,7 @@ import numpy as np
 from simbench.errors import InputError, load_toml
 from simbench.estimators import names, resolve
 from simbench.experiments.metrics import CALIBRATION_METRICS
-from simbench.sim.plan import plan_session
+from simbench.sim.plan import plan_session, session_defaults
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model
 from simbench.units import UNITS
@@ -57,7 +57,16 @@ METRICS = {
     "run_time_s": "seconds the trial took",
 }
 #: Keys of ``[base]``: fields of :class:`SessionConfig` (a missing one takes its default).
-BASE_KEYS = {"model", "motion", "sensors", "duration_s", "rate_hz"}
+BASE_KEYS = {
+    "model",
+    "motion",
+    "sensors",
+    "duration_s",
+    "rate_hz",
+    "motion_units",
+    "motion_cutoff_hz",
+    "motion_clusters",
+}
 DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
 STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
 PARAMETER_KEYS = {"name", "unit", "values", "low", "high", "log"}
@@ -244,7 +253,7 @@ def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], Sensor
         raise InputError(f"{path}: base: unknown keys {bad}; expected {sorted(BASE_KEYS)}")
     base.setdefault("sensors", SessionConfig().sensors)
     for key, value in base.items():
-        numeric = key in ("duration_s", "rate_hz")
+        numeric = key in ("duration_s", "rate_hz", "motion_cutoff_hz")
         if numeric and not _is_number(value):
             raise InputError(f"{path}, key base.{key}: expected a number, got {value!r}")
         if not numeric and not (isinstance(value, str) and value.strip()):
@@ -417,15 +426,29 @@ def trials(study: Study) -> list[Trial]:
 
 
 def base_session(study: Study) -> SessionConfig:
-    """The study's base session: ``[base]``'s keys, :class:`SessionConfig`'s defaults for the rest;
+    """The study's base session: ``[base]``'s keys, :class:`SessionConfig`'s defaults for the rest
+    (a recorded motion: its model, rate and length, :func:`~simbench.sim.plan.session_defaults`);
     a file it names is looked up beside the study file first, then from the working directory.
 
     Raises:
-        InputError: a base value SessionConfig refuses (duration or rate not > 0).
+        InputError: a base value SessionConfig refuses (duration or rate not > 0), what reading a
+            recorded motion refuses.
     """
     base = _base_files(study)
-    given = {k: base[k] for k in ("model", "motion", "sensors") if k in base}
-    given.update({k: float(study.base[k]) for k in ("duration_s", "rate_hz") if k in study.base})
+    names = ("model", "motion", "sensors", "motion_units", "motion_clusters")
+    given = {k: base[k] for k in names if k in base}
+    given.update(
+        {k: float(study.base[k]) for k in ("duration_s", "rate_hz", "motion_cutoff_hz") if k in study.base}
+    )
+    motion = given.get("motion", SessionConfig().motion)
+    given["model"], given["duration_s"], given["rate_hz"] = session_defaults(
+        given.get("model"),
+        motion,
+        given.get("duration_s"),
+        given.get("rate_hz"),
+        given.get("motion_units"),
+        given.get("motion_clusters"),
+    )
     return SessionConfig(**given)
 
 

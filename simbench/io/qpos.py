@@ -26,7 +26,7 @@ import numpy as np
 
 from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_open
-from simbench.sim.recorded import WIDTH, RecordedMotion, Track, fill_gaps, frame_grid
+from simbench.io.recorded import WIDTH, RecordedMotion, Track, fill_gaps, frame_grid
 
 #: The coordinates of each joint kind, as CSV column suffixes (a hinge's or slide's: none).
 COLUMNS = {

@@ -33,8 +33,8 @@ import numpy as np
 from calibration.rotations import matrix_to_quat
 from simbench.errors import InputError
 from simbench.io.bvh import BvhMotion, read_bvh
+from simbench.io.recorded import RecordedMotion, Track
 from simbench.sim.instrument import default_site_frame
-from simbench.sim.recorded import RecordedMotion, Track
 
 #: The model name of a BVH clip's own skeleton (``SessionConfig.model`` with a ``.bvh`` motion).
 BVH_MODEL = "bvh"

@@ -198,7 +198,9 @@ def _default_sensor_bodies(model: mujoco.MjModel) -> list[str]:
     ]
 
 
-def _sensor_body_ids(base: mujoco.MjModel, names: Sequence[str], source: str) -> tuple[int, ...]:
+def _sensor_body_ids(
+    base: mujoco.MjModel, names: Sequence[str], source: str, forest: bool = False
+) -> tuple[int, ...]:
     """Body ids of the sensor bodies, sorted (MuJoCo numbers parents before children)."""
     ids = []
     for name in names:
@@ -209,13 +211,16 @@ def _sensor_body_ids(base: mujoco.MjModel, names: Sequence[str], source: str) ->
         ids.append(body_id)
     if len(set(ids)) != len(ids):
         raise InputError(f"model {source}: sensor bodies named twice: {names}")
-    if len(ids) < 2 and not (ids and _free_root(base, ids[0])):
+    if len(ids) < 2 and not (forest and ids and _free_root(base, ids[0])):
         raise InputError(f"model {source}: a capture needs at least 2 sensor bodies, got {names}")
     return tuple(sorted(ids))
 
 
-def _sensor_tree(base: mujoco.MjModel, bodies: tuple[int, ...], source: str) -> _SensorTree:
-    """The tree of the sensor bodies; checks that one body with joints joins each pair."""
+def _sensor_tree(
+    base: mujoco.MjModel, bodies: tuple[int, ...], source: str, forest: bool = False
+) -> _SensorTree:
+    """The tree of the sensor bodies; checks that one body with joints joins each pair (or, with
+    ``forest``, that they are free bodies none of which joins another)."""
     is_sensor = set(bodies)
     joints = _joint_bodies(base)
     parent_of: dict[int, int] = {}
@@ -239,7 +244,7 @@ def _sensor_tree(base: mujoco.MjModel, bodies: tuple[int, ...], source: str) -> 
             )
         joint_body[body_id] = with_joints[0]
     roots = [body_id for body_id in bodies if body_id not in parent_of]
-    if len(roots) > 1 and not parent_of and all(_free_root(base, r) for r in roots):
+    if forest and len(roots) > 1 and not parent_of and all(_free_root(base, r) for r in roots):
         return _SensorTree(bodies, parent_of, joint_body, joints)  # free bodies: a pose trajectory's
     if len(roots) != 1:
         raise InputError(
@@ -307,6 +312,7 @@ def load_capture_model(
     placement: Mapping[str, Sequence[float]] | None = None,
     joint_play_m: float = 0.0,
     spec: mujoco.MjSpec | None = None,
+    played_back: bool = False,
 ) -> CaptureModel:
     """Load a model and equip it for capture sessions (see the module docstring).
 
@@ -322,6 +328,8 @@ def load_capture_model(
             per axis; 0 = none): :mod:`simbench.sim.play`.
         spec: the model already as a spec (a BVH clip's skeleton, :mod:`simbench.sim.bvh_model`),
             named ``source``; ``None``: read ``source``.
+        played_back: the model will only be played back (a recorded motion), not moved by physics:
+            free bodies none of which joins another (one or more) are a capture model too.
 
     Raises:
         InputError: unknown model or body names, bodies not joined by single joints.
@@ -334,7 +342,7 @@ def load_capture_model(
     unknown = sorted(set(placement or {}) - set(names))
     if unknown:
         raise InputError(f"placement names {unknown}, which carry no sensor; sensors: {names}")
-    tree = _sensor_tree(base, _sensor_body_ids(base, names, source), source)
+    tree = _sensor_tree(base, _sensor_body_ids(base, names, source, played_back), source, played_back)
     _check_joints(base, tree, source)
     sensors = tuple(_body_name(base, body_id) for body_id in tree.bodies)
     root = tree.bodies[0]

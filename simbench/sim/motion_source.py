@@ -17,6 +17,7 @@ A ``.csv`` is a pose CSV when its header has a ``sensor`` column, a ``qpos`` ser
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -25,7 +26,13 @@ from pathlib import Path
 import mujoco
 
 from simbench.errors import InputError
-from simbench.sim.recorded import RecordedMotion
+from simbench.io.qpos import npz_model, read_qpos_csv, read_qpos_npz
+from simbench.io.read import is_simbench_dataset, read_poses
+from simbench.io.recorded import RecordedMotion
+from simbench.sim.bvh_model import bvh_recorded, bvh_spec, read_clip
+from simbench.sim.mjcf import compile_spec, read_spec
+from simbench.sim.pose_model import poses_recorded, poses_spec, read_broad_poses
+from simbench.units import LENGTH_UNITS
 
 #: Suffixes of recorded motions and their format (``.csv``: :func:`motion_format` looks inside).
 SUFFIXES = {
@@ -104,8 +111,6 @@ def default_model(motion: str, units: str | None = None, clusters: str | None = 
     if fmt == "opensim":
         return OPENSIM_DEFAULT_MODEL
     if fmt == "qpos" and Path(motion).suffix.lower() == ".npz":
-        from simbench.io.qpos import npz_model
-
         _exists(motion)
         named = npz_model(motion)
         if named:
@@ -160,18 +165,12 @@ def _load_cached(
         raise InputError(f"motion {name}: {fmt} files hold SI units; units {units!r} do not apply")
     model = model if model is not None else default_model(name)
     if fmt == "bvh":
-        from simbench.sim.bvh_model import bvh_recorded, bvh_spec, read_clip
-
         clip = read_clip(path, units or "cm")
         rec = bvh_recorded(clip)
         return MotionSource(_named(rec, name), model, functools.partial(bvh_spec, clip))
     if fmt == "poses":
-        from simbench.sim.pose_model import poses_recorded, poses_spec, read_broad_poses
-
         suffix = Path(path).suffix.lower()
         if suffix in (".h5", ".hdf5"):
-            from simbench.io.read import is_simbench_dataset
-
             if is_simbench_dataset(path):
                 raise InputError(
                     f"motion {name}: a simbench dataset is not a recorded motion; give its poses as a pose "
@@ -181,29 +180,19 @@ def _load_cached(
                 raise InputError(f"motion {name}: a BROAD trial holds metres; units {units!r} do not apply")
             poses = read_broad_poses(path)
         else:
-            from simbench.io.read import read_poses
-
             poses = read_poses(path, units=units, clusters=clusters)
         rec = poses_recorded(poses)
         poses_spec(rec.joints, name)  # refuse names MJCF refuses now
         return MotionSource(_named(rec, name), model, functools.partial(poses_spec, rec.joints, name))
-    from simbench.sim.mjcf import compile_spec, read_spec
-
     m = compile_spec(read_spec(model), model)
     if fmt == "qpos":
-        from simbench.io.qpos import read_qpos_csv, read_qpos_npz
-
         reader = read_qpos_npz if Path(path).suffix.lower() == ".npz" else read_qpos_csv
         return MotionSource(_named(reader(path, m), name), model, None)
-    from simbench.io.opensim_motion import read_opensim_motion
-
-    return MotionSource(_named(read_opensim_motion(path, m, model), name), model, None)
+    raise InputError(f"motion {name}: OpenSim motion files are not read yet")
 
 
 def _named(rec: RecordedMotion, name: str) -> RecordedMotion:
     """The motion with the file named as the user gave it (messages), not resolved."""
-    import dataclasses
-
     return rec if rec.source == name else dataclasses.replace(rec, source=name)
 
 
@@ -213,7 +202,5 @@ def check_units(units: str | None) -> None:
     Raises:
         InputError: naming the known units.
     """
-    from simbench.units import LENGTH_UNITS
-
     if units is not None and units not in LENGTH_UNITS:
         raise InputError(f"motion units {units!r}: expected one of {', '.join(LENGTH_UNITS)}")

@@ -230,11 +230,12 @@ def _sensor_config(config: SessionConfig) -> SensorConfig:
 
 
 def _check_playback_sensors(config: SessionConfig, sensor_config: SensorConfig) -> None:
-    """A played-back motion has no physics: sensors on a sprung mount or joints with play need it."""
-    if _mount_of(sensor_config) is not None or sensor_config.joints.play_m > 0:
+    """A played-back motion sets every joint: joints with play (shifted by contact forces) need a
+    physics session. (Sprung mounts are integrated on top of the playback.)"""
+    if sensor_config.joints.play_m > 0:
         raise InputError(
-            f"{sensors_source(config)}: a sprung soft-tissue mount and joint play move by physics; a "
-            f"recorded motion ({config.motion}) is played back kinematically: choose sensors without them"
+            f"{sensors_source(config)}: joint play moves by contact physics; a recorded motion "
+            f"({config.motion}) sets every joint kinematically: choose sensors without joints.play_m"
         )
 
 
@@ -254,6 +255,7 @@ def load_session_model(config: SessionConfig) -> CaptureModel:
         placement=dict(config.placement),
         joint_play_m=sensor_config.joints.play_m,
         spec=spec,
+        played_back=source is not None,
     )
 
 

@@ -1,6 +1,6 @@
 """Kinematic playback of a recorded motion: the session's "physics" stage when a recording moves it.
 
-The recorded motion (:class:`~simbench.sim.recorded.RecordedMotion`: a BVH clip, a ``qpos``
+The recorded motion (:class:`~simbench.io.recorded.RecordedMotion`: a BVH clip, a ``qpos``
 series, OpenSim joint angles, rigid-body pose trajectories) is the truth, exactly: at every
 capture sample ``qpos`` is set from the recording (each track's joint: a free joint's position and
 quaternion, a ball joint's quaternion, a hinge's angle, a slide's displacement) and MuJoCo's
@@ -40,8 +40,8 @@ import mujoco
 import numpy as np
 
 from simbench.errors import InputError
+from simbench.io.recorded import RecordedMotion, Track
 from simbench.sim.models import CaptureModel
-from simbench.sim.recorded import RecordedMotion, Track
 
 #: The smoothing's default cutoff, Hz: 6 Hz, the usual low-pass of human movement kinematics
 #: (Winter, Biomechanics and Motor Control of Human Movement, 4th ed. 2009, sec. 2.2.4.4).
@@ -221,7 +221,7 @@ def _hermite5(y: np.ndarray, dy: np.ndarray, ddy: np.ndarray, h: float, t: np.nd
 
 @dataclass(frozen=True)
 class TrackState:
-    """One track's coordinates at the samples (:class:`~simbench.sim.recorded.Track`).
+    """One track's coordinates at the samples (:class:`~simbench.io.recorded.Track`).
 
     Attributes:
         qpos: ``(n, w)`` the joint's ``qpos`` (quaternions normalised).
@@ -236,8 +236,9 @@ class TrackState:
     qacc: np.ndarray
 
 
-def playback_state(playback: Playback) -> list[TrackState]:
-    """The poses, velocities and accelerations of the samples, one per track (module docstring)."""
+def playback_state(playback: Playback, at_s: np.ndarray | None = None) -> list[TrackState]:
+    """The poses, velocities and accelerations of the samples, one per track (module docstring);
+    or of the smoothed motion at times ``at_s`` ``(n,)`` s (a sprung mount's integration steps)."""
     from scipy.signal import savgol_filter  # scipy.signal: 0.6 s of every start of the command line
 
     motion = playback.motion
@@ -256,11 +257,11 @@ def playback_state(playback: Playback) -> list[TrackState]:
         )
         for d in range(3)
     ]
-    if playback.frames is not None:
+    if at_s is None and playback.frames is not None:
         at = [x[playback.frames] for x in smooth]
         pose = raw_all[playback.frames]
     else:
-        at = _hermite5(*smooth, motion.frame_time_s, playback.time_s)
+        at = _hermite5(*smooth, motion.frame_time_s, playback.time_s if at_s is None else at_s)
         pose = at[0]
     states = []
     for k, track in enumerate(motion.tracks):
@@ -278,20 +279,13 @@ def playback_state(playback: Playback) -> list[TrackState]:
     return states
 
 
-def run_playback(cm: CaptureModel, playback: Playback) -> tuple[np.ndarray, dict[str, int]]:
-    """The session's sensor data played back from the recording (the rows of
-    :func:`simbench.sim.physics.run_physics`).
-
-    Returns:
-        ``(sensordata, warnings)``: ``(n, nsensordata)`` MuJoCo's sensors at the samples, and
-        ``{warning name: count}`` of MuJoCo's warnings.
-
-    Raises:
-        InputError: a track naming a joint the model does not have, or of another kind.
-    """
+def _generalised(
+    cm: CaptureModel, playback: Playback, states: list[TrackState]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(qpos, qvel, qacc)`` of the whole model, ``(n, nq)``, ``(n, nv)``, ``(n, nv)``: the tracks'
+    joints from ``states``, every other joint at ``qpos0`` and at rest."""
     m = cm.model
-    states = playback_state(playback)
-    n = playback.time_s.size
+    n = states[0].qpos.shape[0]
     qpos = np.tile(m.qpos0, (n, 1))
     qvel = np.zeros((n, m.nv))
     qacc = np.zeros((n, m.nv))
@@ -301,6 +295,105 @@ def run_playback(cm: CaptureModel, playback: Playback) -> tuple[np.ndarray, dict
         qpos[:, q : q + state.qpos.shape[1]] = state.qpos
         qvel[:, v : v + state.qvel.shape[1]] = state.qvel
         qacc[:, v : v + state.qacc.shape[1]] = state.qacc
+    return qpos, qvel, qacc
+
+
+def mount_coordinates(m: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """The sprung mounts' joints (``<body>:mount_*``): ``(in_qpos, dofs)``, a ``(nq,)`` bool mask of
+    their ``qpos`` and their degrees of freedom ``(k,)`` int."""
+    in_qpos = np.zeros(m.nq, dtype=bool)
+    dofs: list[int] = []
+    for j in range(m.njnt):
+        if ":mount_" in (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or ""):
+            kind = joint_kind(m, j)
+            q, v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+            in_qpos[q : q + {"free": 7, "ball": 4}.get(kind, 1)] = True
+            dofs.extend(range(v, v + {"free": 6, "ball": 3}.get(kind, 1)))
+    return in_qpos, np.array(dofs, dtype=int)
+
+
+def mount_substeps(m: mujoco.MjModel, dofs: np.ndarray, period_s: float) -> int:
+    """Integration steps per sample for the mounts: at most the model's timestep and at most
+    :data:`MOUNT_STEP_FRACTION` of the stiffest mount's period over ``2 pi`` (``1/omega``)."""
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    stiffness = np.zeros(m.nv)
+    for j in range(m.njnt):
+        v = int(m.jnt_dofadr[j])
+        width = {"free": 6, "ball": 3}.get(joint_kind(m, j), 1)
+        stiffness[v : v + width] = m.jnt_stiffness[j]
+    omega = float(np.sqrt(stiffness[dofs] / np.diag(M)[dofs]).max(initial=0.0))
+    step = min(float(m.opt.timestep), MOUNT_STEP_FRACTION / omega if omega > 0 else np.inf)
+    return max(1, math.ceil(period_s / step - 1e-9))
+
+
+#: A mount's integration step, as a fraction of ``1/omega`` of its stiffest spring (semi-implicit
+#: Euler: phase error about ``(h omega)^2 / 24`` per radian, 4e-4 at 0.1).
+MOUNT_STEP_FRACTION = 0.1
+
+
+def _integrate_mounts(
+    cm: CaptureModel, playback: Playback, mount_q: np.ndarray, dofs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The mounts' ``qpos``, ``qvel`` and ``qacc`` at the samples: their springs driven by the
+    played-back segments (whose accelerations are prescribed), integrated by semi-implicit Euler.
+
+    With the segments' accelerations ``a_s`` given, the mounts' follow from the equations of motion
+    partitioned: ``M_mm a_m = f_m - M_ms a_s``, ``f`` the passive (spring, damper) minus the bias
+    (gravity, Coriolis) forces; the mounts have no constraints.
+    """
+    m = cm.model
+    n = playback.time_s.size
+    period = float(playback.time_s[1] - playback.time_s[0]) if n > 1 else 1.0
+    k = mount_substeps(m, dofs, period)
+    h = period / k
+    fine_t = playback.time_s[0] + np.arange((n - 1) * k + 1) * h
+    qpos_s, qvel_s, qacc_s = _generalised(cm, playback, playback_state(playback, fine_t))
+    others = np.setdiff1d(np.arange(m.nv), dofs)
+    d = mujoco.MjData(m)
+    q_now = m.qpos0.copy()
+    v_now = np.zeros(m.nv)
+    M = np.zeros((m.nv, m.nv))
+    out = (np.empty((n, m.nq)), np.empty((n, m.nv)), np.empty((n, m.nv)))
+    for i in range(fine_t.size):
+        q_now[~mount_q] = qpos_s[i, ~mount_q]
+        v_now[others] = qvel_s[i, others]
+        d.qpos[:], d.qvel[:] = q_now, v_now
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mj_fwdVelocity(m, d)
+        mujoco.mj_fullM(m, d, M)
+        f = d.qfrc_passive[dofs] - d.qfrc_bias[dofs] - M[np.ix_(dofs, others)] @ qacc_s[i, others]
+        a_m = np.linalg.solve(M[np.ix_(dofs, dofs)], f)
+        if i % k == 0:
+            out[0][i // k], out[1][i // k] = q_now, v_now
+            out[2][i // k, dofs] = a_m
+        v_now[dofs] += h * a_m
+        step = np.zeros(m.nv)
+        step[dofs] = v_now[dofs]
+        mujoco.mj_integratePos(m, q_now, step, h)
+    return out[0][:, mount_q], out[1][:, dofs], out[2][:, dofs]
+
+
+def run_playback(cm: CaptureModel, playback: Playback) -> tuple[np.ndarray, dict[str, int]]:
+    """The session's sensor data played back from the recording (the rows of
+    :func:`simbench.sim.physics.run_physics`). Sprung mounts on the segments move by physics,
+    driven by the played-back motion (:func:`_integrate_mounts`).
+
+    Returns:
+        ``(sensordata, warnings)``: ``(n, nsensordata)`` MuJoCo's sensors at the samples, and
+        ``{warning name: count}`` of MuJoCo's warnings.
+
+    Raises:
+        InputError: a track naming a joint the model does not have, or of another kind.
+    """
+    m = cm.model
+    n = playback.time_s.size
+    qpos, qvel, qacc = _generalised(cm, playback, playback_state(playback))
+    mount_q, dofs = mount_coordinates(m)
+    if dofs.size:
+        qpos[:, mount_q], qvel[:, dofs], qacc[:, dofs] = _integrate_mounts(cm, playback, mount_q, dofs)
     d = mujoco.MjData(m)
     sensordata = np.empty((n, m.nsensordata))
     for i in range(n):

@@ -12,7 +12,7 @@ mass (:data:`BOX_HALF_M`, :data:`DENSITY_KG_M3`; the geoms do not collide) and a
 one. The segments are not joined: their poses are the recording's, whatever their joints.
 
 Frames where a segment has no pose (an occluded marker) are filled for the smoothing
-(:func:`simbench.sim.recorded.fill_gaps`); a frame is ``valid`` in the motion when every segment
+(:func:`simbench.io.recorded.fill_gaps`); a frame is ``valid`` in the motion when every segment
 has its pose there.
 """
 
@@ -28,7 +28,7 @@ from calibration.rotations import matrix_to_quat, quat_to_matrix
 from simbench.errors import InputError
 from simbench.io.hdf5 import open_hdf5
 from simbench.io.poses import PoseRecording
-from simbench.sim.recorded import RecordedMotion, Track, fill_gaps, frame_grid
+from simbench.io.recorded import RecordedMotion, Track, fill_gaps, frame_grid
 
 #: The model name of a pose trajectory's own bodies (``SessionConfig.model`` with a pose motion).
 POSES_MODEL = "poses"

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from simbench.errors import InputError
+from simbench.io.poses import sample_rate
 
 #: ``qpos`` width of each joint kind.
 WIDTH = {"free": 7, "ball": 4, "hinge": 1, "slide": 1}
@@ -136,8 +137,6 @@ def frame_grid(time_s: np.ndarray, source: str, first_line: int = 2) -> tuple[fl
             or a stamp more than :data:`GRID_TOLERANCE` of a period off the grid (naming its line,
             ``first_line`` being the first stamp's).
     """
-    from simbench.io.poses import sample_rate
-
     t = np.asarray(time_s, dtype=float)
     if t.ndim != 1 or t.size < 2:
         raise InputError(f"{source}: expected at least 2 frames, got {t.size}")
