@@ -17,6 +17,7 @@ same examples every time; ``SIMBENCH_FUZZ_EXAMPLES=5000`` hunts longer, with fre
 
 from __future__ import annotations
 
+import functools
 import gzip
 import os
 import shutil
@@ -1978,3 +1979,57 @@ def test_bvh_reader_returns_a_motion_or_names_the_file(tmp_path_factory, data: b
         assert R.shape == (got.n_frames, len(got.names), 3, 3) and np.isfinite(R).all()
         np.testing.assert_allclose(R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape), atol=1e-9)
         assert np.isfinite(got.offset_m).all() and got.frame_time_s > 0
+
+
+SMALL_QPOS_CSV = """time_s,j1.qw,j1.qx,j1.qy,j1.qz
+0.00,1.0,0.0,0.0,0.0
+0.01,0.9998,0.02,0.0,0.0
+0.02,0.9992,0.04,0.0,0.0
+0.03,0.9982,0.06,0.0,0.0
+"""
+
+
+@functools.cache
+def _linkage_base() -> tuple[object, str]:
+    import mujoco
+
+    from simbench.sim.mjcf import compile_spec, read_spec
+
+    m = compile_spec(read_spec("linkage"), "linkage")
+    ball = next(
+        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
+        for j in range(m.njnt)
+        if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL
+    )
+    return m, ball
+
+
+@PROPERTY
+@given(data=mutated(SMALL_QPOS_CSV, separator=",", values=FIELD_VALUES))
+def test_qpos_csv_reader_returns_a_motion_or_names_the_file(tmp_path_factory, data: bytes) -> None:
+    from simbench.io.qpos import read_qpos_csv
+
+    m, ball = _linkage_base()
+    path = tmp_path_factory.mktemp("qpos") / "motion.csv"
+    path.write_bytes(data.replace(b"j1", ball.encode()))
+    got = _only_input_errors(path, lambda: read_qpos_csv(path, m))
+    if got is not None:
+        assert got.frame_time_s > 0 and got.valid.shape == (got.n_frames,)
+        for track in got.tracks:
+            assert np.isfinite(track.values).all()
+            q = track.quaternion_columns
+            if q is not None:
+                np.testing.assert_allclose(np.linalg.norm(track.values[:, q], axis=1), 1.0, atol=1e-9)
+
+
+@PROPERTY
+@given(data=mutated(SMALL_CSV, separator=",", values=FIELD_VALUES))
+def test_pose_csv_motion_returns_tracks_or_names_the_file(tmp_path_factory, data: bytes) -> None:
+    from simbench.io.read import read_poses
+    from simbench.sim.pose_model import poses_recorded
+
+    path = tmp_path_factory.mktemp("poses") / "poses.csv"
+    path.write_bytes(data)
+    got = _only_input_errors(path, lambda: poses_recorded(read_poses(path)))
+    if got is not None:
+        assert got.frame_time_s > 0 and all(np.isfinite(t.values).all() for t in got.tracks)
