@@ -9,6 +9,7 @@ all drawn from the session seed.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,7 @@ from simbench.sim.playback import (
     plan_playback,
 )
 from simbench.sim.programs import BUILTIN_PROGRAMS, Program, builtin_program, load_program
+from simbench.sim.roles import humanoid_roles
 from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 
 POSES_WHAT = (
@@ -170,6 +172,7 @@ class SessionPlan:
         sensor_config: the sensor configuration (resolved from a preset, file or object).
         streams: independent random generators for the ``skin``, ``tracker`` and ``imu`` models
             (so that switching one imperfection on does not change another's draws).
+        notes: what was changed to fit the sensors to the model (:func:`adapt_preset`).
         playback: the recorded motion played back instead of physics, or ``None``;
             ``program`` is then only its name, one step per sample at the capture period.
     """
@@ -182,6 +185,7 @@ class SessionPlan:
     sensor_config: SensorConfig
     streams: dict[str, np.random.Generator]
     playback: Playback | None = None
+    notes: tuple[str, ...] = ()
 
 
 def steps_per_sample(model_timestep: float, rate_hz: float) -> tuple[int, float]:
@@ -225,7 +229,90 @@ def _mount_of(sensor_config: SensorConfig) -> Mount | None:
     )
 
 
+def _is_preset(config: SessionConfig) -> bool:
+    return isinstance(config.sensors, str) and not config.sensors.endswith(".toml")
+
+
 def _sensor_config(config: SessionConfig) -> SensorConfig:
+    """The session's sensors; a built-in preset's joint play left out on a recorded motion
+    (:func:`adapt_preset` says so)."""
+    sc = _sensor_config_raw(config)
+    if _is_preset(config) and is_recorded(config.motion) and sc.joints.play_m > 0:
+        sc = dataclasses.replace(sc, joints=dataclasses.replace(sc.joints, play_m=0.0))
+    return sc
+
+
+def adapt_preset(config: SessionConfig, cm: CaptureModel) -> tuple[SensorConfig, tuple[str, ...]]:
+    """A built-in preset made to fit the session's model, and what was changed, in plain words.
+
+    Presets written for the humanoid name its segments (``skin.sta_by_sensor``,
+    ``laxity_by_joint``, ``slip``, ``magnetic.attached``): on another model the segments that play
+    those roles (:func:`simbench.sim.roles.humanoid_roles`: a BVH clip's ``LeftUpLeg`` is the
+    ``thigh_l``) take the values; a segment no role fits, and the pack and girdle (their axes are
+    the humanoid's segment frames), are left out. Joint play is left out on a recorded motion.
+    A user's own configuration (a TOML file or object) is never changed: its names must be the
+    model's (:func:`check_sensor_names`).
+    """
+    sc = _sensor_config(config)
+    if not _is_preset(config):
+        return sc, ()
+    notes = []
+    if _sensor_config_raw(config).joints.play_m > 0 and sc.joints.play_m == 0:
+        notes.append("joint play left out: a recorded motion sets every joint kinematically")
+    sensors = list(cm.sensors)
+    _, child = joint_sensor_indices(cm)
+    children = [sensors[c] for c in child]
+    roles = humanoid_roles(sensors)
+    renamed: dict[str, str] = {}
+    dropped: list[str] = []
+
+    def rename(name: str, among: list[str], key: str) -> str | None:
+        if name in among:
+            return name
+        to = roles.get(name)
+        if to in among:
+            renamed[name] = to
+            return to
+        dropped.append(f"{key} {name}")
+        return None
+
+    skin = sc.skin
+    sta = {n: v for k, v in skin.sta_by_sensor.items() if (n := rename(k, sensors, "skin.sta_by_sensor"))}
+    lax = {
+        n: v for k, v in skin.laxity_by_joint.items() if (n := rename(k, children, "skin.laxity_by_joint"))
+    }
+    slips = tuple(
+        dataclasses.replace(x, sensor=n) for x in skin.slip if (n := rename(x.sensor, sensors, "skin.slip"))
+    )
+    pack = skin.pack
+    if pack is not None and not {pack.sensor, pack.pushed_by} <= set(sensors):
+        dropped.append(f"skin.pack on {pack.sensor} (its axes are the humanoid's)")
+        pack = None
+    girdle = tuple(g for g in skin.girdle if g.joint in children)
+    dropped += [
+        f"skin.girdle {g.joint} (its axes are the humanoid's)" for g in skin.girdle if g.joint not in children
+    ]
+    attached = tuple(
+        dataclasses.replace(a, sensor=n)
+        for a in sc.magnetic.attached
+        if (n := rename(a.sensor, sensors, "magnetic.attached"))
+    )
+    if renamed:
+        pairs = ", ".join(f"{k} -> {v}" for k, v in sorted(renamed.items()))
+        notes.append(f"the humanoid's segments played by this model's: {pairs}")
+    if dropped:
+        notes.append(f"left out, no segment of this model plays them: {'; '.join(sorted(set(dropped)))}")
+    said = tuple(f"sensor preset {sc.name!r}: {n}" for n in notes)
+    if not renamed and not dropped:
+        return sc, said
+    skin = dataclasses.replace(
+        skin, sta_by_sensor=sta, laxity_by_joint=lax, slip=slips, pack=pack, girdle=girdle
+    )
+    magnetic = dataclasses.replace(sc.magnetic, attached=attached)
+    return dataclasses.replace(sc, skin=skin, magnetic=magnetic), said
+
+
+def _sensor_config_raw(config: SessionConfig) -> SensorConfig:
     return config.sensors if isinstance(config.sensors, SensorConfig) else load_sensor_config(config.sensors)
 
 
@@ -297,8 +384,9 @@ def check_sensor_names(sensor_config: SensorConfig, cm: CaptureModel, source: st
 
 
 def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
-    """Draw everything random about a session from its seed, and check it against the model."""
-    sensor_config = _sensor_config(config)
+    """Draw everything random about a session from its seed, and check it against the model (a
+    built-in preset first made to fit it: :func:`adapt_preset`)."""
+    sensor_config, notes = adapt_preset(config, cm)
     if _mount_of(sensor_config) != cm.mount:
         raise InputError(
             f"sensors {config.sensors!r} need mount {_mount_of(sensor_config)}; the model was loaded with "
@@ -345,4 +433,4 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     streams = {
         name: np.random.default_rng(s) for name, s in zip(("skin", "tracker", "imu"), seeds[2:], strict=True)
     }
-    return SessionPlan(program, root_phases, k, dt, n_samples, sensor_config, streams, playback)
+    return SessionPlan(program, root_phases, k, dt, n_samples, sensor_config, streams, playback, notes)

@@ -152,6 +152,7 @@ def _meta(
         "sensor_model": sensor_config.name,
         "sensor_config": sensor_config.as_dict(),
         "mujoco_warnings": warnings,
+        **({"sensor_notes": list(plan.notes)} if plan.notes else {}),
         **({} if plan.playback is None else {"playback": plan.playback.as_dict()}),
         "config": config.as_dict(),
         "versions": software_versions(),
