@@ -165,12 +165,16 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         f"{meta['sensor_model']}, seed {args.seed}"
     )
     played = meta.get("playback")
-    stage = (
-        f"played back (kinematic; rates smoothed below {played['cutoff_hz']:g} Hz, Savitzky-Golay window "
-        f"{played['window_frames']} frames{', resampled' if played['resampled'] else ''})"
-        if played
-        else f"physics: {1 / meta['physics_timestep_s']:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
-    )
+    if played:
+        filled = played["frames_filled"]
+        stage = (
+            f"played back (kinematic; rates smoothed below {played['cutoff_hz']:g} Hz, Savitzky-Golay window "
+            f"{played['window_frames']} frames{', resampled' if played['resampled'] else ''}"
+            f"{f'; {filled} frames without a pose filled' if filled else ''})"
+        )
+    else:
+        rate = 1 / meta["physics_timestep_s"]
+        stage = f"physics: {rate:.6g} Hz ({meta['steps_per_sample']} steps per sample)"
     print(f"  sensors: {len(ds.sensors)}   samples: {meta['n_samples']} at {meta['rate_hz']:g} Hz   {stage}")
     print(f"  sensors on: {', '.join(ds.sensors)}")
     if ds.markers is not None:
