@@ -118,6 +118,24 @@ def test_positions_units_and_up_axis(clip):
     assert read_bvh(path, units="m").offset_m[1] == pytest.approx([0.0, -3.0, 20.0])
 
 
+def test_cmu_units_and_crlf_line_ends(clip, tmp_path):
+    """The CMU database's BVH conversions: lengths in its ASF unit (1/0.45 inch, mocap.cs.cmu.edu's
+    FAQ: x (1.0/0.45)*2.54/100 to metres) and Windows line ends; both read as the file means them."""
+    path, _, root = clip
+    crlf = tmp_path / "crlf.bvh"
+    crlf.write_bytes(path.read_bytes().replace(b"\n", b"\r\n"))
+    assert crlf.read_bytes().count(b"\r\n") > 60
+    cm, cmu = read_bvh(path), read_bvh(crlf, units="cmu")
+    metres_per_unit = 1.0 / 0.45 * 2.54 / 100
+    assert metres_per_unit == pytest.approx(0.056444, abs=1e-6)
+    np.testing.assert_allclose(cmu.offset_m, cm.offset_m * 100 * metres_per_unit, rtol=1e-12)
+    np.testing.assert_allclose(cmu.translation_m[:, 0], (root @ Y_UP_TO_Z_UP.T) * metres_per_unit, rtol=1e-12)
+    np.testing.assert_allclose(cmu.R_parent_joint, cm.R_parent_joint, atol=0)
+    assert cmu.frame_time_s == cm.frame_time_s and cmu.names == cm.names
+    with pytest.raises(InputError, match=r"unknown units 'inch': expected one of m, cm, mm, in, cmu"):
+        read_bvh(path, units="inch")
+
+
 @pytest.mark.parametrize(
     ("edit", "message"),
     [

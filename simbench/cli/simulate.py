@@ -16,6 +16,7 @@ from simbench.api import (
 )
 from simbench.cli.types import non_negative_float, positive_float, seed
 from simbench.errors import InputError
+from simbench.io.bvh import BVH_LENGTH_UNITS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -44,9 +45,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     sim.add_argument(
         "--motion-units",
         default=None,
-        choices=("m", "cm", "mm", "in"),
+        choices=tuple(BVH_LENGTH_UNITS),
         help="a recorded motion's length unit (default the file's convention: .bvh cm, pose .csv m, .c3d "
-        "its POINT:UNITS)",
+        "its POINT:UNITS; cmu: the CMU mocap database's BVH unit, 1/0.45 in)",
     )
     sim.add_argument(
         "--motion-clusters",
