@@ -30,12 +30,20 @@ UNITS: dict[str, tuple[str, float]] = {
 LENGTH_UNITS: dict[str, float] = {u: f for u, (si, f) in UNITS.items() if si == "m"}
 
 
-def metres_per_unit(units: str) -> float:
-    """Metres in one ``units`` (``m``, ``cm``, ``mm``, ``in``)."""
+#: A BVH file's length units, metres per unit: :data:`LENGTH_UNITS` and ``cmu``, the unit of the
+#: CMU Graphics Lab Motion Capture Database's ASF skeletons (``:units length 0.45``: a length of 1
+#: is 1/0.45 inch), which its BVH conversions (Bruce Hahne's, cgspeed) keep; mocap.cs.cmu.edu's FAQ
+#: scales it by (1.0/0.45)*2.54/100 to metres, 0.0564 m. Read as ``cm``, a CMU skeleton is 5.6
+#: times too small (hips 16 cm above the floor).
+BVH_LENGTH_UNITS: dict[str, float] = {**LENGTH_UNITS, "cmu": 0.0254 / 0.45}
+
+
+def metres_per_unit(units: str, table: dict[str, float] = LENGTH_UNITS) -> float:
+    """Metres in one ``units`` of ``table`` (by default ``m``, ``cm``, ``mm``, ``in``)."""
     try:
-        return LENGTH_UNITS[units]
+        return table[units]
     except KeyError:
-        raise InputError(f"unknown units {units!r}: expected one of {', '.join(LENGTH_UNITS)}") from None
+        raise InputError(f"unknown units {units!r}: expected one of {', '.join(table)}") from None
 
 
 #: Plausible limb lengths, metres: a body segment or a linkage piece.

@@ -16,7 +16,7 @@ from simbench.api import (
 )
 from simbench.cli.types import non_negative_float, positive_float, seed
 from simbench.errors import InputError
-from simbench.io.bvh import BVH_LENGTH_UNITS
+from simbench.units import BVH_LENGTH_UNITS
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

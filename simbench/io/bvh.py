@@ -12,7 +12,7 @@ rotations in listed order, degrees); a joint maps its child's frame into its par
 **Frames and units.** BVH is y-up by convention; simbench is z-up: every vector ``v`` is carried
 over as ``C @ v`` and every rotation as ``C @ R @ C.T`` with ``C`` the rotation taking +y to +z
 (:data:`Y_UP_TO_Z_UP`, +z to -y). Lengths are read in ``units`` (centimetres by convention, the
-default; :data:`BVH_LENGTH_UNITS`) and returned in metres.
+default; :data:`simbench.units.BVH_LENGTH_UNITS`) and returned in metres.
 
 **Line ends.** LF, CRLF (the CMU conversions are Windows files) or CR alike.
 
@@ -31,17 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from simbench.errors import InputError, read_text
-from simbench.units import LENGTH_UNITS
+from simbench.units import BVH_LENGTH_UNITS, metres_per_unit
 
 #: ``C``: BVH's y-up coordinates into simbench's z-up ones (x stays, +y becomes +z, +z becomes -y).
 Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-
-#: A BVH file's length units, metres per unit: simbench's (:data:`simbench.units.LENGTH_UNITS`) and
-#: ``cmu``, the unit of the CMU Graphics Lab Motion Capture Database's ASF skeletons (``:units length
-#: 0.45``: a length of 1 is 1/0.45 inch), which its BVH conversions (Bruce Hahne's, cgspeed) keep;
-#: mocap.cs.cmu.edu's FAQ scales it by (1.0/0.45)*2.54/100 to metres, 0.0564 m. Read as ``cm``, a
-#: CMU skeleton is 5.6 times too small (hips 16 cm above the floor).
-BVH_LENGTH_UNITS: dict[str, float] = {**LENGTH_UNITS, "cmu": 0.0254 / 0.45}
 
 _POSITION = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 _ROTATION = {"Xrotation": "x", "Yrotation": "y", "Zrotation": "z"}
@@ -146,14 +139,12 @@ def read_bvh(path: str | os.PathLike[str], *, units: str = "cm") -> BvhMotion:
     Args:
         path: the file.
         units: the file's length unit (``cm`` by convention; ``m``, ``mm``, ``in``, ``cmu``:
-            :data:`BVH_LENGTH_UNITS`).
+            :data:`simbench.units.BVH_LENGTH_UNITS`).
 
     Raises:
         InputError: naming the file and line (module docstring), or an unknown unit.
     """
-    if units not in BVH_LENGTH_UNITS:
-        raise InputError(f"unknown units {units!r}: expected one of {', '.join(BVH_LENGTH_UNITS)}")
-    scale = BVH_LENGTH_UNITS[units]
+    scale = metres_per_unit(units, BVH_LENGTH_UNITS)
     path = Path(path)
     lines = read_text(path).splitlines()
     tokens: list[tuple[int, str]] = []
