@@ -32,7 +32,7 @@ from simbench.io.recorded import RecordedMotion
 from simbench.sim.bvh_model import bvh_recorded, bvh_spec, read_clip
 from simbench.sim.mjcf import compile_spec, read_spec
 from simbench.sim.pose_model import poses_recorded, poses_spec, read_broad_poses
-from simbench.units import LENGTH_UNITS
+from simbench.units import BVH_LENGTH_UNITS
 
 #: Suffixes of recorded motions and their format (``.csv``: :func:`motion_format` looks inside).
 SUFFIXES = {
@@ -202,5 +202,5 @@ def check_units(units: str | None) -> None:
     Raises:
         InputError: naming the known units.
     """
-    if units is not None and units not in LENGTH_UNITS:
-        raise InputError(f"motion units {units!r}: expected one of {', '.join(LENGTH_UNITS)}")
+    if units is not None and units not in BVH_LENGTH_UNITS:
+        raise InputError(f"motion units {units!r}: expected one of {', '.join(BVH_LENGTH_UNITS)}")
