@@ -8,7 +8,11 @@ The model follows the file's hierarchy (:func:`simbench.io.bvh.read_bvh`, z up, 
   refused); a body's frame at rest is its BVH joint's frame at zero angles, so the body frame
   *is* the BVH joint frame at every frame;
 - **joints**: a free joint on the root and a ball joint on every other body, each named after
-  its BVH joint; ``qpos`` of a ball joint is the quaternion of the file's ``R_parent_joint``;
+  its BVH joint; ``qpos`` of a ball joint is the quaternion of the file's ``R_parent_joint``. A
+  joint whose rotation does not change over the clip (a conversion's fixed hip or clavicle
+  joints, a finger held still; within :data:`FIXED_ROTATION_RAD`) is welded: its body is turned
+  by that rotation and has no joint and no sensor, so that the sensors of the joints that move are
+  joined by one joint each;
 - **geometry and mass**: a capsule from each joint to each child's offset and to each of its End
   Sites, of radius :data:`RADIUS_FRACTION` of its length clipped to
   [:data:`RADIUS_MIN_M`, :data:`RADIUS_MAX_M`], density :data:`DENSITY_KG_M3` (water: MuJoCo
@@ -48,6 +52,10 @@ RADIUS_MAX_M = 0.05
 
 #: Segments shorter than this get no capsule, m.
 MIN_SEGMENT_M = 1e-4
+
+#: A joint other than the root whose rotation turns less than this over the clip (from its first
+#: frame's) is welded, rad.
+FIXED_ROTATION_RAD = 1e-9
 
 #: A joint's position channels that move less than this over the clip are a constant offset, m.
 CONSTANT_TRANSLATION_M = 1e-9
@@ -101,6 +109,18 @@ def body_positions(motion: BvhMotion) -> np.ndarray:
     return pos
 
 
+def fixed_joints(motion: BvhMotion) -> np.ndarray:
+    """``(J,)`` bool: the joints (never the root) whose rotation stays within
+    :data:`FIXED_ROTATION_RAD` of its first frame's over the clip."""
+    R = motion.R_parent_joint
+    rel = np.einsum("jba,fjbc->fjac", R[0], R)  # R_0^T R_f
+    cos = np.clip((np.trace(rel, axis1=-2, axis2=-1) - 1) / 2, -1.0, 1.0)
+    turned = np.arccos(cos).max(axis=0)
+    fixed = turned <= FIXED_ROTATION_RAD
+    fixed[0] = False
+    return fixed
+
+
 def _segments(motion: BvhMotion, pos: np.ndarray) -> list[list[np.ndarray]]:
     """Each joint's segment ends in its own frame: its children's positions, then its End Sites."""
     ends: list[list[np.ndarray]] = [[] for _ in motion.names]
@@ -121,15 +141,17 @@ def bvh_mjcf(motion: BvhMotion) -> str:
 
     pos = body_positions(motion)
     ends = _segments(motion, pos)
+    fixed = fixed_joints(motion)
+    quat0 = matrix_to_quat(motion.R_parent_joint[0])
     root = mjcf.RootElement(model=Path(motion.source).stem or "bvh")
     bodies = []
     try:
         for k, name in enumerate(motion.names):
             up = root.worldbody if motion.parent[k] < 0 else bodies[motion.parent[k]]
-            body = up.add("body", name=name, pos=pos[k])
+            body = up.add("body", name=name, pos=pos[k], **({"quat": quat0[k]} if fixed[k] else {}))
             if motion.parent[k] < 0:
                 body.add("freejoint", name=name)
-            else:
+            elif not fixed[k]:
                 body.add("joint", name=name, type="ball")
             segments = [e for e in ends[k] if np.linalg.norm(e) > MIN_SEGMENT_M]
             for end in segments:
@@ -151,9 +173,10 @@ def bvh_mjcf(motion: BvhMotion) -> str:
                     contype=0,
                     conaffinity=0,
                 )
-            shift, quat = default_site_frame(k)
-            mid = 0.5 * ends[k][0] if ends[k] else np.zeros(3)
-            body.add("site", name=f"sensor_{name}", pos=mid + shift, quat=quat)
+            if not fixed[k]:
+                shift, quat = default_site_frame(k)
+                mid = 0.5 * ends[k][0] if ends[k] else np.zeros(3)
+                body.add("site", name=f"sensor_{name}", pos=mid + shift, quat=quat)
             bodies.append(body)
     except (ValueError, TypeError) as exc:  # PyMJCF refuses names with '/' and the like
         raise InputError(f"{motion.source}: cannot make an MJCF skeleton of it: {exc}") from None
@@ -172,12 +195,15 @@ def bvh_spec(motion: BvhMotion) -> mujoco.MjSpec:
 
 def bvh_recorded(motion: BvhMotion) -> RecordedMotion:
     """The clip as the tracks of its skeleton's joints: the root's free joint (its offset plus
-    position channels, and its rotation), a ball joint per other joint (the quaternion of its
-    ``R_parent_joint``)."""
+    position channels, and its rotation), a ball joint per other joint that moves (the quaternion
+    of its ``R_parent_joint``; a welded joint's rotation is its body's)."""
     quat = matrix_to_quat(motion.R_parent_joint)
     root = motion.offset_m[0] + motion.translation_m[:, 0]
     tracks = [Track(motion.names[0], "free", np.concatenate([root, quat[:, 0]], axis=1))]
-    tracks += [Track(name, "ball", quat[:, k]) for k, name in enumerate(motion.names) if k > 0]
+    fixed = fixed_joints(motion)
+    tracks += [
+        Track(name, "ball", quat[:, k]) for k, name in enumerate(motion.names) if k > 0 and not fixed[k]
+    ]
     return RecordedMotion(
         source=motion.source,
         frame_time_s=motion.frame_time_s,
