@@ -606,7 +606,14 @@ def read_opensim_motion(path: str | os.PathLike[str], m: mujoco.MjModel, model: 
     if "inDegrees" not in st.header:
         unit = "radians (no inDegrees: OpenSim's default)"
     notes.append(f"angles in {unit}")
-    period, frame = frame_grid(st.time_s, st.source, first_line=st.first_line)
+    t = st.time_s
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:  # as frame_grid says it, on the row's own line
+        k = int(back[0]) + 1
+        raise InputError(
+            f"{st.source}, line {st.row_lines[k]}: time {t[k]:.9g} s does not follow {t[k - 1]:.9g} s"
+        )
+    period, frame = frame_grid(t, st.source, first_line=st.first_line)
     total = int(frame[-1]) + 1
     valid = np.zeros(total, dtype=bool)
     valid[frame] = True
