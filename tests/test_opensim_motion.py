@@ -9,11 +9,13 @@ the ``opensim`` package is installed), a session's own truth for the exported sk
 
 from __future__ import annotations
 
+import functools
 import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from hypothesis import given
 from scipy.spatial.transform import Rotation
 
 import simbench as sb
@@ -26,6 +28,7 @@ from simbench.io.opensim_motion import read_opensim_motion, read_storage, storag
 from simbench.io.skeleton_mjcf import skeleton_mjcf, skeleton_qpos
 from simbench.io.skeleton_osim import skeleton_osim
 from simbench.sim.mjcf import compile_spec, read_spec
+from tests.test_fuzz import FIELD_VALUES, PROPERTY, _only_input_errors, mutated
 
 RATE = 60.0
 FRAMES = 40
@@ -456,6 +459,10 @@ BAD_FILES = {
         lambda ls: [*ls[:20], "0.1750000000" + ls[20][12:], *ls[21:]],
         r", line 21: time 0.175 s is off the recording's frame grid",
     ),
+    "time back": (
+        lambda ls: [*ls[:20], "0.1500000000" + ls[20][12:], *ls[21:]],
+        r", line 21: time 0.15 s does not follow 0.15 s",
+    ),
     "inDegrees": (
         lambda ls: [*ls[:4], "inDegrees=maybe", *ls[5:]],
         r", line 5: inDegrees='maybe'; expected yes or no",
@@ -510,3 +517,36 @@ def test_cli_simulate_motion_mot_writes_a_dataset(tmp_path, monkeypatch, capsys)
     np.testing.assert_allclose(_p(ds, "pelvis")[:, 0], 1.2 * t, atol=1e-9)
     code = main(["simulate", "--motion", "walk.mot", "--model", "linkage", "-o", "x.h5"])
     assert code != 0 and "map onto humanoid" in capsys.readouterr().err
+
+
+SMALL_MOT = """Coordinates
+version=1
+nRows=4
+nColumns=5
+inDegrees=yes
+endheader
+time\tpelvis_ty\thip_flexion_r\tknee_angle_r\tsubtalar_angle_r
+0.00\t0.94\t10.0\t-20.0\t1.0
+0.01\t0.95\t11.0\t-21.0\t1.0
+0.02\t0.96\t12.0\t-22.0\t1.0
+0.03\t0.97\t13.0\t-23.0\t1.0
+"""
+
+
+@PROPERTY
+@given(data=mutated(SMALL_MOT, separator="\t", values=FIELD_VALUES))
+def test_mutated_files_give_a_motion_or_name_the_file(tmp_path_factory, data: bytes) -> None:
+    path = tmp_path_factory.mktemp("mot") / "motion.mot"
+    path.write_bytes(data)
+    got = _only_input_errors(path, lambda: read_opensim_motion(path, _humanoid_model(), "humanoid"))
+    if got is not None:
+        assert got.frame_time_s > 0 and got.valid.shape == (got.n_frames,)
+        for track in got.tracks:
+            assert np.isfinite(track.values).all()
+            q = track.quaternion_columns
+            np.testing.assert_allclose(np.linalg.norm(track.values[:, q], axis=1), 1.0, atol=1e-9)
+
+
+@functools.cache
+def _humanoid_model():
+    return _humanoid()
