@@ -26,6 +26,7 @@ from pathlib import Path
 import mujoco
 
 from simbench.errors import InputError
+from simbench.io.opensim_motion import read_opensim_motion
 from simbench.io.qpos import npz_model, read_qpos_csv, read_qpos_npz
 from simbench.io.read import is_simbench_dataset, read_poses
 from simbench.io.recorded import RecordedMotion
@@ -188,7 +189,7 @@ def _load_cached(
     if fmt == "qpos":
         reader = read_qpos_npz if Path(path).suffix.lower() == ".npz" else read_qpos_csv
         return MotionSource(_named(reader(path, m), name), model, None)
-    raise InputError(f"motion {name}: OpenSim motion files are not read yet")
+    return MotionSource(_named(read_opensim_motion(path, m, model), name), model, None)
 
 
 def _named(rec: RecordedMotion, name: str) -> RecordedMotion:
