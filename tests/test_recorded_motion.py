@@ -420,3 +420,18 @@ def test_a_mount_with_a_rotational_spring_stays_stable_on_a_recorded_skeleton(tm
     # mode far faster than its springs alone): the implicit springs keep it on the bone, within mm
     off = np.linalg.norm(ds.truth.actual.p_w_s - ds.truth.rigid.p_w_s, axis=2)
     assert np.isfinite(ds.truth.actual.acc).all() and 1e-5 < off.max() < 0.005
+
+
+def test_qpos_csv_errors_name_the_files_own_lines_past_blank_ones(tmp_path):
+    ball = _a_ball_joint()
+    path = tmp_path / "blank.csv"
+    path.write_text(
+        f"time_s,{ball}.qw,{ball}.qx,{ball}.qy,{ball}.qz\n\n0,1,0,0,0\n\n0.01,1,0,0,0\n0.01,1,0,0,0\n"
+    )
+    with pytest.raises(InputError, match=r"blank.csv, line 6: time 0.01 s does not follow 0.01 s"):
+        sb.simulate("linkage", str(path))
+
+
+def test_what_a_reader_noticed_reaches_the_dataset(tmp_path):
+    ds = sb.simulate(motion=BROAD_EXCERPT)
+    assert any("without an optical pose" in n for n in ds.meta["playback"]["notes"])

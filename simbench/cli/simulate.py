@@ -183,7 +183,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             f"  markers: {len(ds.markers.labels)} ({args.markers_per_segment} per segment; skin motion "
             f"{args.marker_skin:g} mm, camera noise {args.marker_noise:g} mm)"
         )
-    for note in meta.get("sensor_notes", ()):
+    for note in [*(played or {}).get("notes", ()), *meta.get("sensor_notes", ())]:
         print(f"  note: {note}")
     if meta["mujoco_warnings"]:
         print(f"  MuJoCo warnings: {meta['mujoco_warnings']}")

@@ -72,12 +72,12 @@ def _open_npz(path: str | os.PathLike[str]) -> np.lib.npyio.NpzFile:
         raise InputError(f"{path}: not a NumPy .npz archive: {exc}") from None
 
 
-def _check_quaternions(path: str, name: str, q: np.ndarray, line0: int | None) -> np.ndarray:
+def _check_quaternions(path: str, name: str, q: np.ndarray, lines: np.ndarray | None) -> np.ndarray:
     with np.errstate(over="ignore"):  # a component of 1e308 has an infinite norm: not a rotation
         norm = np.linalg.norm(q, axis=1)
     bad = np.flatnonzero(~(np.abs(norm - 1) <= QUAT_NORM_TOLERANCE))
     if bad.size:
-        where = f"line {line0 + bad[0]}" if line0 is not None else f"frame {bad[0]}"
+        where = f"line {lines[bad[0]]}" if lines is not None else f"frame {bad[0]}"
         raise InputError(
             f"{path}, {where}: joint {name!r}'s quaternion has norm {norm[bad[0]]:.6g} (expected 1 within "
             f"{QUAT_NORM_TOLERANCE:g}; {bad.size} such frame(s))"
@@ -85,8 +85,11 @@ def _check_quaternions(path: str, name: str, q: np.ndarray, line0: int | None) -
     return q / norm[:, None]
 
 
-def _tracks(path: str, m: mujoco.MjModel, columns: dict[str, np.ndarray], line0: int | None) -> list[Track]:
-    """Tracks from ``{column name: (F,) values}`` named as in the module docstring."""
+def _tracks(
+    path: str, m: mujoco.MjModel, columns: dict[str, np.ndarray], lines: np.ndarray | None
+) -> list[Track]:
+    """Tracks from ``{column name: (F,) values}`` named as in the module docstring (``lines``: each
+    frame's line in the file, or ``None`` for an archive)."""
     used: set[str] = set()
     tracks = []
     for name, kind, _ in model_joints(m):
@@ -100,7 +103,7 @@ def _tracks(path: str, m: mujoco.MjModel, columns: dict[str, np.ndarray], line0:
         values = np.stack([columns[c] for c in names], axis=1)
         q = {"free": slice(3, 7), "ball": slice(0, 4)}.get(kind)
         if q is not None:
-            values[:, q] = _check_quaternions(path, name, values[:, q], line0)
+            values[:, q] = _check_quaternions(path, name, values[:, q], lines)
         tracks.append(Track(name, kind, values))
         used.update(names)
     unknown = [c for c in columns if c not in used]
@@ -116,8 +119,8 @@ def _tracks(path: str, m: mujoco.MjModel, columns: dict[str, np.ndarray], line0:
     return tracks
 
 
-def _recorded(path: str, time_s: np.ndarray, tracks: list[Track], line0: int | None) -> RecordedMotion:
-    period, frame = frame_grid(time_s, path, first_line=line0 if line0 is not None else 0)
+def _recorded(path: str, time_s: np.ndarray, tracks: list[Track], lines: np.ndarray | None) -> RecordedMotion:
+    period, frame = frame_grid(time_s, path, first_line=-1, lines=lines)
     n = int(frame[-1]) + 1
     valid = np.zeros(n, dtype=bool)
     valid[frame] = True
@@ -199,31 +202,37 @@ def read_qpos_csv(path: str | os.PathLike[str], m: mujoco.MjModel) -> RecordedMo
             value that is not a finite number, time stamps off a constant rate, unknown columns.
     """
     src = str(path)
-    rows = list(csv.reader(io.StringIO(read_text(path))))
-    rows = [r for r in rows if r and any(x.strip() for x in r)]
+    reader = csv.reader(io.StringIO(read_text(path)))
+    numbered = [(reader.line_num, r) for r in reader]
+    numbered = [(n, r) for n, r in numbered if r and any(x.strip() for x in r)]
+    rows = [r for _, r in numbered]
+    line_of = np.array([n for n, _ in numbered])
     if not rows:
         raise InputError(f"{src}: empty file; expected a header time_s,<coordinates>")
     header = [h.strip().lstrip("\ufeff") for h in rows[0]]
     if "time_s" not in header:
-        raise InputError(f"{src}, line 1: no column 'time_s' in the header {header}")
+        raise InputError(f"{src}, line {line_of[0]}: no column 'time_s' in the header {header}")
     if len(set(header)) != len(header):
-        raise InputError(f"{src}, line 1: columns named twice in {header}")
+        raise InputError(f"{src}, line {line_of[0]}: columns named twice in {header}")
     data = np.empty((len(rows) - 1, len(header)))
     for i, row in enumerate(rows[1:]):
         if len(row) != len(header):
-            raise InputError(f"{src}, line {i + 2}: {len(row)} fields; the header has {len(header)}")
+            raise InputError(f"{src}, line {line_of[i + 1]}: {len(row)} fields; the header has {len(header)}")
         for c, x in enumerate(row):
             try:
                 data[i, c] = float(x)
             except ValueError:
-                where = f"{src}, line {i + 2}, column {header[c]!r}"
+                where = f"{src}, line {line_of[i + 1]}, column {header[c]!r}"
                 raise InputError(f"{where}: {x!r} is not a number") from None
     bad = np.argwhere(~np.isfinite(data))
     if bad.size:
         i, c = bad[0]
-        raise InputError(f"{src}, line {i + 2}, column {header[c]!r}: {data[i, c]} is not a finite number")
+        raise InputError(
+            f"{src}, line {line_of[i + 1]}, column {header[c]!r}: {data[i, c]} is not a finite number"
+        )
     columns = {h: data[:, c] for c, h in enumerate(header) if h != "time_s"}
-    return _recorded(src, data[:, header.index("time_s")], _tracks(src, m, columns, 2), 2)
+    lines = line_of[1:]
+    return _recorded(src, data[:, header.index("time_s")], _tracks(src, m, columns, lines), lines)
 
 
 def write_qpos_npz(

@@ -121,7 +121,9 @@ class RecordedMotion:
         return tuple(t.joint for t in self.tracks)
 
 
-def frame_grid(time_s: np.ndarray, source: str, first_line: int = 2) -> tuple[float, np.ndarray]:
+def frame_grid(
+    time_s: np.ndarray, source: str, first_line: int = 2, lines: np.ndarray | None = None
+) -> tuple[float, np.ndarray]:
     """The constant frame period of recorded time stamps ``(F,)`` s and each stamp's frame on it.
 
     The period is the median step, refined by a least-squares line through the stamps against their
@@ -134,30 +136,30 @@ def frame_grid(time_s: np.ndarray, source: str, first_line: int = 2) -> tuple[fl
 
     Raises:
         InputError: fewer than 2 stamps, a stamp that is not a number, stamps that do not increase,
-            or a stamp more than :data:`GRID_TOLERANCE` of a period off the grid (naming its line,
-            ``first_line`` being the first stamp's).
+            or a stamp more than :data:`GRID_TOLERANCE` of a period off the grid (naming its line:
+            ``lines[k]`` for stamp ``k`` when given, else ``first_line + k``; a negative
+            ``first_line`` names frames, counted from 0, for a file without lines).
     """
     t = np.asarray(time_s, dtype=float)
+
+    def at(k: int) -> str:
+        if lines is not None:
+            return f"{source}, line {int(lines[k])}"
+        return f"{source}, frame {k}" if first_line < 0 else f"{source}, line {first_line + k}"
+
     if t.ndim != 1 or t.size < 2:
         raise InputError(f"{source}: expected at least 2 frames, got {t.size}")
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise InputError(f"{source}, line {first_line + bad[0]}: time {t[bad[0]]} is not a number")
-    step = np.diff(t)
-    back = np.flatnonzero(step <= 0)
+        raise InputError(f"{at(int(bad[0]))}: time {t[bad[0]]} is not a number")
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:  # before the rate: repeated stamps have no rate
+        k = int(back[0]) + 1
+        raise InputError(f"{at(k)}: time {t[k]:.9g} s does not follow {t[k - 1]:.9g} s")
     _, bursty = sample_rate(t)
-
-    def not_after(k: int) -> InputError:
-        where = f"{source}, line {first_line + k}"
-        return InputError(f"{where}: time {t[k]:.9g} s does not follow {t[k - 1]:.9g} s")
-
     if bursty is not None:
-        if back.size:
-            raise not_after(int(back[0]) + 1)
         return float((t[-1] - t[0]) / (t.size - 1)), np.arange(t.size)
-    period = float(np.median(step))
-    if back.size or not period > 0:
-        raise not_after(int(back[0]) + 1 if back.size else 1)
+    period = float(np.median(np.diff(t)))
     frame = np.rint((t - t[0]) / period).astype(np.int64)
     if frame[-1] > 1 and np.all(np.diff(frame) > 0):  # refine: the line through (frame, t)
         period = float(np.polyfit(frame, t, 1)[0])
@@ -167,7 +169,7 @@ def frame_grid(time_s: np.ndarray, source: str, first_line: int = 2) -> tuple[fl
     if off.any():
         k = int(np.flatnonzero(off)[0])
         raise InputError(
-            f"{source}, line {first_line + k}: time {t[k]:.9g} s is off the recording's frame grid (period "
+            f"{at(k)}: time {t[k]:.9g} s is off the recording's frame grid (period "
             f"{period:.6g} s from {t[0]:.9g} s; {int(off.sum())} such stamp(s)): a constant rate is needed, "
             "resample the recording"
         )

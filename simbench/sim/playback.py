@@ -87,6 +87,7 @@ class Playback:
             "window_frames": self.window,
             "polyorder": POLYORDER,
             "resampled": self.frames is None,
+            "notes": list(self.motion.notes),
         }
 
 

@@ -91,7 +91,7 @@ def poses_recorded(rec: PoseRecording) -> RecordedMotion:
         InputError: time stamps off a constant rate, a segment without any pose.
     """
     rec = rec.in_unit("m")
-    period, frame = frame_grid(rec.time_s, rec.source)
+    period, frame = frame_grid(rec.time_s, rec.source, first_line=-1)
     n = int(frame[-1]) + 1
     tracks = []
     for k, name in enumerate(rec.names):
