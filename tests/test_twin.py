@@ -4,6 +4,7 @@ excerpt, bad inputs, and the targets on the real trials when ``../shared/data`` 
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import h5py
@@ -15,6 +16,7 @@ from numpy.testing import assert_allclose
 
 import simbench as sb
 from calibration.rotations import euler_to_matrix, matrix_to_quat, rotvec_to_matrix
+from simbench.cli import main
 from simbench.errors import InputError
 from simbench.twin import EFFECTS, compare, identify, twin, twin_readings
 from simbench.twin.identify import GRADIENT_BASIS
@@ -359,3 +361,111 @@ def test_spectrum_summary_finds_a_tone_and_its_band():
     assert s["power"] == pytest.approx(0.5 + 0.005, rel=0.05)  # the variance, axes summed
     with pytest.raises(InputError, match="no stretch of 4 s"):
         compare.spectrum_summary(x, rate, np.arange(t.size) % 100 < 50)
+
+
+# --- the command line on the shipped excerpt, and bad inputs --------------------------------------
+
+
+def test_the_cli_writes_the_twin_json_and_report(tmp_path, capsys):
+    out, report = tmp_path / "twin.json", tmp_path / "report"
+    argv = [
+        "twin",
+        str(EXCERPT),
+        "--json",
+        str(out),
+        "--out",
+        str(report),
+        "--window",
+        "12:18",
+        "--seed",
+        "2",
+    ]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "gyro R^2" in printed and "vqf" in printed
+    d = json.loads(out.read_text())
+    for kind in ("acc", "gyro", "mag"):
+        assert {"r2", "rms", "spectrum"} <= set(d["readings"][kind])
+        assert {"median_frequency_hz", "peak_frequency_hz", "band_share"} <= set(
+            d["readings"][kind]["spectrum"]
+        )
+    assert d["readings"]["gyro"]["r2"] > 0.95  # the excerpt's motion phase
+    ident = d["identified"]
+    for key in (
+        "gyro_bias_rad_s",
+        "acc_bias_m_s2",
+        "hard_iron_ut",
+        "field_w_ut",
+        "time_offset_ms",
+        "lever_arm_mm",
+    ):
+        assert key in ident
+    assert set(d["orientation"]) == {"triad", sb.api.DEFAULT_ORIENTATION, "vqf"}
+    for o in d["orientation"].values():
+        assert o["ratio"] == pytest.approx(o["twin_deg"] / o["real_deg"])
+    assert d["seed"] == 2 and d["file"] == str(EXCERPT) and "numpy" in d["versions"]
+    assert d["window_s"] == [12.0, 18.0]
+    for name in ("index.md", "index.html", "results.json", "traces.png", "spectra.png"):
+        assert (report / name).is_file()
+    md = (report / "index.md").read_text()
+    assert "## Identified" in md and "## Orientation" in md and "(window 12-18 s)" in md
+
+
+def test_the_same_seed_gives_the_same_twin(tmp_path):
+    a, b = (sb.api.twin(EXCERPT, seed=7, methods=("vqf",)) for _ in range(2))
+    assert a.orientation == b.orientation
+    c = sb.api.twin(EXCERPT, seed=8, methods=("vqf",))
+    assert c.orientation["vqf"]["twin_deg"] != a.orientation["vqf"]["twin_deg"]
+
+
+def _without(path: Path, name: str) -> Path:
+    out = path.parent / f"no_{name}.hdf5"
+    with h5py.File(EXCERPT, "r") as src, h5py.File(out, "w") as dst:
+        for key in src:
+            if key != name:
+                dst[key] = src[key][()]
+        dst.attrs["sampling_rate"] = src.attrs["sampling_rate"]
+    return out
+
+
+@pytest.mark.parametrize("missing", ["opt_quat", "opt_pos"])
+def test_a_trial_without_its_optical_pose_is_a_one_line_error(tmp_path, capsys, missing):
+    path = _without(tmp_path / "trial.hdf5", missing)
+    assert main(["twin", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and str(path) in err and repr(missing) in err
+
+
+def test_an_optical_pose_of_the_wrong_shape_is_named(tmp_path):
+    path = tmp_path / "wrong.hdf5"
+    with h5py.File(EXCERPT, "r") as src, h5py.File(path, "w") as dst:
+        for key in src:
+            dst[key] = src[key][()] if key != "opt_pos" else src[key][()][:, :2]
+        dst.attrs["sampling_rate"] = src.attrs["sampling_rate"]
+    with pytest.raises(InputError) as info:
+        twin(path, methods=())
+    assert str(path) in str(info.value) and "opt_pos of shape (frames, 3), got" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--window", "30"], "expected START:END in seconds"),
+        (["--window", "9:3"], "expected 0 <= START < END"),
+        (["--without", "friction"], "invalid choice: 'friction'"),
+    ],
+)
+def test_bad_options_are_usage_errors(capsys, argv, message):
+    with pytest.raises(SystemExit) as info:
+        main(["twin", str(EXCERPT), *argv])
+    assert info.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_a_window_beyond_the_recording_names_its_length():
+    with pytest.raises(InputError, match=r"start within the recording \(0-60.0 s\)"):
+        twin(EXCERPT, window=(100.0, 110.0), methods=())
+
+
+def test_an_unknown_effect_is_refused():
+    with pytest.raises(InputError, match="unknown effect"):
+        twin(EXCERPT, without=("friction",))
