@@ -18,7 +18,9 @@ import simbench as sb
 from calibration.rotations import euler_to_matrix, matrix_to_quat, rotvec_to_matrix
 from simbench.cli import main
 from simbench.errors import InputError
-from simbench.twin import EFFECTS, compare, identify, twin, twin_readings
+from simbench.experiments.realism import run_twins
+from simbench.report.realism import twins_markdown
+from simbench.twin import EFFECTS, R2_TARGETS, RATIO_FACTOR, compare, identify, targets, twin, twin_readings
 from simbench.twin.identify import GRADIENT_BASIS
 from simbench.twin.simulate import GRAVITY, fill_gaps, near_gaps
 
@@ -469,3 +471,25 @@ def test_a_window_beyond_the_recording_names_its_length():
 def test_an_unknown_effect_is_refused():
     with pytest.raises(InputError, match="unknown effect"):
         twin(EXCERPT, without=("friction",))
+
+
+# --- the validation's realism section -------------------------------------------------------------
+
+
+def test_without_the_recordings_the_twins_section_says_so(tmp_path):
+    run = run_twins(tmp_path)
+    assert run["twins"] == {}
+    assert any("no twin" in line for line in twins_markdown(run))
+
+
+@pytest.mark.skipif(
+    not SHARED_DATA.is_dir(), reason="../shared/data (BROAD trials) not beside the repository"
+)
+def test_the_undisturbed_trial_meets_issue_41s_targets():
+    """broad_02 (undisturbed, whole trial): each kind's R^2 at its target, and every orientation
+    method's error on the twin within 1.5x of the real one."""
+    result = twin(SHARED_DATA / "broad_02_undisturbed_slow_rotation_B.hdf5", seed=1)
+    got = targets(result)
+    assert {k: v["met"] for k, v in got.items()} == dict.fromkeys(R2_TARGETS, True)
+    for method, o in result.orientation.items():
+        assert 1 / RATIO_FACTOR <= o["ratio"] <= RATIO_FACTOR, method

@@ -8,12 +8,14 @@ the orientation methods scored on both (:mod:`.run`).
 """
 
 from simbench.twin.run import (
+    BASELINE,
     DEFAULT_CUTOFF_HZ,
     DEFAULT_POSITION_CUTOFF_HZ,
     EFFECTS,
     METHODS,
     R2_TARGETS,
     RATIO_FACTOR,
+    REFERENCE,
     Identified,
     TwinResult,
     parse_window,
@@ -24,12 +26,14 @@ from simbench.twin.run import (
 from simbench.twin.simulate import twin_readings
 
 __all__ = [
+    "BASELINE",
     "DEFAULT_CUTOFF_HZ",
     "DEFAULT_POSITION_CUTOFF_HZ",
     "EFFECTS",
     "METHODS",
     "R2_TARGETS",
     "RATIO_FACTOR",
+    "REFERENCE",
     "Identified",
     "TwinResult",
     "parse_window",
