@@ -223,6 +223,7 @@ def test_identification_recovers_the_known_imu(synthetic):
     truth = TRUTH["field_ut"] + points @ TRUTH["gradient"].T
     assert_allclose(fit.field_at(points), truth, atol=0.05)
     assert fit.excluded_fraction < 0.01  # nothing disturbs this field
+    assert fit.determined
     # still phases: the three rests, each less its ramps
     assert len(ident.still.runs) == 3
     assert 0.2 < ident.still.mask.mean() < 0.34
@@ -282,8 +283,22 @@ def test_magnetometer_fit_recovers_iron_and_field_from_orientations_alone():
     assert_allclose(fit.field_w_ut, TRUTH["field_ut"], atol=1e-8)
     assert_allclose(fit.hard_iron_ut, TRUTH["hard_ut"], atol=1e-8)
     assert fit.rank1_ratio < 1e-9 and fit.excluded_fraction == 0.0
+    assert fit.determined and fit.direction_spread.min() > 0.3
     assert fit.inclination_deg == pytest.approx(np.rad2deg(np.arctan2(40.0, np.hypot(2.0, 20.0))))
     assert fit.declination_deg == pytest.approx(np.rad2deg(np.arctan2(2.0, 20.0)))
+
+
+def test_orientations_that_span_little_do_not_determine_the_hard_iron():
+    """Within 3 degrees of one orientation the field's direction hardly moves in the sensor frame:
+    the fit says the hard iron and the field are not told apart, and still predicts the readings."""
+    rng = np.random.default_rng(3)
+    R = rotvec_to_matrix(rng.normal(size=(2000, 3)) * np.deg2rad(3.0))
+    unit = np.transpose(R, (0, 2, 1))
+    mag = np.einsum("ij,fkj,k->fi", TRUTH["soft"], R, TRUTH["field_ut"]) + TRUTH["hard_ut"]
+    mag += 0.01 * rng.normal(size=mag.shape)
+    fit = identify.magnetometer(mag, unit)
+    assert not fit.determined and fit.direction_spread.min() < identify.DIRECTION_SPREAD_MIN
+    assert compare.r2(mag, fit.predict(unit)) > 0.99
 
 
 @settings(database=None, derandomize=True, max_examples=25, deadline=None)
@@ -320,12 +335,11 @@ def test_still_phases_follow_the_noise_not_the_bias():
 
 
 def test_no_still_phase_is_a_clear_error():
-    rate = 100.0
-    t = np.arange(2000) / rate
-    gyro = np.column_stack([np.sin(t), np.cos(t), np.sin(2 * t)])
-    still = identify.still_phases(gyro + 0.001 * np.random.default_rng(1).normal(size=gyro.shape), rate)
+    """Biases and noise come from the still phases: with none, the error says so."""
+    gyro = np.random.default_rng(1).normal(size=(2000, 3))
+    none = identify.StillPhases(np.zeros(2000, dtype=bool), 0.0, 0.0, [])
     with pytest.raises(InputError, match="no still phase of at least 1 s"):
-        identify.bias_and_noise(gyro, gyro, identify.StillPhases(still.mask & False, 0.0, 0.0, []), rate)
+        identify.bias_and_noise(gyro, gyro, none, 100.0)
 
 
 # --- the comparison ------------------------------------------------------------------------------

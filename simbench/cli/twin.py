@@ -97,6 +97,11 @@ def print_summary(result: TwinResult) -> None:
         f"iron ({hard}) uT; {100 * ident['mag_disturbed_fraction']:.1f} % of the magnetometer samples left "
         "out as disturbed",
     ]
+    if not ident["mag_field_determined"]:
+        lines.append(
+            "  (hard iron and field not told apart: the orientations span too little; the readings are "
+            "predicted all the same)"
+        )
     for kind, r in d["readings"].items():
         s = r["spectrum"]
         lines.append(

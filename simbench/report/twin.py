@@ -140,7 +140,18 @@ def identified_rows(ident: Mapping[str, Any]) -> list[list[Any]]:
             _vec(ident["lever_arm_mm"], "{:.1f}"),
             "least squares of the rotation's accelerations (IMU frame)",
         ],
-        ["hard iron (uT)", _vec(ident["hard_iron_ut"]), "m = A R^T (b + G dp) + h, least squares"],
+        [
+            "hard iron (uT)",
+            _vec(ident["hard_iron_ut"]),
+            "m = A R^T (b + G dp) + h, least squares"
+            + (
+                ""
+                if ident["mag_field_determined"]
+                else "; NOT DETERMINED apart from the field: the orientations span too little (direction "
+                f"spread {_vec(ident['mag_direction_spread'], '{:.3f}')}), the readings are predicted all "
+                "the same"
+            ),
+        ],
         ["soft iron A (det 1), rows", "; ".join(_vec(r, "{:.4f}") for r in ident["soft_iron"]), "as above"],
         [
             "local field b, ENU (uT)",

@@ -27,7 +27,7 @@ frame (ENU: x east, y north, z up; ``R_w_s`` rotates sensor to world) and return
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -48,6 +48,11 @@ MAX_OFFSET_S = 0.25
 OUTLIER_FACTOR = 3.0
 #: At most this many robust refits.
 MAX_REFITS = 20
+#: The field's direction in the sensor frame must spread at least this much (standard deviation
+#: of the unit vector) along each principal axis for hard iron and field to be told apart:
+#: BROAD's rotation trials 0.16-0.36, its translation trials 0.004-0.05 (trial 10's field came
+#: out reversed, its hard iron 100 uT).
+DIRECTION_SPREAD_MIN = 0.1
 
 
 def _vectors(x: np.ndarray, what: str, n: int | None = None) -> np.ndarray:
@@ -308,6 +313,11 @@ class MagnetometerFit:
         rank1_ratio: the linear fit's second over first singular value of ``[vec P_i]`` (0 for the
             model exact).
         refits: robust refits made.
+        direction_spread: ``(3,)`` the standard deviations of the field's direction in the sensor
+            frame (``R^T b / |b|``) over the inliers along its principal axes, largest first: where
+            the smallest is below :data:`DIRECTION_SPREAD_MIN` the orientations span too little to
+            tell the hard iron from the field (:attr:`determined`; the readings are predicted all
+            the same).
     """
 
     soft_iron: np.ndarray
@@ -320,6 +330,12 @@ class MagnetometerFit:
     rms_ut: float
     rank1_ratio: float
     refits: int
+    direction_spread: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+
+    @property
+    def determined(self) -> bool:
+        """The hard iron, soft iron and field are each determined (:attr:`direction_spread`)."""
+        return bool(self.direction_spread.min() >= DIRECTION_SPREAD_MIN)
 
     def field_at(self, p_w: np.ndarray) -> np.ndarray:
         """``(F, 3)`` the modelled world field at positions ``(F, 3)`` m, uT."""
@@ -547,7 +563,9 @@ def magnetometer(
         refits += 1
     rms = float(np.sqrt(np.mean(r[inliers] ** 2)))
     excluded = float(1.0 - inliers.sum() / usable.sum())
-    return MagnetometerFit(A, h, theta[:3], G, origin, inliers, excluded, rms, ratio, refits)
+    u = np.einsum("fij,j->fi", unit[inliers], theta[:3] / np.linalg.norm(theta[:3]))
+    spread = np.linalg.svd(u - u.mean(axis=0), compute_uv=False) / np.sqrt(u.shape[0])
+    return MagnetometerFit(A, h, theta[:3], G, origin, inliers, excluded, rms, ratio, refits, spread)
 
 
 def lever_arm(residual: np.ndarray, basis: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
