@@ -23,6 +23,7 @@ core are re-exported from here.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 import time
@@ -62,6 +63,7 @@ from simbench.experiments.live import LiveOptions, LiveUpdate
 from simbench.experiments.live import follow as follow_file
 from simbench.experiments.live import replay as replay_recording
 from simbench.experiments.pool import one_blas_thread
+from simbench.io.atomic import atomic_write_text
 from simbench.io.c3d import read_c3d
 from simbench.io.calibration_json import calibration_to_dict, read_calibration_json
 from simbench.io.calibration_json import write_calibration_json as write_calibration
@@ -83,6 +85,8 @@ from simbench.orient import (
     skeleton_from_calibration,
     skeleton_of,
 )
+from simbench.report.output import json_safe
+from simbench.report.twin import write_twin_report
 from simbench.score import CalibrationScore, OrientationScore, score_joints, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.marker_clusters import MarkerConfig, add_markers
@@ -90,6 +94,13 @@ from simbench.sim.plan import session_defaults
 from simbench.sim.playback import DEFAULT_CUTOFF_HZ as BVH_CUTOFF_HZ
 from simbench.sim.sensor_config import SensorConfig
 from simbench.sim.session import SessionConfig, run_session
+from simbench.twin import DEFAULT_CUTOFF_HZ as TWIN_CUTOFF_HZ
+from simbench.twin import DEFAULT_POSITION_CUTOFF_HZ as TWIN_POSITION_CUTOFF_HZ
+from simbench.twin import EFFECTS as TWIN_EFFECTS
+from simbench.twin import METHODS as TWIN_METHODS
+from simbench.twin import TwinResult
+from simbench.twin import parse_window as parse_twin_window
+from simbench.twin import twin as twin_recording
 
 _DEFAULT = SessionConfig()
 
@@ -923,6 +934,78 @@ def replay(
     return replay_recording(rec, source=source, speed=speed, refresh_s=refresh_s, options=options)
 
 
+def twin(
+    recording: str | os.PathLike[str],
+    *,
+    seed: int = 0,
+    window: tuple[float, float] | str | None = None,
+    cutoff_hz: float = TWIN_CUTOFF_HZ,
+    position_cutoff_hz: float = TWIN_POSITION_CUTOFF_HZ,
+    without: Sequence[str] = (),
+    methods: Sequence[str] = TWIN_METHODS,
+) -> TwinResult:
+    """The digital twin of a real IMU recording with the optical pose of its housing (a BROAD
+    trial): its readings simulated from the pose, what the real sensor adds identified (biases,
+    noise, hard and soft iron, the local field and its gradient, time offsets, axis misalignment,
+    lever arm), real and twin compared sample by sample over the motion phase (R^2, rms, the
+    difference's spectrum), and the orientation methods scored on both (``docs/twin.md``).
+
+        from simbench.api import twin, write_twin  # (sb.twin is the package simbench.twin)
+
+        result = twin("broad_02_undisturbed_slow_rotation_B.hdf5", seed=1)
+        result.readings["gyro"]["r2"], result.orientation["vqf"]["ratio"]
+        write_twin(result, json_path="twin.json", out="twin_report")
+
+    Args:
+        recording: the trial's HDF5 file.
+        seed: the seed of the noise the twin's orientation runs get.
+        window: ``(start, end)`` s, or ``"START:END"``, of the report's traces (default: 10 s about
+            the middle of the motion phase).
+        cutoff_hz, position_cutoff_hz: smoothing cutoffs of the orientation and the position, Hz.
+        without: effects left out (:data:`simbench.twin.EFFECTS`), to measure what each explains.
+        methods: orientation methods to score (names or specs of the estimator registry).
+
+    Raises:
+        InputError: the file is not such a trial (naming it and what is missing), a bad option.
+    """
+    if isinstance(window, str):
+        window = parse_twin_window(window)
+    return twin_recording(
+        recording,
+        seed=seed,
+        window=window,
+        cutoff_hz=cutoff_hz,
+        position_cutoff_hz=position_cutoff_hz,
+        without=tuple(without),
+        methods=tuple(methods),
+    )
+
+
+def write_twin(
+    result: TwinResult,
+    *,
+    json_path: str | os.PathLike[str] | None = None,
+    out: str | os.PathLike[str] | None = None,
+) -> dict[str, Path]:
+    """Write a twin's JSON (:meth:`simbench.twin.TwinResult.as_dict`, NaN as null) and its report
+    folder (traces over the window, spectra, tables: :mod:`simbench.report.twin`), each atomically.
+
+    Returns:
+        ``{"json": ...}`` and the report's paths (``md``, ``html``, ``json`` as ``report_json``,
+        ``traces``, ``spectra``), those written.
+    """
+    written: dict[str, Path] = {}
+    if json_path is not None:
+        atomic_write_text(
+            json_path, json.dumps(json_safe(result.as_dict()), indent=1, allow_nan=False) + "\n"
+        )
+        written["json"] = Path(json_path)
+    if out is not None:
+        paths = write_twin_report(result, Path(out))
+        written.update({("report_json" if k == "json" else k): v for k, v in paths.items()})
+    return written
+
+
 __all__ = [
     "BVH_CUTOFF_HZ",
     "DEFAULT_JOINTS",
@@ -934,6 +1017,8 @@ __all__ = [
     "LOCATED_RANK",
     "SLIP_WINDOW_S",
     "TIME_LIMIT_S",
+    "TWIN_EFFECTS",
+    "TWIN_METHODS",
     "Calibration",
     "CalibrationError",
     "CalibrationInputError",
@@ -953,6 +1038,7 @@ __all__ = [
     "SlipAlert",
     "SlipReport",
     "StreamingCalibrator",
+    "TwinResult",
     "calibrate",
     "calibration_document",
     "describe_fit",
@@ -961,6 +1047,7 @@ __all__ = [
     "follow",
     "one_blas_thread",
     "orient",
+    "parse_twin_window",
     "read",
     "read_hierarchy",
     "read_imu",
@@ -975,9 +1062,11 @@ __all__ = [
     "skeleton_from_calibration",
     "slip_reports",
     "truth_document",
+    "twin",
     "unit_scale",
     "write_calibration",
     "write_dataset",
     "write_orientation_csv",
     "write_pose_csv",
+    "write_twin",
 ]

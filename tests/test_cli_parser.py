@@ -9,7 +9,18 @@ import pytest
 from simbench.cli import build_parser, main
 from simbench.versions import __version__
 
-COMMANDS = ("calibrate", "scale", "simulate", "export", "orient", "validate", "report", "baseline", "sweep")
+COMMANDS = (
+    "calibrate",
+    "scale",
+    "simulate",
+    "export",
+    "orient",
+    "twin",
+    "validate",
+    "report",
+    "baseline",
+    "sweep",
+)
 
 
 def test_version_comes_from_the_versions_module(capsys):
@@ -41,6 +52,7 @@ def test_every_command_has_help_and_a_handler(capsys, command):
             "simulate": ["simulate", "-o", "out.h5"],
             "export": ["export", "data.h5", "--trc", "out.trc"],
             "orient": ["orient", "imu.h5"],
+            "twin": ["twin", "trial.hdf5"],
             "report": ["report", "data.h5"],
             "sweep": ["sweep", "study.toml"],
         }.get(command, [command])

@@ -1,6 +1,6 @@
 """The layers of ARCHITECTURE.md: imports go one way only, and at the top of modules.
 
-    cli -> api -> experiments -> report -> score/orient/estimators -> sim -> io -> base -> calibration
+    cli -> api -> experiments -> report -> score/orient/estimators/twin -> sim -> io -> base -> calibration
 
 A module may import its own layer and the layers below it, never one above. ``calibration/``
 never imports mujoco, dm_control or simbench (it serves real recordings unchanged). Imports
@@ -30,6 +30,7 @@ LAYERS = {
     "simbench.score": 4,
     "simbench.orient": 4,
     "simbench.estimators": 4,
+    "simbench.twin": 4,
     "simbench.report": 5,
     "simbench.experiments": 6,
     "simbench.api": 7,

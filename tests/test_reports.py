@@ -59,6 +59,13 @@ def test_quick_validate_writes_a_complete_report(quick_report):
     assert w["total_rmse_deg"] == pytest.approx(f["total_rmse_deg"], rel=1e-6)
     broad = results["orientation"]["broad"]
     assert set(broad) == {p.stem for p in DEFAULT_DATA_DIR.glob("broad_*.hdf5")}
+    # the realism section: each BROAD trial's digital twin, or why there is none
+    twins = results["realism"]["twins"]["twins"]
+    assert set(twins) == set(broad)
+    assert "### Digital twins of the BROAD trials" in md
+    for trial, t in twins.items():
+        assert {"acc", "gyro", "mag"} == set(t["readings"]) and set(t["orientation"]) >= {"triad", "vqf"}
+        assert f"| {trial} | {t['readings']['acc']['r2']:.4f}" in md
     for trial, r in broad.items():
         assert f"### BROAD trial {trial}" in md and r["methods"]["triad"]["ratio_to_triad"] == 1.0
         assert r["default"] == "skeleton"

@@ -25,13 +25,27 @@ from simbench.cli import (
     scale,
     simulate,
     sweep,
+    twin,
     validate,
 )
 from simbench.errors import CalibrationError, InputError
 from simbench.versions import __version__
 
 #: The subcommands in the order ``simbench --help`` lists them; each module adds its parser.
-COMMANDS = (calibrate, replay, scale, simulate, export, orient, validate, report, baseline, sweep, bench)
+COMMANDS = (
+    calibrate,
+    replay,
+    scale,
+    simulate,
+    export,
+    orient,
+    twin,
+    validate,
+    report,
+    baseline,
+    sweep,
+    bench,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -51,6 +51,11 @@ with the known hierarchy. Statistics (:func:`pose_statistics`):
   the detector's defaults (:func:`simbench.experiments.decisions.clean_alarms`); with no alarm on
   either side the ratio is taken as 1 (both zero).
 
+**Digital twins** (:func:`run_twins`): beside the statistics, each BROAD trial's own twin
+(:mod:`simbench.twin`): its readings simulated from the optical pose of the housing with the
+errors the recording shows, compared sample by sample (R^2 per sensor kind against issue 41's
+targets), and the orientation methods' errors on the twin against those on the real recording.
+
 Ratios are ``simulated / real``; ``None`` (never within the factor) when the real figure is 0
 and the simulated one is not. The motion programs are defined here and written as program TOML
 into a temporary directory for the sessions (a session takes its program from a file); the
@@ -64,7 +69,7 @@ from __future__ import annotations
 
 import tempfile
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -85,6 +90,9 @@ from simbench.io.poses import PoseRecording
 from simbench.sim.markers import CAMERA_NOISE_M
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 from simbench.sim.skin import relative_rotvecs, soft_tissue_offsets
+from simbench.twin import METHODS as TWIN_METHODS
+from simbench.twin import summary as twin_summary
+from simbench.twin import twin
 
 #: A simulated statistic is realistic when ``simulated / real`` is in ``[1 / FACTOR, FACTOR]``.
 FACTOR = 1.5
@@ -716,6 +724,50 @@ def run_realism(quick: bool = False, data_dir: Path | None = None) -> dict[str, 
         "plan": {"seeds": list(plan.seeds), "imu_s": plan.imu_s, "hip_s": plan.hip_s},
         "missing": missing,
         "recordings": recordings,
+        "run_time_s": time.perf_counter() - t0,
+    }
+
+
+#: The seed of the twins' noise in the validation.
+TWIN_SEED = 1
+
+
+def twin_entry(path: Path, seed: int = TWIN_SEED, methods: Sequence[str] = TWIN_METHODS) -> dict[str, Any]:
+    """One trial's twin, as :func:`run_twins` reports it (:func:`simbench.twin.summary`)."""
+    return twin_summary(twin(path, seed=seed, methods=methods))
+
+
+def run_twins(
+    data_dir: Path | None = None,
+    seed: int = TWIN_SEED,
+    run: Callable[..., Any] = map,
+    methods: Sequence[str] = TWIN_METHODS,
+) -> dict[str, Any]:
+    """The digital twin (:mod:`simbench.twin`) of each BROAD trial at hand (``broad_*.hdf5`` in
+    ``data_dir``, default :data:`DEFAULT_DATA_DIR`): its readings simulated from the optical pose
+    with the errors the recording shows, compared sample by sample, and the orientation methods
+    scored on both.
+
+    Args:
+        data_dir: where the trials are.
+        seed: the seed of the twins' noise.
+        run: ``map`` or a pool's (a job per trial).
+        methods: the orientation methods scored on each trial and its twin.
+
+    Returns:
+        JSON-ready: ``data_dir``, ``seed``, ``twins`` (by file stem:
+        :func:`simbench.twin.summary`; empty without the recordings), ``run_time_s``.
+    """
+    t0 = time.perf_counter()
+    data = Path(data_dir) if data_dir is not None else DEFAULT_DATA_DIR
+    paths = sorted(data.glob("broad_*.hdf5"))
+    n = len(paths)
+    twins = dict(zip((p.stem for p in paths), run(twin_entry, paths, [seed] * n, [methods] * n), strict=True))
+    return {
+        "data_dir": str(data),
+        "seed": seed,
+        "methods": list(methods),
+        "twins": twins,
         "run_time_s": time.perf_counter() - t0,
     }
 

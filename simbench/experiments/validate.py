@@ -17,7 +17,8 @@ report module turns it into tables, plots and pictures):
   above (none has a slip), detection of 1-3 cm slips, hinge verdicts, cluster grouping, each
   against its target;
 - **realism** (:mod:`simbench.experiments.realism`): the statistics an estimator sees on each
-  real recording in ``../shared/data`` beside a simulated counterpart's;
+  real recording in ``../shared/data`` beside a simulated counterpart's, and each BROAD trial's
+  digital twin (:mod:`simbench.twin`);
 - **joint-centre methods**: every method of :mod:`calibration.methods` on the same seeded
   sessions, and the coverage of O'Brien's 95 % regions (batch means against i.i.d.).
 
@@ -59,7 +60,7 @@ from simbench.experiments.obrien import (
     rigid_pair_scale,
 )
 from simbench.experiments.pool import one_blas_thread, worker_pool
-from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism
+from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism, run_twins
 from simbench.experiments.walk_hierarchy import walk_trial
 from simbench.io.imu import read_broad
 from simbench.orient import estimate, skeleton_of
@@ -67,6 +68,9 @@ from simbench.score import score_orientation
 from simbench.sim.physics_cache import physics_cache
 from simbench.sim.sensor_config import parse_sensor_config
 from simbench.sim.session import SessionConfig, load_session_model, run_session
+from simbench.twin import BASELINE as TWIN_BASELINE
+from simbench.twin import METHODS as TWIN_METHODS
+from simbench.twin import REFERENCE as TWIN_REFERENCE
 
 __all__ = ["PAPER", "STEPS", "Plan", "run_validation"]
 
@@ -254,6 +258,13 @@ def _broad_orientation() -> dict[str, Any]:
     return out
 
 
+def _twin_methods(quick: bool) -> tuple[str, ...]:
+    """The orientation methods of the twins: all of :data:`simbench.twin.METHODS`; the quick
+    variant leaves out the default gyro-free estimator (half of a twin's 9 s; its error on the
+    real trials is in the orientation section)."""
+    return (TWIN_BASELINE, TWIN_REFERENCE) if quick else TWIN_METHODS
+
+
 def _clean_sessions(linkage: dict[str, Any], humanoid: dict[str, Any]) -> dict[str, list[dict[str, Any]]]:
     """The slip alarms of the sessions without slip, by case."""
     out = {f"linkage exercise, {linkage['preset']}": [s["slip_alarms"] for s in linkage["sets"]]}
@@ -347,6 +358,8 @@ def run_validation(
     ):
         # the experiments that need nothing from the others go to the pool first: they run while
         # this process waits on the trials, instead of one after another with a core idle
+        # each BROAD trial's digital twin (the realism section's), a job each, the longest first
+        twins_run = helper.submit(run_twins, DEFAULT_DATA_DIR, run=pool.map, methods=_twin_methods(quick))
         say(STEPS[3])
         slip_run = pool.submit(_slip, plan)
         say(STEPS[4])
@@ -389,7 +402,7 @@ def run_validation(
         say(STEPS[7])
         walks = _walk_failures(plan, pool.map)
         slip, orientation = slip_run.result(), {**orientation_run.result(), "broad": broad_run.result()}
-        decisions, realism = decisions_run.result(), realism_run.result()
+        decisions, realism = decisions_run.result(), {**realism_run.result(), "twins": twins_run.result()}
         methods = methods_run.result()
     results = {
         "quick": quick,

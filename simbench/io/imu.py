@@ -191,3 +191,43 @@ def read_broad(path: str | os.PathLike[str]) -> ImuRecording:
         source=str(path),
         notes=tuple(notes),
     )
+
+
+@dataclass(frozen=True)
+class OpticalPose:
+    """The optical reference pose of a BROAD trial's IMU housing.
+
+    Attributes:
+        time_s: ``(F,)`` s (the IMU's samples: one clock in the file).
+        p_w: ``(F, 3)`` position in world (ENU), m; NaN where the optical system lost the markers.
+        q_w: ``(F, 4)`` orientation ``R_w_s`` (IMU frame to ENU), scalar-first; NaN where lost.
+        source: the file.
+    """
+
+    time_s: np.ndarray
+    p_w: np.ndarray
+    q_w: np.ndarray
+    source: str
+
+
+def read_broad_pose(path: str | os.PathLike[str], n: int, rate_hz: float) -> OpticalPose:
+    """The optical pose (``opt_pos``, ``opt_quat``) of a BROAD trial whose IMU readings
+    (:func:`read_broad`) hold ``n`` samples at ``rate_hz``.
+
+    Raises:
+        InputError: a dataset missing or of the wrong shape, naming the file.
+    """
+    path = Path(path)
+    with open_hdf5(path) as fh:
+        for name in ("opt_quat", "opt_pos"):
+            if name not in fh:
+                raise InputError(
+                    f"{path}: expected BROAD's optical pose (opt_quat, opt_pos) beside the IMU readings; "
+                    f"missing dataset {name!r} (has {sorted(fh.keys())})"
+                )
+        q = _field(fh, path, "opt_quat", (4,)).astype(float)
+        p = _field(fh, path, "opt_pos", (3,)).astype(float)
+    for name, x in (("opt_quat", q), ("opt_pos", p)):
+        if x.shape[0] != n:
+            raise InputError(f"{path}: {name} holds {x.shape[0]} samples, imu_acc {n}")
+    return OpticalPose(np.arange(n) / rate_hz, p, q, str(path))

@@ -1,0 +1,192 @@
+"""Ideal IMU readings from an optical pose: the twin's one seam to the simulator.
+
+:func:`twin_readings` turns a recorded pose trajectory (a point's position and a body's
+orientation, world ENU: x east, y north, z up, as BROAD's ``opt_pos``/``opt_quat``) into what an
+ideal accelerometer, gyroscope and magnetometer on that body read, in the body frame:
+
+- gyroscope ``omega`` (rad/s): the body's angular velocity in its own frame,
+  ``2 Im(conj(q) dq/dt) / |q|^2`` of the smoothed quaternion
+  (:func:`simbench.sim.playback.angular_rates`);
+- accelerometer ``R^T (a + g e_z) + alpha x r + omega x (omega x r)`` (m/s^2): the specific
+  force (``+g`` up at rest, ``g`` = :data:`GRAVITY`) at the point ``r`` (body frame, the lever
+  arm) from the tracked point, whose acceleration is ``a``; ``alpha`` the angular acceleration
+  in the body frame;
+- magnetometer ``R^T b`` (uT), ``b`` the world field given (uniform, or at every sample).
+
+Every reading is linear in the field and the lever arm: the identification
+(:mod:`simbench.twin.identify`) takes what a unit field or a unit lever arm adds from here too.
+
+The poses are smoothed as the simulator's recorded-motion playback smooths them
+(:mod:`simbench.sim.playback`: Savitzky-Golay of degree :data:`~simbench.sim.playback.POLYORDER`,
+the shortest window whose gain at the cutoff is -3 dB, :func:`~simbench.sim.playback.savgol_window`);
+velocities and accelerations are the filter's derivatives, not finite differences. Positions get
+a cutoff of their own (``position_cutoff_hz``): an acceleration is the position differentiated
+twice, which multiplies the markers' jitter by ``(2 pi f)^2``, while the orientation is
+differentiated once.
+
+**The seam.** The signature of :func:`twin_readings` is stable: the twin (:mod:`simbench.twin.run`)
+calls nothing else to simulate, so its inside can become the simulator's playback of a recorded
+pose trajectory (``sb.simulate(motion="trial.hdf5")``) without changing the twin.
+
+**Gaps.** Optical systems lose markers: BROAD's trials have 1-9 % of rows NaN, in runs.
+:func:`fill_gaps` fills every gap (positions linearly, quaternions by normalised linear
+interpolation on one hemisphere, held at the ends) so that the smoothing runs through, and
+:func:`near_gaps` marks the gap samples and every sample within the smoothing's half-window of
+one: those readings rest on filled poses and are left out of every comparison.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from calibration.rotations import quat_to_matrix
+from simbench.errors import InputError
+from simbench.sim.playback import POLYORDER, _continuous, angular_rates, savgol_window
+
+#: Standard gravity, m/s^2 (the simulator's; BROAD was recorded in Berlin, 9.813).
+GRAVITY = 9.81
+
+#: A time step within this fraction of the median is uniform.
+UNIFORM = 1e-6
+
+
+def _check(time_s: np.ndarray, p_w: np.ndarray, q_w: np.ndarray, field_w: np.ndarray) -> float:
+    """The sample rate of ``time_s`` (Hz), after checking the shapes and values."""
+    if time_s.ndim != 1 or time_s.size < 2:
+        raise InputError(f"twin_readings: expected time_s of shape (F,) with F >= 2, got {time_s.shape}")
+    f = time_s.size
+    for name, x, tail in (("p_w", p_w, 3), ("q_w", q_w, 4)):
+        if x.shape != (f, tail):
+            raise InputError(f"twin_readings: expected {name} of shape ({f}, {tail}), got {x.shape}")
+        if not np.isfinite(x).all():
+            raise InputError(f"twin_readings: {name} has non-finite values: fill the gaps first (fill_gaps)")
+    if field_w.shape not in ((3,), (f, 3)) or not np.isfinite(field_w).all():
+        raise InputError(
+            f"twin_readings: expected field_w of shape (3,) or ({f}, 3), finite (uT), got {field_w.shape}"
+        )
+    dt = np.diff(time_s)
+    step = float(np.median(dt))
+    if not (step > 0 and np.all(np.abs(dt - step) <= UNIFORM * step)):
+        raise InputError("twin_readings: expected uniformly sampled, increasing time_s")
+    return 1.0 / step
+
+
+def smoothing_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: str = "") -> int:
+    """The Savitzky-Golay window (frames, odd) of ``cutoff_hz`` at ``rate_hz``
+    (:func:`simbench.sim.playback.savgol_window`; remembered: its search takes 0.3 s).
+
+    Raises:
+        InputError: as ``savgol_window``, naming ``source``.
+    """
+    try:
+        return _window(round(float(rate_hz), 6), float(cutoff_hz), int(n_frames))
+    except InputError:
+        return savgol_window(rate_hz, cutoff_hz, n_frames, source)  # raises, naming the source
+
+
+@functools.lru_cache(maxsize=64)
+def _window(rate_hz: float, cutoff_hz: float, n_frames: int) -> int:
+    return savgol_window(rate_hz, cutoff_hz, n_frames)
+
+
+def twin_readings(
+    time_s: np.ndarray,
+    p_w: np.ndarray,
+    q_w: np.ndarray,
+    field_w: np.ndarray,
+    cutoff_hz: float,
+    *,
+    position_cutoff_hz: float | None = None,
+    lever_arm_m: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ideal accelerometer, gyroscope and magnetometer readings of a body moving as recorded.
+
+    Args:
+        time_s: ``(F,)`` uniformly spaced sample times, s.
+        p_w: ``(F, 3)`` the tracked point's position in world (ENU), m; finite (:func:`fill_gaps`).
+        q_w: ``(F, 4)`` the sensor's orientation ``R_w_s`` as scalar-first quaternions (the
+            sensor frame to ENU); finite, not necessarily unit or sign-continuous.
+        field_w: ``(3,)`` the magnetic field in world, uT; or ``(F, 3)``, at each sample.
+        cutoff_hz: the smoothing's cutoff for the orientation, Hz (module docstring).
+        position_cutoff_hz: the positions' cutoff, Hz (default ``cutoff_hz``).
+        lever_arm_m: ``(3,)`` the accelerometer's position relative to the tracked point, in the
+            sensor frame, m (default zero).
+
+    Returns:
+        ``(acc, gyro, mag)``, each ``(F, 3)`` in the sensor frame: specific force m/s^2,
+        angular velocity rad/s, field uT.
+
+    Raises:
+        InputError: shapes or values not as above, a cutoff the samples cannot be smoothed to.
+    """
+    from scipy.signal import savgol_filter  # scipy.signal: 0.6 s of every start of the command line
+
+    time_s, p_w, q_w, field_w = (np.asarray(x, dtype=float) for x in (time_s, p_w, q_w, field_w))
+    rate = _check(time_s, p_w, q_w, field_w)
+    n = time_s.size
+    pos_cutoff = cutoff_hz if position_cutoff_hz is None else position_cutoff_hz
+    w_q = smoothing_window(rate, cutoff_hz, n, "twin_readings (orientation)")
+    w_p = smoothing_window(rate, pos_cutoff, n, "twin_readings (position)")
+    q = _continuous(q_w / np.linalg.norm(q_w, axis=1, keepdims=True))
+    sq = [
+        savgol_filter(q, w_q, POLYORDER, deriv=d, delta=1.0 / rate, axis=0, mode="interp") for d in range(3)
+    ]
+    gyro, alpha = angular_rates(*sq)
+    R = quat_to_matrix(sq[0])
+    a_w = savgol_filter(p_w, w_p, POLYORDER, deriv=2, delta=1.0 / rate, axis=0, mode="interp")
+    acc = np.einsum("fji,fj->fi", R, a_w + np.array([0.0, 0.0, GRAVITY]))
+    if lever_arm_m is not None:
+        r = np.asarray(lever_arm_m, dtype=float)
+        if r.shape != (3,) or not np.isfinite(r).all():
+            raise InputError(f"twin_readings: expected lever_arm_m as 3 finite numbers (m), got {r!r}")
+        acc = acc + np.cross(alpha, r) + np.cross(gyro, np.cross(gyro, r))
+    mag = np.einsum("fji,fj->fi", R, np.broadcast_to(field_w, (n, 3)))
+    return acc, gyro, mag
+
+
+def gap_mask(p_w: np.ndarray, q_w: np.ndarray) -> np.ndarray:
+    """``(F,)`` True where the pose is missing: a position or quaternion not finite, or a
+    quaternion of zero."""
+    p_w, q_w = np.asarray(p_w, dtype=float), np.asarray(q_w, dtype=float)
+    ok = np.isfinite(p_w).all(axis=1) & np.isfinite(q_w).all(axis=1)
+    ok[ok] &= np.linalg.norm(q_w[ok], axis=1) > 0
+    return ~ok
+
+
+def fill_gaps(p_w: np.ndarray, q_w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses with their gaps filled (module docstring).
+
+    Args:
+        p_w: ``(F, 3)`` m, NaN where missing. q_w: ``(F, 4)`` wxyz, NaN (or zero) where missing.
+
+    Returns:
+        ``(p_w, q_w, gap)``: filled copies (quaternions unit and sign-continuous) and the
+        ``(F,)`` mask of the samples that were filled.
+
+    Raises:
+        InputError: fewer than 2 poses present.
+    """
+    gap = gap_mask(p_w, q_w)
+    have = np.flatnonzero(~gap)
+    if have.size < 2:
+        raise InputError(f"expected at least 2 samples with an optical pose, got {have.size}")
+    frames = np.arange(gap.size, dtype=float)
+    p = np.array(p_w, dtype=float)
+    q = np.array(q_w, dtype=float)
+    q[have] = _continuous(q[have] / np.linalg.norm(q[have], axis=1, keepdims=True))
+    for x in (p, q):
+        for i in range(x.shape[1]):
+            x[gap, i] = np.interp(frames[gap], frames[have], x[have, i])
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return p, q, gap
+
+
+def near_gaps(gap: np.ndarray, half_window: int) -> np.ndarray:
+    """``(F,)`` the gap samples and those within ``half_window`` frames of one."""
+    gap = np.asarray(gap, dtype=bool)
+    if half_window <= 0 or not gap.any():
+        return gap.copy()
+    kernel = np.ones(2 * half_window + 1)
+    return np.convolve(gap.astype(float), kernel, mode="same") > 0.5
