@@ -136,6 +136,7 @@ def simulate(
     motion_units: str | None = None,
     motion_cutoff_hz: float = BVH_CUTOFF_HZ,
     motion_clusters: str | None = None,
+    motion_position_cutoff_hz: float | None = None,
 ) -> Dataset:
     """Simulate a capture session with MuJoCo physics and the chosen sensors, or play back a
     recorded motion.
@@ -167,6 +168,8 @@ def simulate(
         motion_cutoff_hz: a recorded motion's smoothing cutoff, Hz: its velocities and
             accelerations (gyroscopes, accelerometers) come from a Savitzky-Golay smoothing below it.
         motion_clusters: a C3D motion's marker cluster spec (TOML); default: found automatically.
+        motion_position_cutoff_hz: a recorded motion's positions' own cutoff, Hz (default
+            ``motion_cutoff_hz``): accelerations are positions differentiated twice.
 
     Returns:
         The Dataset: ``measured`` data as the instruments give it (positions in the tracker's
@@ -198,6 +201,7 @@ def simulate(
         ("duration_s", duration_s),
         ("rate_hz", rate_hz),
         ("motion_cutoff_hz", motion_cutoff_hz),
+        ("motion_position_cutoff_hz", motion_position_cutoff_hz),
     ):
         if value is not None and (isinstance(value, bool) or not isinstance(value, int | float | np.number)):
             raise InputError(f"Expected {name} to be a number, got {value!r}")
@@ -223,6 +227,9 @@ def simulate(
         motion_units=motion_units,
         motion_cutoff_hz=float(motion_cutoff_hz),
         motion_clusters=None if motion_clusters is None else str(motion_clusters),
+        motion_position_cutoff_hz=None
+        if motion_position_cutoff_hz is None
+        else float(motion_position_cutoff_hz),
     )
     ds = run_session(config)
     if markers is False:

@@ -64,6 +64,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         f"{BVH_CUTOFF_HZ:g})",
     )
     sim.add_argument(
+        "--motion-position-cutoff",
+        type=positive_float,
+        default=None,
+        metavar="HZ",
+        help="a recorded motion's positions' own smoothing cutoff (accelerations are positions "
+        "differentiated twice; default --motion-cutoff)",
+    )
+    sim.add_argument(
         "--duration",
         type=positive_float,
         default=None,
@@ -159,6 +167,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         motion_units=args.motion_units,
         motion_cutoff_hz=args.motion_cutoff,
         motion_clusters=args.motion_clusters,
+        motion_position_cutoff_hz=args.motion_position_cutoff,
     )
     meta = ds.meta
     print(

@@ -66,6 +66,7 @@ BASE_KEYS = {
     "motion_units",
     "motion_cutoff_hz",
     "motion_clusters",
+    "motion_position_cutoff_hz",
 }
 DEFAULT_METRICS = ("joint_centre_error_m", "limb_length_error_m", "hierarchy_correct")
 STUDY_KEYS = {"name", "seed", "seeds_per_cell", "estimators", "metrics", "base", "sampling", "parameter"}
@@ -253,7 +254,7 @@ def _parse_base(doc: dict[str, Any], path: Path) -> tuple[dict[str, Any], Sensor
         raise InputError(f"{path}: base: unknown keys {bad}; expected {sorted(BASE_KEYS)}")
     base.setdefault("sensors", SessionConfig().sensors)
     for key, value in base.items():
-        numeric = key in ("duration_s", "rate_hz", "motion_cutoff_hz")
+        numeric = key in ("duration_s", "rate_hz", "motion_cutoff_hz", "motion_position_cutoff_hz")
         if numeric and not _is_number(value):
             raise InputError(f"{path}, key base.{key}: expected a number, got {value!r}")
         if not numeric and not (isinstance(value, str) and value.strip()):
@@ -438,7 +439,11 @@ def base_session(study: Study) -> SessionConfig:
     names = ("model", "motion", "sensors", "motion_units", "motion_clusters")
     given = {k: base[k] for k in names if k in base}
     given.update(
-        {k: float(study.base[k]) for k in ("duration_s", "rate_hz", "motion_cutoff_hz") if k in study.base}
+        {
+            k: float(study.base[k])
+            for k in ("duration_s", "rate_hz", "motion_cutoff_hz", "motion_position_cutoff_hz")
+            if k in study.base
+        }
     )
     motion = given.get("motion", SessionConfig().motion)
     given["model"], given["duration_s"], given["rate_hz"] = session_defaults(

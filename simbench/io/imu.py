@@ -210,12 +210,16 @@ class OpticalPose:
     source: str
 
 
-def read_broad_pose(path: str | os.PathLike[str], n: int, rate_hz: float) -> OpticalPose:
-    """The optical pose (``opt_pos``, ``opt_quat``) of a BROAD trial whose IMU readings
-    (:func:`read_broad`) hold ``n`` samples at ``rate_hz``.
+def read_broad_pose(
+    path: str | os.PathLike[str], n: int | None = None, rate_hz: float | None = None
+) -> OpticalPose:
+    """The optical pose (``opt_pos``, ``opt_quat``) of a BROAD-layout trial, at ``rate_hz``
+    (default its ``sampling_rate``) from 0 s; ``n``: the count of IMU samples (:func:`read_broad`)
+    it must have, if given.
 
     Raises:
-        InputError: a dataset missing or of the wrong shape, naming the file.
+        InputError: a dataset missing or of the wrong shape, or a ``sampling_rate`` that is not one
+            number of Hz > 0, naming the file.
     """
     path = Path(path)
     with open_hdf5(path) as fh:
@@ -227,7 +231,15 @@ def read_broad_pose(path: str | os.PathLike[str], n: int, rate_hz: float) -> Opt
                 )
         q = _field(fh, path, "opt_quat", (4,)).astype(float)
         p = _field(fh, path, "opt_pos", (3,)).astype(float)
-    for name, x in (("opt_quat", q), ("opt_pos", p)):
-        if x.shape[0] != n:
-            raise InputError(f"{path}: {name} holds {x.shape[0]} samples, imu_acc {n}")
-    return OpticalPose(np.arange(n) / rate_hz, p, q, str(path))
+        given = np.ravel(fh.attrs.get("sampling_rate", np.nan)) if rate_hz is None else np.array([rate_hz])
+    if p.shape[0] != q.shape[0]:
+        raise InputError(f"{path}: opt_pos holds {p.shape[0]} samples, opt_quat {q.shape[0]}")
+    if n is not None and q.shape[0] != n:
+        raise InputError(f"{path}: opt_quat holds {q.shape[0]} samples, imu_acc {n}")
+    try:
+        rate = float(given[0]) if given.size == 1 else math.nan
+    except (TypeError, ValueError):
+        rate = math.nan
+    if not (math.isfinite(rate) and rate > 0):
+        raise InputError(f"{path}: attribute sampling_rate must be one number of Hz > 0, got {given!r}")
+    return OpticalPose(np.arange(q.shape[0]) / rate, p, q, str(path))

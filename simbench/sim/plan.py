@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +68,10 @@ class SessionConfig:
         motion_units: a recorded motion's length unit (``cm``, ``m``, ``mm``, ``in``), or ``None``:
             the file's convention (BVH centimetres, a pose CSV metres, a C3D file its own).
         motion_cutoff_hz: a recorded motion's smoothing cutoff for velocities and accelerations, Hz.
+        motion_position_cutoff_hz: the cutoff of its positions, Hz (``None``: ``motion_cutoff_hz``):
+            accelerations are positions differentiated twice, which amplifies a recording's jitter.
+        recording: a recorded motion already read (its model with it), played instead of reading
+            ``motion``, which then only names it; ``None``: ``motion`` is read when it is a file.
         motion_clusters: a C3D motion's marker cluster spec (TOML), or ``None``: found automatically.
     """
 
@@ -82,6 +86,8 @@ class SessionConfig:
     motion_units: str | None = None
     motion_cutoff_hz: float = DEFAULT_CUTOFF_HZ
     motion_clusters: str | None = None
+    motion_position_cutoff_hz: float | None = None
+    recording: MotionSource | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.duration_s) and self.duration_s > 0):
@@ -90,7 +96,10 @@ class SessionConfig:
             raise InputError(f"rate must be > 0 Hz, got {self.rate_hz}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
             raise InputError(f"seed must be an integer in [0, 2^63), got {self.seed!r}")
-        own = own_model(self.motion) if is_recorded(self.motion) else None
+        if self.recording is not None:
+            own = self.recording.model if self.recording.make_spec is not None else None
+        else:
+            own = own_model(self.motion) if is_recorded(self.motion) else None
         if own is not None and self.model != own:
             raise InputError(
                 f"motion {self.motion}: a {motion_format(self.motion)} recording moves its own model: leave "
@@ -100,8 +109,9 @@ class SessionConfig:
             if self.model == name and own != name:
                 raise InputError(f"model {name!r} is {what}")
         check_units(self.motion_units)
-        if not (math.isfinite(self.motion_cutoff_hz) and self.motion_cutoff_hz > 0):
-            raise InputError(f"motion cutoff must be > 0 Hz, got {self.motion_cutoff_hz}")
+        for name, cutoff in (("", self.motion_cutoff_hz), ("position ", self.motion_position_cutoff_hz)):
+            if cutoff is not None and not (math.isfinite(cutoff) and cutoff > 0):
+                raise InputError(f"motion {name}cutoff must be > 0 Hz, got {cutoff}")
 
     def as_dict(self) -> dict:
         """JSON-ready copy."""
@@ -117,10 +127,13 @@ class SessionConfig:
             "motion_units": self.motion_units,
             "motion_cutoff_hz": self.motion_cutoff_hz,
             "motion_clusters": self.motion_clusters,
+            "motion_position_cutoff_hz": self.motion_position_cutoff_hz,
         }
 
     def recorded(self) -> MotionSource | None:
         """The recorded motion and its model (read once per file), or ``None`` for a program."""
+        if self.recording is not None:
+            return self.recording
         if not is_recorded(self.motion):
             return None
         return load_motion(self.motion, self.model, self.motion_units, self.motion_clusters)
@@ -237,7 +250,8 @@ def _sensor_config(config: SessionConfig) -> SensorConfig:
     """The session's sensors; a built-in preset's joint play left out on a recorded motion
     (:func:`adapt_preset` says so)."""
     sc = _sensor_config_raw(config)
-    if _is_preset(config) and is_recorded(config.motion) and sc.joints.play_m > 0:
+    recorded = config.recording is not None or is_recorded(config.motion)
+    if _is_preset(config) and recorded and sc.joints.play_m > 0:
         sc = dataclasses.replace(sc, joints=dataclasses.replace(sc.joints, play_m=0.0))
     return sc
 
@@ -411,7 +425,13 @@ def plan_session(config: SessionConfig, cm: CaptureModel) -> SessionPlan:
     source = config.recorded()
     if source is not None:
         _check_playback_sensors(config, sensor_config)
-        playback = plan_playback(source.recorded, config.rate_hz, config.duration_s, config.motion_cutoff_hz)
+        playback = plan_playback(
+            source.recorded,
+            config.rate_hz,
+            config.duration_s,
+            config.motion_cutoff_hz,
+            config.motion_position_cutoff_hz,
+        )
         n_samples = playback.time_s.size
         k, dt = 1, 1.0 / config.rate_hz
     else:

@@ -61,10 +61,15 @@ class Playback:
 
     Attributes:
         motion: the recording.
-        cutoff_hz: the smoothing's cutoff, Hz.
+        cutoff_hz: the smoothing's cutoff, Hz (rotations, and every coordinate when
+            ``position_cutoff_hz`` is the same).
         window: the Savitzky-Golay window, frames (odd).
         time_s: ``(n,)`` the samples' times, s.
         frames: ``(n,)`` the clip's frame of each sample, or ``None`` when resampled.
+        position_cutoff_hz: the cutoff of positions (a free joint's, a slide's), Hz: an
+            acceleration is a position differentiated twice, which multiplies a recording's jitter
+            by ``(2 pi f)^2``, while a rotation is differentiated once for the gyroscope.
+        position_window: its window, frames (odd).
     """
 
     motion: RecordedMotion
@@ -72,6 +77,8 @@ class Playback:
     window: int
     time_s: np.ndarray
     frames: np.ndarray | None
+    position_cutoff_hz: float = DEFAULT_CUTOFF_HZ
+    position_window: int = 0
 
     def as_dict(self) -> dict:
         """JSON-ready summary (the Dataset's metadata)."""
@@ -85,6 +92,8 @@ class Playback:
             "smoothing": "savitzky-golay",
             "cutoff_hz": self.cutoff_hz,
             "window_frames": self.window,
+            "position_cutoff_hz": self.position_cutoff_hz,
+            "position_window_frames": self.position_window,
             "polyorder": POLYORDER,
             "resampled": self.frames is None,
             "notes": list(self.motion.notes),
@@ -143,9 +152,14 @@ def savgol_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: str =
 
 
 def plan_playback(
-    motion: RecordedMotion, rate_hz: float, duration_s: float, cutoff_hz: float = DEFAULT_CUTOFF_HZ
+    motion: RecordedMotion,
+    rate_hz: float,
+    duration_s: float,
+    cutoff_hz: float = DEFAULT_CUTOFF_HZ,
+    position_cutoff_hz: float | None = None,
 ) -> Playback:
-    """The samples of a playback session, checked against the clip.
+    """The samples of a playback session, checked against the clip (``position_cutoff_hz``:
+    positions' own cutoff, default ``cutoff_hz``).
 
     Raises:
         InputError: a session longer than the clip, a rate not the clip's at or below twice the
@@ -154,6 +168,9 @@ def plan_playback(
     source = motion.source
     fs = clip_rate_hz(motion)
     window = savgol_window(fs, cutoff_hz, motion.n_frames, source)
+    pos_cutoff = cutoff_hz if position_cutoff_hz is None else position_cutoff_hz
+    pos_window = window if pos_cutoff == cutoff_hz else savgol_window(fs, pos_cutoff, motion.n_frames, source)
+    highest = max(cutoff_hz, pos_cutoff)  # resampling keeps content up to the higher one
     own = same_rate(motion, rate_hz)
     n = math.floor(duration_s * rate_hz + 1e-9)
     period = motion.frame_time_s if own else 1.0 / rate_hz
@@ -164,13 +181,21 @@ def plan_playback(
             f"session of {duration_s:g} s at {rate_hz:g} Hz needs samples up to {(n - 1) * period:g} s "
             f"(at most {default_duration_s(motion, rate_hz):g} s)"
         )
-    if not own and rate_hz <= 2 * cutoff_hz:
+    if not own and rate_hz <= 2 * highest:
         raise InputError(
             f"{source}: frame time {motion.frame_time_s:g} s ({fs:g} Hz) is not the rate {rate_hz:g} Hz, and "
-            f"the motion smoothed below {cutoff_hz:g} Hz cannot be resampled at or below twice that: give "
-            f"a rate above {2 * cutoff_hz:g} Hz, the clip's {fs:g} Hz, or a lower cutoff"
+            f"the motion smoothed below {highest:g} Hz cannot be resampled at or below twice that: give "
+            f"a rate above {2 * highest:g} Hz, the clip's {fs:g} Hz, or a lower cutoff"
         )
-    return Playback(motion, float(cutoff_hz), window, np.arange(n) * period, np.arange(n) if own else None)
+    return Playback(
+        motion,
+        float(cutoff_hz),
+        window,
+        np.arange(n) * period,
+        np.arange(n) if own else None,
+        float(pos_cutoff),
+        pos_window,
+    )
 
 
 def _continuous(q: np.ndarray) -> np.ndarray:
@@ -252,12 +277,28 @@ def playback_state(playback: Playback, at_s: np.ndarray | None = None) -> list[T
         raw.append(values)
     widths = np.cumsum([0] + [r.shape[1] for r in raw])
     raw_all = np.concatenate(raw, axis=1)
-    smooth = [
-        savgol_filter(
-            raw_all, playback.window, POLYORDER, deriv=d, delta=motion.frame_time_s, axis=0, mode="interp"
-        )
-        for d in range(3)
-    ]
+    positions = np.zeros(raw_all.shape[1], dtype=bool)  # a free joint's xyz, a slide's displacement
+    for k, track in enumerate(motion.tracks):
+        if track.kind == "free":
+            positions[widths[k] : widths[k] + 3] = True
+        elif track.kind == "slide":
+            positions[widths[k]] = True
+    smooth = [np.empty_like(raw_all) for _ in range(3)]
+    for cols, window in (
+        (~positions, playback.window),
+        (positions, playback.position_window or playback.window),
+    ):
+        if cols.any():
+            for d in range(3):
+                smooth[d][:, cols] = savgol_filter(
+                    raw_all[:, cols],
+                    window,
+                    POLYORDER,
+                    deriv=d,
+                    delta=motion.frame_time_s,
+                    axis=0,
+                    mode="interp",
+                )
     if at_s is None and playback.frames is not None:
         at = [x[playback.frames] for x in smooth]
         pose = raw_all[playback.frames]

@@ -26,7 +26,7 @@ import numpy as np
 
 from calibration.rotations import matrix_to_quat, quat_to_matrix
 from simbench.errors import InputError
-from simbench.io.hdf5 import open_hdf5
+from simbench.io.imu import read_broad_pose
 from simbench.io.poses import PoseRecording
 from simbench.io.recorded import RecordedMotion, Track, fill_gaps, frame_grid
 
@@ -42,44 +42,32 @@ BROAD_SENSOR = "imu"
 
 
 def read_broad_poses(path: str | os.PathLike[str]) -> PoseRecording:
-    """A BROAD trial's optical pose of its IMU (``opt_pos``, ``opt_quat``) as a pose recording of
-    one sensor, :data:`BROAD_SENSOR`, at ``sampling_rate`` from 0 s (NaN rows are missing poses).
+    """A BROAD trial's optical pose of its IMU (:func:`simbench.io.imu.read_broad_pose`) as a pose
+    recording of one sensor, :data:`BROAD_SENSOR` (rows with a NaN or a zero quaternion are missing
+    poses).
 
     Raises:
-        InputError: a file without ``opt_pos``/``opt_quat``/``sampling_rate``, or shapes that are not
-            ``(F, 3)``/``(F, 4)`` of one length.
+        InputError: what the reader refuses; a file without any optical pose.
     """
-    src = str(path)
-    with open_hdf5(path) as fh:
-        missing = [k for k in ("opt_pos", "opt_quat") if k not in fh]
-        if missing:
-            raise InputError(
-                f"{src}: no {' or '.join(missing)}: a BROAD-layout trial holds the optical pose opt_pos "
-                f"(F, 3) m and opt_quat (F, 4); arrays: {', '.join(fh) or 'none'}"
-            )
-        p = np.asarray(fh["opt_pos"], dtype=float)
-        q = np.asarray(fh["opt_quat"], dtype=float)
-        rate = np.ravel(fh.attrs.get("sampling_rate", np.nan)).astype(float)
-    if p.ndim != 2 or p.shape[1] != 3 or q.ndim != 2 or q.shape[1] != 4 or p.shape[0] != q.shape[0]:
-        raise InputError(f"{src}: expected opt_pos (F, 3) and opt_quat (F, 4), got {p.shape} and {q.shape}")
-    if rate.size != 1 or not (np.isfinite(rate[0]) and rate[0] > 0):
-        raise InputError(f"{src}: attribute sampling_rate must be one number of Hz > 0, got {rate}")
+    pose = read_broad_pose(path)
+    p, q = pose.p_w, pose.q_w
     norm = np.linalg.norm(q, axis=1)
     valid = np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1) & (norm > 0.5)
     if not valid.any():
-        raise InputError(f"{src}: no frame holds an optical pose (every opt_pos/opt_quat row is NaN or zero)")
+        raise InputError(
+            f"{path}: no frame holds an optical pose (every opt_pos/opt_quat row is NaN or zero)"
+        )
     qn = np.where(valid[:, None], q / np.where(norm > 0, norm, 1)[:, None], [1.0, 0, 0, 0])
     R = quat_to_matrix(qn)
     R[~valid] = np.nan
-    pw = np.where(valid[:, None], p, np.nan)
     notes = () if valid.all() else (f"{int((~valid).sum())} of {valid.size} frames without an optical pose",)
     return PoseRecording(
         names=(BROAD_SENSOR,),
-        time_s=np.arange(p.shape[0]) / rate[0],
+        time_s=pose.time_s,
         R_w_s=R[:, None],
-        p_w_s=pw[:, None],
+        p_w_s=np.where(valid[:, None], p, np.nan)[:, None],
         valid=valid[:, None],
-        source=src,
+        source=str(path),
         notes=notes,
     )
 

@@ -29,8 +29,9 @@ calls nothing else to simulate, so its inside can become the simulator's playbac
 pose trajectory (``sb.simulate(motion="trial.hdf5")``) without changing the twin.
 
 **Gaps.** Optical systems lose markers: BROAD's trials have 1-9 % of rows NaN, in runs.
-:func:`fill_gaps` fills every gap (positions linearly, quaternions by normalised linear
-interpolation on one hemisphere, held at the ends) so that the smoothing runs through, and
+:func:`fill_gaps` fills every gap as the simulator does (positions linearly, rotations by
+spherical interpolation, held at the ends: :func:`simbench.io.recorded.fill_gaps`) so that the
+smoothing runs through, and
 :func:`near_gaps` marks the gap samples and every sample within the smoothing's half-window of
 one: those readings rest on filled poses and are left out of every comparison.
 """
@@ -43,7 +44,12 @@ import numpy as np
 
 from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
-from simbench.sim.playback import POLYORDER, _continuous, angular_rates, savgol_window
+from simbench.io.recorded import RecordedMotion, Track
+from simbench.io.recorded import fill_gaps as fill_recorded_gaps
+from simbench.sim.motion_source import MotionSource
+from simbench.sim.playback import _continuous, savgol_window
+from simbench.sim.pose_model import BROAD_SENSOR, POSES_MODEL, poses_spec
+from simbench.sim.session import SessionConfig, run_session
 
 #: Standard gravity, m/s^2 (the simulator's; BROAD was recorded in Berlin, 9.813).
 GRAVITY = 9.81
@@ -121,29 +127,41 @@ def twin_readings(
     Raises:
         InputError: shapes or values not as above, a cutoff the samples cannot be smoothed to.
     """
-    from scipy.signal import savgol_filter  # scipy.signal: 0.6 s of every start of the command line
-
     time_s, p_w, q_w, field_w = (np.asarray(x, dtype=float) for x in (time_s, p_w, q_w, field_w))
     rate = _check(time_s, p_w, q_w, field_w)
     n = time_s.size
-    pos_cutoff = cutoff_hz if position_cutoff_hz is None else position_cutoff_hz
-    w_q = smoothing_window(rate, cutoff_hz, n, "twin_readings (orientation)")
-    w_p = smoothing_window(rate, pos_cutoff, n, "twin_readings (position)")
-    q = _continuous(q_w / np.linalg.norm(q_w, axis=1, keepdims=True))
-    sq = [
-        savgol_filter(q, w_q, POLYORDER, deriv=d, delta=1.0 / rate, axis=0, mode="interp") for d in range(3)
-    ]
-    gyro, alpha = angular_rates(*sq)
-    R = quat_to_matrix(sq[0])
-    a_w = savgol_filter(p_w, w_p, POLYORDER, deriv=2, delta=1.0 / rate, axis=0, mode="interp")
-    acc = np.einsum("fji,fj->fi", R, a_w + np.array([0.0, 0.0, GRAVITY]))
+    placement: tuple[tuple[str, tuple[float, float, float]], ...] = ()
     if lever_arm_m is not None:
         r = np.asarray(lever_arm_m, dtype=float)
         if r.shape != (3,) or not np.isfinite(r).all():
             raise InputError(f"twin_readings: expected lever_arm_m as 3 finite numbers (m), got {r!r}")
-        acc = acc + np.cross(alpha, r) + np.cross(gyro, np.cross(gyro, r))
+        placement = ((BROAD_SENSOR, (float(r[0]), float(r[1]), float(r[2]))),)
+    for name, cutoff in (("orientation", cutoff_hz), ("position", position_cutoff_hz or cutoff_hz)):
+        smoothing_window(rate, cutoff, n, f"twin_readings ({name})")  # the twin's own error message
+    q = q_w / np.linalg.norm(q_w, axis=1, keepdims=True)
+    track = Track(BROAD_SENSOR, "free", np.concatenate([p_w, q], axis=1))
+    motion = RecordedMotion(
+        source="twin_readings",
+        frame_time_s=1.0 / rate,
+        tracks=(track,),
+        valid=np.ones(n, dtype=bool),
+        format="poses",
+    )
+    config = SessionConfig(
+        model=POSES_MODEL,
+        motion="twin_readings: an optical pose",
+        duration_s=n / rate,
+        rate_hz=rate,
+        sensors="ideal",
+        placement=placement,
+        motion_cutoff_hz=float(cutoff_hz),
+        motion_position_cutoff_hz=None if position_cutoff_hz is None else float(position_cutoff_hz),
+        recording=MotionSource(motion, POSES_MODEL, functools.partial(poses_spec, (BROAD_SENSOR,), "twin")),
+    )
+    truth = run_session(config).truth.rigid
+    R = quat_to_matrix(truth.q_w_s[:, 0])
     mag = np.einsum("fji,fj->fi", R, np.broadcast_to(field_w, (n, 3)))
-    return acc, gyro, mag
+    return np.array(truth.acc[:, 0]), np.array(truth.gyro[:, 0]), mag
 
 
 def gap_mask(p_w: np.ndarray, q_w: np.ndarray) -> np.ndarray:
@@ -156,7 +174,9 @@ def gap_mask(p_w: np.ndarray, q_w: np.ndarray) -> np.ndarray:
 
 
 def fill_gaps(p_w: np.ndarray, q_w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Poses with their gaps filled (module docstring).
+    """Poses with their gaps filled as the simulator fills a recording's
+    (:func:`simbench.io.recorded.fill_gaps`: positions linearly, rotations by spherical
+    interpolation, held at the ends).
 
     Args:
         p_w: ``(F, 3)`` m, NaN where missing. q_w: ``(F, 4)`` wxyz, NaN (or zero) where missing.
@@ -172,15 +192,12 @@ def fill_gaps(p_w: np.ndarray, q_w: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     have = np.flatnonzero(~gap)
     if have.size < 2:
         raise InputError(f"expected at least 2 samples with an optical pose, got {have.size}")
-    frames = np.arange(gap.size, dtype=float)
-    p = np.array(p_w, dtype=float)
-    q = np.array(q_w, dtype=float)
-    q[have] = _continuous(q[have] / np.linalg.norm(q[have], axis=1, keepdims=True))
-    for x in (p, q):
-        for i in range(x.shape[1]):
-            x[gap, i] = np.interp(frames[gap], frames[have], x[have, i])
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return p, q, gap
+    values = np.zeros((gap.size, 7))
+    values[have, :3] = np.asarray(p_w, dtype=float)[have]
+    q = np.asarray(q_w, dtype=float)[have]
+    values[have, 3:] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    filled = fill_recorded_gaps(values, ~gap, slice(3, 7))
+    return filled[:, :3], _continuous(filled[:, 3:]), gap
 
 
 def near_gaps(gap: np.ndarray, half_window: int) -> np.ndarray:
