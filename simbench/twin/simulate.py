@@ -1,32 +1,24 @@
 """Ideal IMU readings from an optical pose: the twin's one seam to the simulator.
 
-:func:`twin_readings` turns a recorded pose trajectory (a point's position and a body's
-orientation, world ENU: x east, y north, z up, as BROAD's ``opt_pos``/``opt_quat``) into what an
-ideal accelerometer, gyroscope and magnetometer on that body read, in the body frame:
+:func:`twin_readings` plays a recorded pose trajectory (a point's position and a body's
+orientation, world ENU: x east, y north, z up, as BROAD's ``opt_pos``/``opt_quat``) back through
+the simulator, as ``sb.simulate(motion="trial.hdf5")`` does (:mod:`simbench.sim.pose_model`: a
+free body whose sensor frame is the recorded one; :mod:`simbench.sim.playback`: Savitzky-Golay
+smoothing, MuJoCo's inverse dynamics), and returns what an ideal accelerometer, gyroscope and
+magnetometer on that body read, in the body frame:
 
-- gyroscope ``omega`` (rad/s): the body's angular velocity in its own frame,
-  ``2 Im(conj(q) dq/dt) / |q|^2`` of the smoothed quaternion
-  (:func:`simbench.sim.playback.angular_rates`);
-- accelerometer ``R^T (a + g e_z) + alpha x r + omega x (omega x r)`` (m/s^2): the specific
-  force (``+g`` up at rest, ``g`` = :data:`GRAVITY`) at the point ``r`` (body frame, the lever
-  arm) from the tracked point, whose acceleration is ``a``; ``alpha`` the angular acceleration
-  in the body frame;
-- magnetometer ``R^T b`` (uT), ``b`` the world field given (uniform, or at every sample).
+- gyroscope: the body's angular velocity in its own frame (rad/s);
+- accelerometer: the specific force (m/s^2, ``+g`` up at rest) at the lever arm ``r`` from the
+  tracked point (the sensor's placement on the body): ``R^T (a + g e_z) + alpha x r + omega x
+  (omega x r)``;
+- magnetometer ``R^T b`` (uT), ``b`` the world field given (uniform, or at every sample), ``R``
+  the body's recorded orientation.
 
 Every reading is linear in the field and the lever arm: the identification
 (:mod:`simbench.twin.identify`) takes what a unit field or a unit lever arm adds from here too.
-
-The poses are smoothed as the simulator's recorded-motion playback smooths them
-(:mod:`simbench.sim.playback`: Savitzky-Golay of degree :data:`~simbench.sim.playback.POLYORDER`,
-the shortest window whose gain at the cutoff is -3 dB, :func:`~simbench.sim.playback.savgol_window`);
-velocities and accelerations are the filter's derivatives, not finite differences. Positions get
-a cutoff of their own (``position_cutoff_hz``): an acceleration is the position differentiated
-twice, which multiplies the markers' jitter by ``(2 pi f)^2``, while the orientation is
-differentiated once.
-
-**The seam.** The signature of :func:`twin_readings` is stable: the twin (:mod:`simbench.twin.run`)
-calls nothing else to simulate, so its inside can become the simulator's playback of a recorded
-pose trajectory (``sb.simulate(motion="trial.hdf5")``) without changing the twin.
+Positions get a smoothing cutoff of their own (``position_cutoff_hz``): an acceleration is the
+position differentiated twice, which multiplies the markers' jitter by ``(2 pi f)^2``, while the
+orientation is differentiated once.
 
 **Gaps.** Optical systems lose markers: BROAD's trials have 1-9 % of rows NaN, in runs.
 :func:`fill_gaps` fills every gap as the simulator does (positions linearly, rotations by
