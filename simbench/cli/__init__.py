@@ -8,6 +8,7 @@ ends with exit status 130. A traceback is shown only with ``--debug``.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from collections.abc import Sequence
@@ -80,27 +81,67 @@ def _one_line(exc: BaseException) -> str:
 
 
 #: The options that name a file to write (argparse ``dest``), checked before any work is done.
-FILE_OUTPUTS = ("json", "csv", "output", "trc", "c3d", "sto", "imu_csv", "mjcf", "osim")
+FILE_OUTPUTS = ("json", "csv", "output", "trc", "c3d", "sto", "imu_csv", "mjcf", "osim", "truth_json")
+
+
+def _flag(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+def _same(a: Path, b: Path) -> bool:
+    """Two paths name one file: the same inode when both exist, else the same resolved path."""
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return os.path.realpath(a) == os.path.realpath(b)
 
 
 def check_outputs(args: argparse.Namespace) -> None:
     """Refuse, before any work, an output file that is a folder or whose folder does not exist
-    (it would otherwise fail only when the result is written).
+    (it would otherwise fail only when the result is written), one that names the same file as
+    another output or as a file the command reads (any other argument naming an existing file:
+    a recording, a model, a spec, after resolving links), and one that exists but is not a
+    regular file (a FIFO, a device: writing would replace it with a file).
 
     Raises:
-        InputError: naming the option and the path.
+        InputError: naming the option(s) and the path(s), on one line.
     """
+    outputs: list[tuple[str, Path]] = []
     for dest in FILE_OUTPUTS:
         value = getattr(args, dest, None)
         if not isinstance(value, str):
             continue
         path = Path(value)
-        flag = "--" + dest.replace("_", "-")
+        flag = _flag(dest)
         if path.is_dir():
             raise InputError(f"{flag} {value}: that is a folder; give the file to write")
         folder = path.parent if str(path.parent) else Path(".")
         if not folder.is_dir():
             raise InputError(f"{flag} {value}: folder {folder} does not exist")
+        if path.exists() and not Path(os.path.realpath(path)).is_file():
+            raise InputError(
+                f"{flag} {value}: exists and is not a regular file (a FIFO or device); not replaced"
+            )
+        for other_flag, other in outputs:
+            if _same(path, other):
+                raise InputError(
+                    f"{other_flag} {other} and {flag} {value} name the same file; give each its own"
+                )
+        outputs.append((flag, path))
+    for dest, value in vars(args).items():
+        values = value if isinstance(value, list) else [value]
+        for v in values:
+            if dest in FILE_OUTPUTS or not isinstance(v, str) or not v or not Path(v).is_file():
+                continue
+            for flag, out in outputs:
+                if _same(Path(v), out):
+                    what = dest if dest.isidentifier() and not dest.startswith("_") else "an input"
+                    raise InputError(
+                        f"{flag} {out} is the file the command reads ({what.replace('_', ' ')}: {v}); "
+                        "writing it would destroy the input: give another file"
+                    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

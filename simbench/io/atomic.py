@@ -7,6 +7,9 @@ destination is left as it was. That includes Ctrl-C (``KeyboardInterrupt``) and 
 (SIGKILL) cannot remove its temporary file: each one's name carries its writer's process id,
 ``.NAME.<pid>.<random>.tmp``, and the next write of ``NAME`` removes those whose writer is no
 longer running.
+
+A destination that is a symbolic link is written through to the file it points to (the link
+stays a link); FIFOs and devices are refused.
 """
 
 from __future__ import annotations
@@ -48,18 +51,23 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
 
 
 def check_writable(path: str | os.PathLike[str]) -> Path:
-    """``path`` as a ``Path``, refused when it is a folder or its folder does not exist (before
-    anything is computed for it, or written).
+    """The file to write for ``path``: the path itself, or the file a symbolic link at it points to
+    (written through, so that the link stays a link); refused when it is a folder, a FIFO or a
+    device (replacing those with a file would break what uses them), or its folder does not exist
+    (before anything is computed for it, or written).
 
     Raises:
         InputError: naming the path and what is wrong.
     """
-    dest = Path(path)
+    given = Path(path)
+    dest = Path(os.path.realpath(given)) if given.is_symlink() else given
     folder = dest.parent if str(dest.parent) else Path(".")
     if not folder.is_dir():
-        raise InputError(f"cannot write {dest}: folder {folder} does not exist")
+        raise InputError(f"cannot write {given}: folder {folder} does not exist")
     if dest.is_dir():
-        raise InputError(f"cannot write {dest}: it is a folder")
+        raise InputError(f"cannot write {given}: it is a folder")
+    if dest.exists() and not dest.is_file():
+        raise InputError(f"cannot write {given}: it exists and is not a regular file (a FIFO or a device)")
     return dest
 
 
