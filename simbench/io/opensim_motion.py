@@ -115,7 +115,7 @@ from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_write_text
 from simbench.io.bvh import Y_UP_TO_Z_UP
 from simbench.io.qpos import model_joints
-from simbench.io.recorded import RecordedMotion, Track, fill_gaps, frame_grid
+from simbench.io.recorded import RecordedMotion, Track, on_frame_grid
 
 #: ``C``: OpenSim's ground (x forward, y up, z right) into simbench's world (x forward, y left, z up).
 C = Y_UP_TO_Z_UP
@@ -606,30 +606,8 @@ def read_opensim_motion(path: str | os.PathLike[str], m: mujoco.MjModel, model: 
     if "inDegrees" not in st.header:
         unit = "radians (no inDegrees: OpenSim's default)"
     notes.append(f"angles in {unit}")
-    t = st.time_s
-    back = np.flatnonzero(np.diff(t) <= 0)
-    if back.size:  # as frame_grid says it, on the row's own line
-        k = int(back[0]) + 1
-        raise InputError(
-            f"{st.source}, line {st.row_lines[k]}: time {t[k]:.9g} s does not follow {t[k - 1]:.9g} s"
-        )
-    period, frame = frame_grid(t, st.source, first_line=st.first_line)
-    total = int(frame[-1]) + 1
-    valid = np.zeros(total, dtype=bool)
-    valid[frame] = True
-    full = []
-    for t in tracks:
-        v = np.zeros((total, t.values.shape[1]))
-        v[frame] = t.values
-        full.append(Track(t.joint, t.kind, fill_gaps(v, valid, t.quaternion_columns)))
-    return RecordedMotion(
-        source=st.source,
-        frame_time_s=period,
-        tracks=tuple(full),
-        valid=valid,
-        start_s=float(st.time_s[0]),
-        format="opensim",
-        notes=tuple(notes),
+    return on_frame_grid(
+        st.source, st.time_s, tracks, "opensim", lines=np.asarray(st.row_lines), notes=tuple(notes)
     )
 
 

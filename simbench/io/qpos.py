@@ -26,7 +26,7 @@ import numpy as np
 
 from simbench.errors import InputError, read_text
 from simbench.io.atomic import atomic_open
-from simbench.io.recorded import WIDTH, RecordedMotion, Track, fill_gaps, frame_grid
+from simbench.io.recorded import WIDTH, RecordedMotion, Track, on_frame_grid
 
 #: The coordinates of each joint kind, as CSV column suffixes (a hinge's or slide's: none).
 COLUMNS = {
@@ -119,26 +119,6 @@ def _tracks(
     return tracks
 
 
-def _recorded(path: str, time_s: np.ndarray, tracks: list[Track], lines: np.ndarray | None) -> RecordedMotion:
-    period, frame = frame_grid(time_s, path, first_line=-1, lines=lines)
-    n = int(frame[-1]) + 1
-    valid = np.zeros(n, dtype=bool)
-    valid[frame] = True
-    full = []
-    for t in tracks:
-        v = np.zeros((n, t.values.shape[1]))
-        v[frame] = t.values
-        full.append(Track(t.joint, t.kind, fill_gaps(v, valid, t.quaternion_columns)))
-    return RecordedMotion(
-        source=path,
-        frame_time_s=period,
-        tracks=tuple(full),
-        valid=valid,
-        start_s=float(time_s[0]),
-        format="qpos",
-    )
-
-
 def read_qpos_npz(path: str | os.PathLike[str], m: mujoco.MjModel) -> RecordedMotion:
     """A ``qpos`` archive (module docstring) as a recorded motion of ``m``.
 
@@ -191,7 +171,7 @@ def read_qpos_npz(path: str | os.PathLike[str], m: mujoco.MjModel) -> RecordedMo
         time = np.arange(qpos.shape[0]) / rate.item()
     if time.shape != (qpos.shape[0],):
         raise InputError(f"{src}: time_s has shape {time.shape}; qpos has {qpos.shape[0]} frames")
-    return _recorded(src, time, _tracks(src, m, columns, None), None)
+    return on_frame_grid(src, time, _tracks(src, m, columns, None), "qpos")
 
 
 def read_qpos_csv(path: str | os.PathLike[str], m: mujoco.MjModel) -> RecordedMotion:
@@ -232,7 +212,7 @@ def read_qpos_csv(path: str | os.PathLike[str], m: mujoco.MjModel) -> RecordedMo
         )
     columns = {h: data[:, c] for c, h in enumerate(header) if h != "time_s"}
     lines = line_of[1:]
-    return _recorded(src, data[:, header.index("time_s")], _tracks(src, m, columns, lines), lines)
+    return on_frame_grid(src, data[:, header.index("time_s")], _tracks(src, m, columns, lines), "qpos", lines)
 
 
 def write_qpos_npz(

@@ -221,3 +221,38 @@ def fill_gaps(values: np.ndarray, valid: np.ndarray, quaternion: slice | None) -
             q[a + 1 : b] = _slerp(q[a], q[b], (np.arange(a + 1, b) - a) / (b - a))
         out[:, quaternion] = q
     return out
+
+
+def on_frame_grid(
+    source: str,
+    time_s: np.ndarray,
+    tracks: list[Track],
+    format: str,
+    lines: np.ndarray | None = None,
+    notes: tuple[str, ...] = (),
+) -> RecordedMotion:
+    """A recording's tracks, one row per time stamp ``(F,)`` s, placed on its frame grid
+    (:func:`frame_grid`: ``lines`` each row's line in the file, or ``None`` to name frames) with
+    dropped frames filled (:func:`fill_gaps`).
+
+    Raises:
+        InputError: what :func:`frame_grid` refuses.
+    """
+    period, frame = frame_grid(time_s, source, first_line=-1, lines=lines)
+    n = int(frame[-1]) + 1
+    valid = np.zeros(n, dtype=bool)
+    valid[frame] = True
+    full = []
+    for t in tracks:
+        v = np.zeros((n, t.values.shape[1]))
+        v[frame] = t.values
+        full.append(Track(t.joint, t.kind, fill_gaps(v, valid, t.quaternion_columns)))
+    return RecordedMotion(
+        source=source,
+        frame_time_s=period,
+        tracks=tuple(full),
+        valid=valid,
+        start_s=float(time_s[0]),
+        format=format,
+        notes=notes,
+    )
