@@ -33,6 +33,7 @@ poses. The smoothed motion holds content up to the cutoff, so a rate must be abo
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -122,14 +123,27 @@ def savgol_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: str =
     Raises:
         InputError: a cutoff at or above the clip's Nyquist frequency, or a clip shorter than the window.
     """
-    from scipy.signal import savgol_coeffs  # scipy.signal: 0.6 s of every start of the command line
-
     nyquist = rate_hz / 2
     if not (math.isfinite(cutoff_hz) and 0 < cutoff_hz < nyquist):
         raise InputError(
             f"{source}: a smoothing cutoff of {cutoff_hz:g} Hz: expected one above 0 and below the clip's "
             f"Nyquist frequency {nyquist:g} Hz"
         )
+
+    window = _shortest_window(float(rate_hz), float(cutoff_hz), int(n_frames))
+    if window < 0:
+        raise InputError(
+            f"{source}: {n_frames} frames are too few to smooth below {cutoff_hz:g} Hz at {rate_hz:g} Hz "
+            "(a longer clip or a higher cutoff)"
+        )
+    return window
+
+
+@functools.lru_cache(maxsize=64)
+def _shortest_window(rate_hz: float, cutoff_hz: float, n_frames: int) -> int:
+    """:func:`savgol_window`'s search (a bisection over the window, 0.3 s on long recordings:
+    remembered), or -1 when even the longest window passes more than -3 dB at the cutoff."""
+    from scipy.signal import savgol_coeffs  # scipy.signal: 0.6 s of every start of the command line
 
     def gain(window: int) -> float:
         c = savgol_coeffs(window, POLYORDER)
@@ -138,10 +152,7 @@ def savgol_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: str =
 
     lo, hi = POLYORDER // 2 + 1, max(POLYORDER // 2 + 1, (n_frames - 1) // 2)  # half-windows
     if gain(2 * hi + 1) > 1 / math.sqrt(2):
-        raise InputError(
-            f"{source}: {n_frames} frames are too few to smooth below {cutoff_hz:g} Hz at {rate_hz:g} Hz "
-            "(a longer clip or a higher cutoff)"
-        )
+        return -1
     while lo < hi:  # the gain at a fixed frequency falls as the window grows
         mid = (lo + hi) // 2
         if gain(2 * mid + 1) <= 1 / math.sqrt(2):

@@ -72,21 +72,13 @@ def _check(time_s: np.ndarray, p_w: np.ndarray, q_w: np.ndarray, field_w: np.nda
 
 
 def smoothing_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: str = "") -> int:
-    """The Savitzky-Golay window (frames, odd) of ``cutoff_hz`` at ``rate_hz``
-    (:func:`simbench.sim.playback.savgol_window`; remembered: its search takes 0.3 s).
+    """The Savitzky-Golay window (frames, odd) of ``cutoff_hz`` at ``rate_hz``: the playback's
+    (:func:`simbench.sim.playback.savgol_window`, which remembers its search).
 
     Raises:
         InputError: as ``savgol_window``, naming ``source``.
     """
-    try:
-        return _window(round(float(rate_hz), 6), float(cutoff_hz), int(n_frames))
-    except InputError:
-        return savgol_window(rate_hz, cutoff_hz, n_frames, source)  # raises, naming the source
-
-
-@functools.lru_cache(maxsize=64)
-def _window(rate_hz: float, cutoff_hz: float, n_frames: int) -> int:
-    return savgol_window(rate_hz, cutoff_hz, n_frames)
+    return savgol_window(rate_hz, cutoff_hz, n_frames, source)
 
 
 def twin_readings(
