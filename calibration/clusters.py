@@ -11,15 +11,23 @@ markers of a cluster give no pose (marked missing, never interpolated).
 :func:`find_clusters` finds clusters without a specification, from how steady each pair's distance
 stays (its standard deviation over frames) with cuts at the largest gaps of a hierarchical tree
 (no tolerance in metres), and sets apart groups that are steady only because they barely move.
-Each group the cut gives is then tested for being one rigid body (:func:`rigid_parts`): a union of
-two parts is kept only if fitting it as one body misfits the markers no more than the parts' own
-misfit allows (an F test at a stated false-alarm rate), so two segments whose distances happen to
-be as steady as a segment's own (a segment that lost a marker) are not merged. Where the parts are
-too small for that test to tell, a cluster whose two main branches misfit as one far more than the
-same union in subsets of the recording's other clusters is said to be doubtful
-(:func:`doubtful_unions`): kept, and named.
+Each group the cut gives is then tested for being one rigid body (:func:`rigid_parts`), two
+ways. A union of two parts is kept only if fitting it as one body misfits the markers no more
+than the parts' own misfit allows (an F test at a stated false-alarm rate), so two segments whose
+distances happen to be as steady as a segment's own (a segment that lost a marker) are not merged;
+and only if the distances between the parts vary no more than those within them
+(:func:`spread_excess`: the median log spread of the pairs between against that of the pairs
+within, in units of the scatter of the recording's own clusters' pairs, :func:`spread_noise`,
+against the quantile of the same construction on one body, :data:`SPREAD_NULL`), so that two
+markers -- no pose -- are not joined to the next segment's cluster because the misfit test has too
+few degrees of freedom to refuse them. Where the parts are too small for the misfit test to tell,
+a cluster whose two main branches misfit as one far more than the same union in subsets of the
+recording's other clusters (:func:`doubtful_unions`), or whose top union's spread excess is beyond
+the 1 in 100 quantile, is said to be doubtful: kept, and named.
 Markers seen too little to judge (never, or with no other marker in :data:`MIN_FRAMES` frames)
-are left out before the tree is built: they say nothing about rigidity.
+are left out before the tree is built: they say nothing about rigidity. So are markers exactly
+rigid with each other (:func:`exact_groups`): landmarks a probing-based export computes from a
+cluster's pose, whose spread of zero would otherwise be the tree's largest gap.
 """
 
 from __future__ import annotations
@@ -28,13 +36,15 @@ import itertools
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.quantiles import f_ppf, mad_std, norm_ppf
+from calibration.quantiles import MAD_TO_SIGMA, f_ppf, mad_std, norm_ppf
 
 #: Fewest frames in which two markers are seen together for their distance's spread to be judged
 #: (a standard deviation of fewer than three samples says nothing about how steady it is).
@@ -61,6 +71,92 @@ DOUBT_MIN_SIZE = 4
 
 #: Frames (evenly spaced) that check's misfit ratios are taken over, at most.
 DOUBT_FRAMES = 200
+
+#: A pair of markers whose distance spread is below this fraction of the recording's marker noise
+#: (:func:`exact_groups`) is exactly rigid: three orders of magnitude steadier than its markers
+#: are seen. No two measured markers are (on 16 real C3D files of biobuddy, the kinetics toolkit
+#: and pyomeca the steadiest measured pair is at 0.06 of that noise); landmarks a probing export
+#: computes from one cluster's pose are (the kinetics toolkit's racing trial: 9e-5 to 1.7e-4 of it,
+#: the rounding of its single-precision values).
+ZERO_SPREAD = 1e-3
+
+#: False-alarm rate of the spread test (:func:`spread_excess`, :func:`spread_limit`): the rate at
+#: which the top union of one rigid body whose pairs' log spreads scatter like independent normal
+#: draws exceeds its limit.
+SPREAD_FALSE_ALARM = 1e-3
+
+#: False-alarm rate of the spread test for a union of a cluster (``min_size`` markers or more) and
+#: a branch too small to be one (two markers, or one): refusing it wrongly leaves that branch's
+#: markers out and the cluster whole, while joining it wrongly puts another segment's markers into
+#: the cluster's pose -- two markers give no pose of their own and are never to be joined to a
+#: neighbour on weak evidence.
+SPREAD_SMALL = 1e-2
+
+#: The rate at which a cluster kept whole is said to be doubtful by the spread test (its top union
+#: beyond this quantile of one body's, within :data:`SPREAD_FALSE_ALARM`'s), per cluster.
+SPREAD_DOUBT = 1e-2
+
+#: Upper quantiles (0.99, 0.999) of the spread test's statistic (:func:`spread_excess`, in units of
+#: the pairs' robust standard deviation) at the top union of one rigid body, by the sizes of the two
+#: branches ``(smaller, larger)``: the median log spread of the pairs between the branches less that
+#: of the pairs within them, when the complete-linkage tree is built on log spreads that are
+#: independent standard normal draws. The tree joins the least steady pairs last, so even one body's
+#: top union has its between pairs above its within pairs (by 1.3 for branches of 1 and 2 markers
+#: on average, 0.4 for 8 and 8): the limit must be that of the same construction, not that of a
+#: plain difference of medians. Monte Carlo, 400,000 sets of each size from 3 to 10 markers and
+#: 60,000 from 11 to 16 (``scripts/cluster_spread_null.py``, seed 20240601, 284 s on two cores);
+#: sizes drawn fewer than 5,000 times left out.
+SPREAD_NULL: dict[tuple[int, int], tuple[float, float]] = {
+    (1, 2): (3.34, 4.15),  # 400000 draws
+    (1, 3): (2.80, 3.48),  # 186903 draws
+    (1, 4): (2.27, 2.74),  # 94060 draws
+    (1, 5): (2.19, 2.61),  # 48988 draws
+    (1, 6): (1.98, 2.32),  # 26068 draws
+    (1, 7): (1.94, 2.33),  # 14182 draws
+    (1, 8): (1.76, 2.06),  # 8018 draws
+    (2, 2): (2.60, 3.17),  # 213097 draws
+    (2, 3): (2.21, 2.70),  # 305940 draws
+    (2, 4): (1.95, 2.38),  # 221388 draws
+    (2, 5): (1.71, 2.06),  # 156175 draws
+    (2, 6): (1.52, 1.84),  # 111445 draws
+    (2, 7): (1.39, 1.66),  # 80320 draws
+    (2, 8): (1.29, 1.58),  # 57972 draws
+    (2, 9): (1.19, 1.48),  # 6415 draws
+    (3, 3): (1.99, 2.39),  # 129624 draws
+    (3, 4): (1.77, 2.13),  # 217757 draws
+    (3, 5): (1.59, 1.89),  # 170496 draws
+    (3, 6): (1.39, 1.67),  # 133534 draws
+    (3, 7): (1.28, 1.54),  # 104347 draws
+    (3, 8): (1.17, 1.38),  # 12314 draws
+    (3, 9): (1.09, 1.30),  # 9730 draws
+    (3, 10): (1.01, 1.22),  # 7618 draws
+    (3, 11): (0.96, 1.12),  # 6068 draws
+    (4, 4): (1.57, 1.87),  # 103877 draws
+    (4, 5): (1.42, 1.69),  # 178128 draws
+    (4, 6): (1.30, 1.54),  # 152930 draws
+    (4, 7): (1.18, 1.38),  # 19498 draws
+    (4, 8): (1.07, 1.28),  # 16446 draws
+    (4, 9): (1.00, 1.18),  # 13833 draws
+    (4, 10): (0.94, 1.10),  # 11882 draws
+    (4, 11): (0.88, 1.03),  # 9968 draws
+    (4, 12): (0.83, 0.98),  # 8490 draws
+    (5, 5): (1.32, 1.58),  # 80053 draws
+    (5, 6): (1.21, 1.43),  # 21377 draws
+    (5, 7): (1.13, 1.36),  # 18803 draws
+    (5, 8): (1.02, 1.20),  # 16574 draws
+    (5, 9): (0.98, 1.16),  # 14425 draws
+    (5, 10): (0.91, 1.07),  # 12378 draws
+    (5, 11): (0.85, 1.02),  # 10801 draws
+    (6, 6): (1.12, 1.32),  # 10236 draws
+    (6, 7): (1.05, 1.24),  # 18312 draws
+    (6, 8): (0.98, 1.17),  # 16417 draws
+    (6, 9): (0.93, 1.10),  # 14915 draws
+    (6, 10): (0.85, 1.00),  # 13221 draws
+    (7, 7): (0.98, 1.21),  # 8548 draws
+    (7, 8): (0.94, 1.08),  # 15952 draws
+    (7, 9): (0.87, 1.01),  # 14583 draws
+    (8, 8): (0.88, 1.05),  # 7654 draws
+}
 
 
 @dataclass(frozen=True)
@@ -167,12 +263,26 @@ class MarkerGroups:
         residual_m: median rigidity residual of each cluster, then each still group, m.
         rotation_deg: 95th-percentile rotation from the mean orientation, same order, degrees.
         cut_m: ``(still/moving cut, cluster cut)`` on the distance spread, m.
-        splits: ``(part, other part, F, limit)`` for each union the rigidity test refused
-            (:func:`rigid_parts`): marker index lists, the median frame's misfit ratio and the
-            F quantile it exceeded.
+        splits: each union the rigidity tests refused (:class:`Refusal`, :func:`rigid_parts`):
+            the two parts, the statistic and the limit it exceeded, and which test.
         doubtful: ``(part, other part, F, z, n)`` for each cluster that may be two bodies: its top
             union misfits far more than the same union in ``n`` subsets of the recording's other
             clusters (:func:`doubtful_unions`); kept as one cluster, and said.
+        doubtful_spread: each cluster kept whole whose top union's spread test lies beyond the
+            :data:`SPREAD_DOUBT` quantile (:class:`Refusal` with that quantile as the limit):
+            perhaps two bodies, kept as one, and said.
+        virtual: groups of markers exactly rigid with each other (:func:`exact_groups`): landmarks
+            computed from a cluster's pose, set aside before the cuts (their markers are in
+            ``left_out`` too), sorted.
+        virtual_with: for each virtual group, the index in ``clusters + still`` of the group it
+            moves with (the one whose pairs with it are steadiest, if the spread test finds them
+            one body: :func:`spread_excess`), or ``None``.
+        virtual_spread: for each virtual group, the largest distance spread of its pairs, in the
+            markers' unit.
+        marker_noise: the recording's marker noise :func:`exact_groups` measured against, in the
+            markers' unit.
+        noise: the scatter of the clusters' own spreads the spread test used (:func:`spread_noise`),
+            or ``None`` (no cluster of three markers to take it from).
     """
 
     clusters: list[list[int]]
@@ -182,8 +292,14 @@ class MarkerGroups:
     residual_m: list[float]
     rotation_deg: list[float]
     cut_m: tuple[float, float]
-    splits: list[tuple[list[int], list[int], float, float]] = field(default_factory=list)
+    splits: list[Refusal] = field(default_factory=list)
     doubtful: list[tuple[list[int], list[int], float, float, int]] = field(default_factory=list)
+    doubtful_spread: list[Refusal] = field(default_factory=list)
+    virtual: list[list[int]] = field(default_factory=list)
+    virtual_with: list[int | None] = field(default_factory=list)
+    virtual_spread: list[float] = field(default_factory=list)
+    marker_noise: float = math.nan
+    noise: SpreadNoise | None = None
 
 
 def distance_spread(markers: np.ndarray) -> np.ndarray:
@@ -310,27 +426,222 @@ def union_misfit_ratio(
     return float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2))
 
 
+class Refusal(NamedTuple):
+    """A union the rigidity tests refused (:func:`rigid_parts`).
+
+    Attributes:
+        part, other: the two branches' marker indices.
+        value: the test's statistic: the median frame's misfit ratio F (``test == "misfit"``,
+            :func:`union_misfit_ratio`) or the spread excess in robust standard deviations
+            (``test == "spread"``, :func:`spread_excess`).
+        limit: the quantile it exceeded.
+        test: ``"misfit"`` or ``"spread"``.
+        ratio: the spread test's ratio of the between pairs' median distance spread to the within
+            pairs' (:func:`spread_excess`); NaN for the misfit test.
+        false_alarm: the rate at which one rigid body exceeds ``limit``.
+    """
+
+    part: list[int]
+    other: list[int]
+    value: float
+    limit: float
+    test: str = "misfit"
+    ratio: float = math.nan
+    false_alarm: float = RIGID_FALSE_ALARM
+
+
+@dataclass(frozen=True)
+class SpreadNoise:
+    """How the distance spreads of one rigid cluster's pairs scatter in a recording
+    (:func:`spread_noise`).
+
+    Attributes:
+        level: the recording's marker noise (:func:`exact_groups`: the median over its markers of
+            each one's steadiest pair's spread), in the markers' unit: pairs steadier than that are
+            judged against it.
+        tau: robust standard deviation of a within pair's log spread about its cluster's level
+            (unit-free).
+        pairs: the pairs it was taken from.
+    """
+
+    level: float
+    tau: float
+    pairs: int
+
+
+def _log_spreads(spread: np.ndarray, rows: np.ndarray, cols: np.ndarray | None = None) -> np.ndarray:
+    """Log spreads of the pairs within ``rows`` (``cols`` None) or between ``rows`` and ``cols``,
+    finite and positive only."""
+    if cols is None:
+        sub = spread[np.ix_(rows, rows)][np.triu_indices(len(rows), 1)]
+    else:
+        sub = spread[np.ix_(rows, cols)].ravel()
+    sub = sub[np.isfinite(sub) & (sub > 0)]
+    return np.log(sub)
+
+
+def _scatter(spread: np.ndarray, sets: list[np.ndarray], level: float) -> SpreadNoise | None:
+    """:class:`SpreadNoise` of the pairs within each of ``sets`` (:func:`spread_noise`)."""
+    differences, weights, pairs = [], [], 0
+    for g in sets:
+        logs = _log_spreads(spread, np.asarray(g))
+        if len(logs) < 2:
+            continue
+        i, j = np.triu_indices(len(logs), 1)
+        differences.append(np.abs(logs[i] - logs[j]))
+        weights.append(np.full(len(i), 1.0 / len(i)))
+        pairs += len(logs)
+    if not differences:
+        return None
+    # the weighted median absolute difference, each set weighing the same
+    d, w = np.concatenate(differences), np.concatenate(weights)
+    order = np.argsort(d)
+    cumulative = np.cumsum(w[order])
+    median = float(d[order][np.searchsorted(cumulative, 0.5 * cumulative[-1])])
+    tau = MAD_TO_SIGMA * median / math.sqrt(2.0)
+    if not tau > 0:
+        return None
+    return SpreadNoise(level=level, tau=tau, pairs=pairs)
+
+
+def spread_noise(spread: np.ndarray, clusters: list[np.ndarray], marker_noise: float) -> SpreadNoise | None:
+    """The scatter of the spreads of one body's pairs, from a recording's clusters (3+ markers).
+
+    Within one cluster, the log spreads of its pairs differ by the markers' own noise (skin,
+    camera) and by chance; a cluster on skin and one on a rigid plate differ in level, not in how
+    their pairs scatter. So ``tau`` is taken from the absolute differences between the log spreads
+    of two pairs of one cluster, over all its pairs of pairs: their median, each cluster weighing
+    the same (a large cluster has many more pairs of pairs), times
+    :data:`calibration.quantiles.MAD_TO_SIGMA` over ``sqrt(2)``: the standard deviation of one
+    pair's log spread if they are normal. Each difference is that of two within pairs, so the
+    estimate holds however few pairs a cluster has (deviations from a cluster's median would
+    include a zero for every cluster of three). ``level`` is ``marker_noise``, the recording's
+    marker noise (:func:`exact_groups`).
+
+    The clusters are those the misfit test leaves, and some may still be two bodies -- this is
+    what the spread test is to find out -- whose pairs between the bodies would widen the scatter
+    they are judged by, and hide themselves (when every cluster is such a union, as when the
+    segment cut joined the segments in pairs). So a cluster of four markers or more whose top union
+    (:func:`_top_union`) lies beyond the :data:`SPREAD_DOUBT` quantile lends only the pairs within
+    its spread tree's two main branches (those of three or more markers); the scatter is taken
+    from above: first with every cluster whole (too wide if some are unions), then again with
+    those whose top union that scatter puts beyond the quantile in their branches, until the same
+    clusters are. Not from below (every cluster in its branches first): a cluster's branches hold
+    its steadiest pairs, and a scatter that narrow keeps one body's clusters split, the noisiest
+    marker of a clean recording's cluster refused (chains of 3-4 skin markers: 133 of 140 grouped
+    right from below, 137 from above). ``None`` when no cluster of three or more markers has two
+    positive spreads, or the differences have no scale.
+    """
+    whole = [np.asarray(g) for g in clusters if len(g) >= 3]
+    tops = [_top_union(spread, g) if len(g) > 3 else None for g in whole]
+    split = [False] * len(whole)  # from above: every cluster whole, then those beyond in two
+    for _ in range(len(whole) + 1):
+        sets = [
+            p
+            for g, top, s in zip(whole, tops, split, strict=True)
+            for p in (top if s else [g])
+            if len(p) >= 3
+        ]
+        noise = _scatter(spread, sets, marker_noise)
+        if noise is None:
+            return None
+        again = [top is not None and _beyond(spread, *top, noise) for top in tops]
+        if again == split:
+            break
+        split = again
+    return noise
+
+
+def _beyond(spread: np.ndarray, a: np.ndarray, b: np.ndarray, noise: SpreadNoise) -> bool:
+    """Whether the union of ``a`` and ``b`` lies beyond the :data:`SPREAD_DOUBT` quantile."""
+    excess = spread_excess(spread, a, b, noise)
+    return excess is not None and excess[1] > spread_limit(len(a), len(b), SPREAD_DOUBT)
+
+
+def spread_limit(n_a: int, n_b: int, false_alarm: float = SPREAD_FALSE_ALARM) -> float:
+    """The spread test's limit for branches of ``n_a`` and ``n_b`` markers (:data:`SPREAD_NULL`).
+
+    Sizes beyond the table take the smallest limit of the sizes it holds that are no larger in
+    either branch: the limit falls as the branches grow, so that one is never below the true one.
+
+    Raises:
+        CalibrationInputError: a false-alarm rate other than 0.01 or 0.001 (the table's), or two
+            single markers (no within pair to compare with).
+    """
+    column = {1e-2: 0, 1e-3: 1}.get(false_alarm)
+    if column is None:
+        raise CalibrationInputError(f"Expected a false-alarm rate of 0.01 or 0.001, got {false_alarm!r}")
+    small, large = sorted((int(n_a), int(n_b)))
+    if large < 2:
+        raise CalibrationInputError("two single markers have no within pair to compare their spread with")
+    return min(q[column] for (a, b), q in SPREAD_NULL.items() if a <= small and b <= large)
+
+
+def spread_excess(
+    spread: np.ndarray, a: np.ndarray, b: np.ndarray, noise: SpreadNoise
+) -> tuple[float, float] | None:
+    """How far the distances between two branches vary beyond those within them: ``(ratio, z)``.
+
+    ``ratio`` is the median distance spread of the pairs between ``a`` and ``b`` over the larger
+    of the median spread of the pairs within them and the recording's marker noise
+    (``noise.level``): markers far steadier than a typical marker of the recording (a rigid plate
+    with camera noise only, among skin markers) are judged against that noise, not against how
+    much steadier one of them happens to be than another. ``z = log(ratio) / noise.tau``: how many
+    of the recording's robust standard deviations of a within pair's log spread the between pairs
+    lie above. Unit-free.
+
+    Returns:
+        ``None`` when it cannot be judged: two single markers (no within pair), or no finite,
+        positive spread between them or within them.
+    """
+    a, b = np.asarray(a), np.asarray(b)
+    if len(a) < 2 and len(b) < 2:
+        return None
+    within = np.concatenate([_log_spreads(spread, a), _log_spreads(spread, b)])
+    between = _log_spreads(spread, a, b)
+    if not len(within) or not len(between):
+        return None
+    floor = math.log(noise.level) if noise.level > 0 else -math.inf  # NaN: no floor
+    reference = max(float(np.median(within)), floor)
+    excess = float(np.median(between)) - reference
+    return math.exp(excess), excess / noise.tau
+
+
 def rigid_parts(
-    markers: np.ndarray, spread: np.ndarray, members: np.ndarray, *, false_alarm: float = RIGID_FALSE_ALARM
-) -> tuple[list[np.ndarray], list[tuple[list[int], list[int], float, float]]]:
+    markers: np.ndarray,
+    spread: np.ndarray,
+    members: np.ndarray,
+    *,
+    false_alarm: float = RIGID_FALSE_ALARM,
+    noise: SpreadNoise | None = None,
+    min_size: int = 3,
+) -> tuple[list[np.ndarray], list[Refusal]]:
     """A group split into the largest parts that each move as one rigid body.
 
     The group's complete-linkage tree on the distance spread is walked from its leaves up: two
-    branches are joined only when each is one body and :func:`union_misfit_ratio` finds their
+    branches are joined only when each is one body, :func:`union_misfit_ratio` finds their
     union no worse a rigid body than the two apart (median frame's F below its ``false_alarm``
-    quantile; a union that cannot be judged is joined, as the distances alone joined it). The
-    branches refused are the parts: a segment that lost markers is not merged into the next one
-    because the distances between them are as steady as its own.
+    quantile), and -- given the recording's ``noise`` -- the distances between them vary no
+    more than one body's (:func:`spread_excess` within :func:`spread_limit` at
+    :data:`SPREAD_FALSE_ALARM`; at :data:`SPREAD_SMALL` for a branch of fewer than ``min_size``
+    markers joining one of ``min_size`` or more). A union a test cannot judge is joined, as the
+    distances alone joined it. The branches refused are the parts: a segment that lost markers is
+    not merged into the next one because the distances between them are as steady as its own, and
+    a pair of markers on one segment is not joined to the next segment's cluster because the
+    misfit test has too few degrees of freedom to refuse it.
 
     Args:
         markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
         spread: ``(M, M)`` distance spread (:func:`distance_spread`).
         members: marker indices of the group, sorted.
-        false_alarm: the rigidity test's false-alarm rate per frame.
+        false_alarm: the misfit test's false-alarm rate per frame.
+        noise: the recording's within-cluster spread scatter (:func:`spread_noise`); ``None``:
+            the misfit test alone.
+        min_size: the smallest cluster.
 
     Returns:
-        The parts (sorted index arrays, in the tree's order) and, for each union refused,
-        ``(part, other part, median F, limit)``.
+        The parts (sorted index arrays, in the tree's order) and each union refused
+        (:class:`Refusal`).
     """
     if len(members) < 2:
         return [members], []
@@ -338,7 +649,7 @@ def rigid_parts(
     m = len(members)
     nodes = _tree_nodes(Z, members)
     whole: list[bool] = [True] * m  # each node one rigid body
-    splits = []
+    splits: list[Refusal] = []
     for left, right, _, _ in Z:
         i, j = int(left), int(right)
         a, b = nodes[i], nodes[j]
@@ -347,7 +658,20 @@ def rigid_parts(
             test = union_misfit_ratio(markers, a, b, false_alarm=false_alarm)
             if test is not None and not test[0] <= test[1]:
                 ok = False
-                splits.append(([int(k) for k in a], [int(k) for k in b], *test))
+                splits.append(Refusal([int(k) for k in a], [int(k) for k in b], *test))
+        if ok and noise is not None:
+            excess = spread_excess(spread, a, b, noise)
+            if excess is not None:
+                rate = (
+                    SPREAD_SMALL
+                    if min(len(a), len(b)) < min_size <= max(len(a), len(b))
+                    else SPREAD_FALSE_ALARM
+                )
+                limit = spread_limit(len(a), len(b), rate)
+                if not excess[1] <= limit:
+                    ok = False
+                    pa, pb = [int(k) for k in a], [int(k) for k in b]
+                    splits.append(Refusal(pa, pb, excess[1], limit, "spread", excess[0], rate))
         whole.append(ok)
     # the parts: the rigid nodes whose parent is not (or the root, if rigid)
     parent = np.full(len(nodes), -1)
@@ -465,6 +789,54 @@ def doubtful_unions(
     return out
 
 
+def _rounding(markers: np.ndarray) -> float:
+    """A spread at the rounding of the markers' values (1e3 of their largest value's relative
+    precision): a recording whose marker noise is no larger has no noise to judge by."""
+    x = np.asarray(markers, dtype=float)
+    return 1e3 * np.finfo(float).eps * float(np.nanmax(np.abs(x))) if np.isfinite(x).any() else math.inf
+
+
+def exact_groups(
+    markers: np.ndarray, spread: np.ndarray, members: np.ndarray
+) -> tuple[list[list[int]], float]:
+    """Markers exactly rigid with each other: landmarks computed from a cluster, not measured.
+
+    A probing-based export writes anatomical landmarks (acromion, epicondyles, styloids) as
+    markers, each a fixed point in one cluster's frame placed by that cluster's fitted pose every
+    frame: the landmarks of one cluster keep their distances to the last bit of the file's
+    values. The recording's marker noise is the median over ``members`` of each one's steadiest
+    pair (the spread of its distance to its steadiest partner); a pair steadier than
+    :data:`ZERO_SPREAD` times that noise is exactly rigid, and the markers such pairs link are one
+    group. A recording whose noise is itself at the rounding of its values (markers simulated
+    without noise) has none: no pair stands out.
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        spread: ``(M, M)`` distance spread (:func:`distance_spread`).
+        members: the markers judged (seen enough, :func:`unjudged_markers`).
+
+    Returns:
+        The groups (sorted index lists of two or more markers, sorted) and the marker noise (NaN
+        with fewer than two members), in the markers' unit.
+    """
+    members = np.asarray(members)
+    if len(members) < 2:
+        return [], math.nan
+    sub = spread[np.ix_(members, members)].copy()
+    np.fill_diagonal(sub, np.inf)
+    nearest = sub.min(axis=1)
+    nearest = nearest[np.isfinite(nearest)]
+    if not len(nearest):
+        return [], math.nan
+    noise = float(np.median(nearest))
+    if not noise > _rounding(markers):
+        return [], noise
+    exact = sub < ZERO_SPREAD * noise
+    n, labels = connected_components(exact, directed=False)
+    groups = [sorted(int(k) for k in members[labels == c]) for c in range(n)]
+    return sorted(g for g in groups if len(g) >= 2), noise
+
+
 def unjudged_markers(markers: np.ndarray) -> dict[int, str]:
     """``{marker index: reason}`` for markers seen too little to judge how steady their distances are.
 
@@ -503,6 +875,33 @@ def _rotation_deg(markers: np.ndarray) -> tuple[float, float]:
     return float(np.nanmedian(fit.rms_residual)), float(np.percentile(angle, 95))
 
 
+def _virtual_hosts(
+    spread: np.ndarray, virtual: list[list[int]], groups: list[list[int]], noise: SpreadNoise | None
+) -> list[int | None]:
+    """For each virtual group, the index of the group in ``groups`` it moves with, or ``None``.
+
+    The candidate is the group whose pairs with the virtual markers have the smallest median
+    spread; it is their host when those pairs vary no more than the group's own markers do
+    (:func:`spread_excess` within :func:`spread_limit`, the virtual markers' own pairs, exactly
+    steady, having no level to add).
+    """
+    hosts: list[int | None] = []
+    for v in virtual:
+        v = np.asarray(v)
+        best, host = math.inf, None
+        for k, g in enumerate(groups):
+            between = _log_spreads(spread, v, np.asarray(g))
+            if len(between) and float(np.median(between)) < best:
+                best, host = float(np.median(between)), k
+        if host is not None and noise is not None:
+            g = np.asarray(groups[host])
+            excess = spread_excess(spread, v[:1], g, noise)
+            if excess is not None and excess[1] > spread_limit(1, len(g)):
+                host = None
+        hosts.append(host)
+    return hosts
+
+
 def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int = 3) -> MarkerGroups:
     """Rigid marker clusters found from the steadiness of their distances, relative to motion.
 
@@ -514,13 +913,20 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     barely moves, so its rigidity is not proven (a body at rest, lab markers); it is reported
     apart. The second cut, over the markers of the moving groups only, separates the segments
     (skin spread within a cluster, joint motion between clusters); each group it gives is then
-    split into the parts that are each one rigid body (:func:`rigid_parts`), so that a segment
-    whose distances to the next are as steady as its own (one that lost a marker) is not merged
-    into it: a part too small to be a cluster is left out, named; a cluster that may still be two
-    bodies is named in ``doubtful`` (:func:`doubtful_unions`). ``still_deg`` defaults to 10
-    degrees: below that a joint centre is not determined (DESIGN.md, facts from real recordings).
-    Markers seen too little to judge (:func:`unjudged_markers`) are left out before either cut,
-    with the reason, so that a marker never seen does not decide where the tree is cut.
+    split into the parts that are each one rigid body (:func:`rigid_parts`): first by the misfit
+    test alone, then by the misfit and spread tests, the spread test's noise taken from the parts
+    the first pass left (:func:`spread_noise`). So a segment whose distances to the next are as
+    steady as its own (one that lost a marker) is not merged into it, and two markers -- too few
+    for a pose -- are not joined to the next segment's cluster: a part too small to be a cluster is
+    left out, named. A cluster that may still be two bodies is named in ``doubtful``
+    (:func:`doubtful_unions`) or ``doubtful_spread`` (its top union's spread excess beyond the
+    :data:`SPREAD_DOUBT` quantile). ``still_deg`` defaults to 10 degrees: below that a joint
+    centre is not determined (DESIGN.md, facts from real recordings).
+    Markers seen too little to judge (:func:`unjudged_markers`) and markers exactly rigid with
+    each other (:func:`exact_groups`: landmarks computed from a cluster) are set aside before
+    either cut, with the reason, so that a marker never seen, or a spread of zero, does not decide
+    where the tree is cut; each group of the latter is said to move with the cluster whose pairs
+    with it are steadiest, if the spread test finds them one body (``virtual_with``).
 
     Args:
         markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
@@ -533,7 +939,16 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     spread = distance_spread(x)
     left_out = unjudged_markers(x)
     unseen = sorted(left_out)
-    everyone = np.setdiff1d(np.arange(x.shape[1]), list(left_out))
+    judged = np.setdiff1d(np.arange(x.shape[1]), list(left_out))
+    virtual, marker_noise = exact_groups(x, spread, judged)
+    for g in virtual:
+        for k in g:
+            left_out[k] = (
+                f"virtual: exactly rigid with {len(g) - 1} other marker(s) (distance spread below "
+                f"{ZERO_SPREAD:g} of the recording's marker noise): computed from a cluster, not measured"
+            )
+    everyone = np.setdiff1d(judged, [k for g in virtual for k in g])
+    measured_noise = exact_groups(x, spread, everyone)[1] if virtual else marker_noise  # without them
     first, cut1 = _largest_gap_groups(spread, everyone)
     still, stats = [], {}
     for g in first:
@@ -547,21 +962,31 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
             still.append(g)
     pool = np.setdiff1d(everyone, np.concatenate(still)) if still else everyone
     second, cut2 = _largest_gap_groups(spread, pool) if len(pool) >= 2 * min_size else ([pool], np.inf)
-    clusters, splits, split_off = [], [], set()
-    rigid = []
-    for g in second:
-        parts, refused = rigid_parts(x, spread, g) if len(g) >= min_size else ([g], [])
-        rigid += parts
-        splits += refused
-        if len(parts) > 1:
-            split_off.update(tuple(p) for p in parts)
+    noise = None
+    for _ in range(2):  # the misfit test alone, then both with the noise of the parts it left
+        rigid, splits, split_off = [], [], set()
+        for g in second:
+            parts, refused = (
+                rigid_parts(x, spread, g, noise=noise, min_size=min_size) if len(g) >= min_size else ([g], [])
+            )
+            rigid += parts
+            splits += refused
+            if len(parts) > 1:
+                split_off.update(tuple(p) for p in parts)
+        if noise is not None or not marker_noise > _rounding(x):  # exact positions: no noise to judge by
+            break
+        noise = spread_noise(spread, [p for p in rigid if len(p) >= min_size], measured_noise)
+        if noise is None:
+            break
+    split_off = {int(k) for p in split_off for k in p}
+    clusters = []
     for g in rigid:
         if len(g) < min_size:
             for k in g:
                 left_out[int(k)] = (
                     f"moves; its group is not one rigid body, and the rigid part it is in has only "
-                    f"{len(g) - 1} other marker(s)"
-                    if tuple(g) in split_off
+                    f"{len(g) - 1} other marker(s): too few for a pose, and not joined to a neighbour"
+                    if int(k) in split_off
                     else f"moves, but steady with only {len(g) - 1} other marker(s)"
                 )
             continue
@@ -576,6 +1001,14 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     clusters, still = order(clusters), order(still)
     groups = clusters + still
     doubtful = doubtful_unions(x, spread, [np.array(g) for g in clusters])
+    doubtful_spread = []
+    for g in clusters if noise is not None else []:
+        a, b = _top_union(spread, np.array(g))
+        excess = spread_excess(spread, a, b, noise)
+        if excess is not None and excess[1] > spread_limit(len(a), len(b), SPREAD_DOUBT):
+            pa, pb = sorted(int(k) for k in a), sorted(int(k) for k in b)
+            limit = spread_limit(len(a), len(b), SPREAD_DOUBT)
+            doubtful_spread.append(Refusal(pa, pb, excess[1], limit, "spread", excess[0], SPREAD_DOUBT))
     return MarkerGroups(
         clusters=clusters,
         still=still,
@@ -586,6 +1019,12 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         cut_m=(cut1, cut2),
         splits=splits,
         doubtful=doubtful,
+        doubtful_spread=doubtful_spread,
+        virtual=virtual,
+        virtual_with=_virtual_hosts(spread, virtual, groups, noise),
+        virtual_spread=[float(spread[np.ix_(g, g)].max()) for g in virtual],
+        marker_noise=marker_noise,
+        noise=noise,
     )
 
 

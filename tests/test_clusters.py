@@ -165,6 +165,9 @@ def test_real_file_thigh_marker_lost_is_not_merged_into_the_shank(tmp_path, dead
 
     The thigh pair's distances to the shank are as steady as the shank's own, so the segment cut
     once gave one moving group RGT+12 (rigidity residual 9.84 mm): one body, no hip-knee chain.
+    The whole file's shank is RLM+4 (the spread test splits the foot's RCAL off it, RMFH5 and
+    RSPH with it); with the thigh lost, the shank group is the only cluster left to take the
+    spreads' scatter from, and it takes the foot markers back: shank and foot are one body to it.
     """
     labels, xyz, rate = read_c3d_markers(SHARED_DATA / "biobuddy_right_hip.c3d")
     whole, _ = auto_clusters(labels, xyz)
@@ -174,7 +177,8 @@ def test_real_file_thigh_marker_lost_is_not_merged_into_the_shank(tmp_path, dead
     write_c3d_markers(path, labels, xyz, rate)
     found, notes = auto_clusters(*read_c3d_markers(path)[:2])
     moving = {name: g for name, g in found.items() if not name.startswith("still")}
-    assert list(moving.values()) == [whole["RLM+7"]]  # the shank, whole and alone
+    assert list(moving) == ["RLM+7"]  # one moving cluster: the shank (and two foot markers)
+    assert set(whole["RLM+4"]) <= set(moving["RLM+7"]) and not set(thigh) & set(moving["RLM+7"])
     assert found["still"] == whole["still"]
     left = next(n for n in notes if n.startswith("left out:"))
     assert all(f"{m} (moves" in left for m in thigh if m != dead)  # named, with the reason

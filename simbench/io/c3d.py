@@ -25,6 +25,8 @@ import numpy as np
 from calibration.clusters import (
     DOUBT_FALSE_ALARM,
     RIGID_FALSE_ALARM,
+    SPREAD_FALSE_ALARM,
+    ZERO_SPREAD,
     find_clusters,
     reference_shape,
     rigid_fit,
@@ -249,12 +251,30 @@ def auto_clusters(
             f"proven by "
             f"motion, treated as one body: {', '.join(labels[k] for k in g)}"
         )
-    for a, b, f, limit in found.splits:
+    names = list(clusters)
+    for g, host, most in zip(found.virtual, found.virtual_with, found.virtual_spread, strict=True):
         notes.append(
-            f"not one rigid body, split: {_group_name([labels[k] for k in a])} and "
-            f"{_group_name([labels[k] for k in b])} move against each other (median frame's misfit ratio "
-            f"F {f:.3g} > {limit:.3g}, exceeded by one rigid body in 1 frame in {1 / RIGID_FALSE_ALARM:.0f})"
+            f"virtual markers set aside: {', '.join(labels[k] for k in g)} keep their distances to each "
+            f"other exactly (distance spread at most {most * 1e3:.2g} mm, below {ZERO_SPREAD:g} of the "
+            f"recording's marker noise {found.marker_noise * 1e3:.3g} mm; no two measured markers are that "
+            "steady): landmarks computed from a cluster's pose, as probing-based exports write them, not "
+            "measured; "
+            + (f"they move with {names[host]}" if host is not None else "they move with no group found")
         )
+    for r in found.splits:
+        a, b = _group_name([labels[k] for k in r.part]), _group_name([labels[k] for k in r.other])
+        if r.test == "spread":
+            why = (
+                f"the distances between them vary {r.ratio:.3g} times as much as within them (median "
+                f"distance spread; {r.value:.3g} robust standard deviations of a within pair's log spread > "
+                f"{r.limit:.3g}, exceeded by one rigid body's top union 1 time in {1 / r.false_alarm:.0f})"
+            )
+        else:
+            why = (
+                f"they move against each other (median frame's misfit ratio F {r.value:.3g} > {r.limit:.3g}, "
+                f"exceeded by one rigid body in 1 frame in {1 / RIGID_FALSE_ALARM:.0f})"
+            )
+        notes.append(f"not one rigid body, split: {a} and {b}: {why}")
     for a, b, f, z, n in found.doubtful:
         notes.append(
             f"cluster {_group_name([labels[k] for k in sorted(a + b)])} may be two bodies: "
@@ -264,12 +284,22 @@ def auto_clusters(
             f"{1 / DOUBT_FALSE_ALARM:.0f}); kept as one: if they are on two segments, name the clusters "
             "(--clusters SPEC.toml)"
         )
+    for r in found.doubtful_spread:
+        notes.append(
+            f"cluster {_group_name([labels[k] for k in sorted(r.part + r.other)])} may be two bodies: "
+            f"{_group_name([labels[k] for k in r.part])} and {_group_name([labels[k] for k in r.other])}: "
+            f"the distances between them vary {r.ratio:.3g} times as much as within them ({r.value:.3g} "
+            f"robust standard deviations > {r.limit:.3g}, exceeded by one rigid body's top union 1 time in "
+            f"{1 / r.false_alarm:.0f}; split beyond 1 in {1 / SPREAD_FALSE_ALARM:.0f}); kept as one: if they "
+            "are on two segments, name the clusters (--clusters SPEC.toml)"
+        )
     if found.unseen:
         notes.append(
             "not seen enough to group, left out: "
             + "; ".join(f"{labels[k]} ({found.left_out[k]})" for k in found.unseen)
         )
-    judged = {k: why for k, why in found.left_out.items() if k not in found.unseen}
+    virtual = {k for g in found.virtual for k in g}
+    judged = {k: why for k, why in found.left_out.items() if k not in found.unseen and k not in virtual}
     if judged:
         notes.append("left out: " + "; ".join(f"{labels[k]} ({why})" for k, why in judged.items()))
     return clusters, notes

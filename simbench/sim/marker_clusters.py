@@ -26,11 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.clusters import reference_shape, rigid_fit
 from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
 from simbench.io.dataset import Dataset
 from simbench.io.marker_data import MarkerData
 from simbench.sim.markers import smooth_noise
+from simbench.sim.skin import relative_rotvecs, soft_tissue_offsets
 
 #: The marker stream's spawn key under the session seed (:func:`simbench.sim.plan.plan_session`
 #: spawns keys 0-4).
@@ -137,6 +139,139 @@ def simulate_markers(ds: Dataset, config: MarkerConfig, rng: np.random.Generator
     )
 
 
+@dataclass(frozen=True)
+class MessyMarkers:
+    """Marker clusters as messy as real ones on a simulated session (:func:`messy_markers`).
+
+    Attributes:
+        xyz: ``(F, M, 3)`` marker positions in world, m.
+        labels: ``(M,)`` ``<segment>_M<k>`` for measured markers, ``<segment>_V<k>`` for virtual ones.
+        segment: ``(M,)`` the segment each marker sits on (a virtual marker: the cluster it is
+            computed from).
+        clusters: index lists of the segments that carry three markers or more (a pose), sorted.
+        pairs: index lists of the segments that carry fewer (no pose), sorted.
+        virtual: index lists of the virtual markers, one list per cluster they are computed from.
+        virtual_host: for each list of ``virtual``, the index in ``clusters`` of that cluster.
+    """
+
+    xyz: np.ndarray
+    labels: tuple[str, ...]
+    segment: tuple[str, ...]
+    clusters: list[list[int]]
+    pairs: list[list[int]]
+    virtual: list[list[int]]
+    virtual_host: list[int]
+
+
+def messy_markers(
+    ds: Dataset,
+    rng: np.random.Generator,
+    *,
+    per_segment: tuple[int, int] = (2, 4),
+    skin_sd_m: float = 0.002,
+    sta_m: float = 0.004,
+    camera_noise_m: float = 0.0002,
+    virtual: int = 0,
+) -> MessyMarkers:
+    """Marker clusters with the mess of real recordings, for testing cluster finding.
+
+    Each sensor's segment carries ``per_segment[0]`` to ``per_segment[1]`` markers (drawn per
+    segment; fewer than three give no pose), on a plate of +-4.5 cm (1.3 cm deep) laid out in
+    the sensor's frame around its placement. Each marker moves on its segment by
+
+    - a soft-tissue artefact that follows the adjacent joints' rotations ``A tanh(W phi)``
+      (:func:`simbench.sim.skin.soft_tissue_offsets`): one shared by the segment's markers (the
+      skin carrying the cluster over the bone, amplitude ``2 sta_m``) and one of its own
+      (``sta_m``: the distances within the cluster change with the joint angles);
+    - smooth random skin motion of standard deviation ``skin_sd_m`` per coordinate (about one
+      period every two seconds, :func:`simbench.sim.markers.smooth_noise`);
+    - white camera noise ``camera_noise_m`` per coordinate.
+
+    ``virtual`` clusters of three markers or more (drawn) each get two or three virtual markers:
+    fixed points 5-15 cm from the cluster's centre in its frame, placed every frame by the
+    least-squares pose of the cluster's measured markers -- landmarks as a probing-based export
+    computes them (acromion, epicondyles, styloids).
+
+    Args:
+        ds: a session with truth (segment poses).
+        rng: the only source of randomness.
+        per_segment: fewest and most markers on a segment (1 to 8).
+        skin_sd_m, sta_m, camera_noise_m: the motions' sizes, m (>= 0).
+        virtual: clusters that get virtual markers (>= 0; at most those with three markers).
+
+    Raises:
+        InputError: a dataset without truth, or arguments out of range.
+    """
+    if ds.truth is None:
+        raise InputError("messy markers need a dataset with truth (segment poses); this one has none")
+    lo, hi = per_segment
+    if not (isinstance(lo, int) and isinstance(hi, int) and 1 <= lo <= hi <= 8):
+        raise InputError(
+            f"Expected per_segment (fewest, most) with 1 <= fewest <= most <= 8, got {per_segment!r}"
+        )
+    for name, value in (("skin_sd_m", skin_sd_m), ("sta_m", sta_m), ("camera_noise_m", camera_noise_m)):
+        if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+            raise InputError(f"Expected {name} to be a finite number >= 0 (metres), got {value!r}")
+    if not (isinstance(virtual, int) and virtual >= 0):
+        raise InputError(f"Expected virtual to be a whole number >= 0, got {virtual!r}")
+    t = ds.truth
+    names = list(ds.sensors)
+    n, frames = len(names), ds.time_s.size
+    parent = [names.index(s) for s in t.parent]
+    child = [names.index(s) for s in t.child]
+    phi = relative_rotvecs(t.q_w_b, parent, child)
+    R_w_b = quat_to_matrix(t.q_w_b)
+    R_b_s = quat_to_matrix(t.q_b_s)
+    duration = float(ds.time_s[-1] - ds.time_s[0]) if frames > 1 else 0.0
+    xs, segment, labels = [], [], []
+    for s in range(n):
+        k = int(rng.integers(lo, hi + 1))
+        plate = rng.uniform(-0.045, 0.045, (k, 3)) * np.array([1.0, 1.0, 0.3])
+        offset = t.p_b_s[s] + plate @ R_b_s[s].T
+        amp = np.zeros(n)
+        amp[s] = 2.0 * sta_m
+        shared = soft_tissue_offsets(phi, parent, child, amp, rng)[:, s]
+        amp[s] = sta_m
+        own = np.stack([soft_tissue_offsets(phi, parent, child, amp, rng)[:, s] for _ in range(k)], axis=1)
+        slide = skin_sd_m * smooth_noise(rng, frames, (k, 3), max(duration * 0.5, 1.0))
+        local = offset[None] + shared[:, None] + own + slide
+        xs.append(np.einsum("fij,fkj->fki", R_w_b[:, s], local) + t.p_w_b[:, s, None])
+        segment += [names[s]] * k
+        labels += [f"{names[s]}_M{j + 1}" for j in range(k)]
+    x = np.concatenate(xs, axis=1)
+    x = x + camera_noise_m * rng.standard_normal(x.shape)
+    seg = np.array(segment)
+    clusters = sorted(np.flatnonzero(seg == s).tolist() for s in names if (seg == s).sum() >= 3)
+    pairs = sorted(np.flatnonzero(seg == s).tolist() for s in names if 0 < (seg == s).sum() < 3)
+    hosts = sorted(rng.choice(len(clusters), min(virtual, len(clusters)), replace=False).tolist())
+    extra, groups = [], []
+    for h in hosts:
+        members = clusters[h]
+        fit = rigid_fit(reference_shape(x[:, members]), x[:, members])
+        kv = int(rng.integers(2, 4))
+        direction = rng.standard_normal((kv, 3))
+        points = (
+            direction / np.linalg.norm(direction, axis=1, keepdims=True) * rng.uniform(0.05, 0.15, (kv, 1))
+        )
+        extra.append(np.einsum("fij,kj->fki", fit.R_w_c, points) + fit.p_w_c[:, None])
+        start = len(labels)
+        groups.append(list(range(start, start + kv)))
+        host = str(seg[members[0]])
+        segment += [host] * kv
+        labels += [f"{host}_V{j + 1}" for j in range(kv)]
+    if extra:
+        x = np.concatenate([x, *extra], axis=1)
+    return MessyMarkers(
+        xyz=x,
+        labels=tuple(labels),
+        segment=tuple(segment),
+        clusters=clusters,
+        pairs=pairs,
+        virtual=groups,
+        virtual_host=hosts,
+    )
+
+
 def marker_rng(seed: int) -> np.random.Generator:
     """The markers' random stream of a session seed (:data:`MARKER_STREAM`)."""
     return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(MARKER_STREAM,)))
@@ -160,8 +295,10 @@ __all__ = [
     "CLUSTER_LAYOUT_S",
     "MARKER_STREAM",
     "MarkerConfig",
+    "MessyMarkers",
     "add_markers",
     "cluster_offsets",
     "marker_rng",
+    "messy_markers",
     "simulate_markers",
 ]
