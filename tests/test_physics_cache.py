@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import os
+import re
+import socket
+import subprocess
+import sys
 import tempfile
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -102,15 +108,103 @@ def test_a_change_to_the_simulation_code_changes_the_key(monkeypatch):
     assert code_digest() == digest and physics_key(cm, plan, plan.timestep) == key
 
 
-def test_an_unreadable_stored_run_is_computed_again(tmp_path):
+def _stored_once(folder) -> pc.Path:
+    run_session(CONFIG)
+    (stored,) = folder.glob("*.npz")
+    return stored
+
+
+def _rewrite(path, **arrays) -> None:
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _entry(path) -> tuple[np.ndarray, dict]:
+    with np.load(path) as f:
+        return f["sensordata"], json.loads(str(f["header"]))
+
+
+def _flip_a_bit(path) -> None:
+    data, header = _entry(path)
+    data = data.copy()
+    data.reshape(-1).view(np.uint8)[data.nbytes // 2] ^= 1
+    _rewrite(path, sensordata=data, header=np.array(json.dumps(header)))
+
+
+def _flip_a_file_byte(path) -> None:  # the zip's own CRC or the checksum: either names it
+    raw = bytearray(path.read_bytes())
+    raw[len(raw) // 2] ^= 0x10
+    path.write_bytes(bytes(raw))
+
+
+def _truncate(path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _nan(path) -> None:  # a consistent entry (checksum of its bytes) that holds NaN
+    data, header = _entry(path)
+    data = data.copy()
+    data[len(data) // 2, 0] = np.nan
+    header["sha256"] = pc._digest(data)
+    _rewrite(path, sensordata=data, header=np.array(json.dumps(header)))
+
+
+def _int8(path) -> None:
+    data, header = _entry(path)
+    small = data.astype(np.int8)
+    header.update(dtype=small.dtype.str, sha256=pc._digest(small))
+    _rewrite(path, sensordata=small, header=np.array(json.dumps(header)))
+
+
+def _old_layout(path) -> None:
+    data, header = _entry(path)
+    _rewrite(path, sensordata=data, warnings=np.array(json.dumps(header["warnings"])))
+
+
+@pytest.mark.parametrize(
+    ("damage", "said"),
+    [
+        (lambda p: p.write_bytes(b"not a run"), "unreadable"),
+        (_truncate, "unreadable"),
+        (_flip_a_bit, "checksum"),
+        (_flip_a_file_byte, ""),
+        (_nan, "not finite"),
+        (_int8, "dtype int8"),
+        (_old_layout, "not a run of this version"),
+    ],
+    ids=["garbage", "truncated", "bit-flipped", "file-byte-flipped", "nan", "int8", "old-layout"],
+)
+def test_a_damaged_stored_run_is_named_and_computed_again(tmp_path, damage, said):
     fresh = run_session(CONFIG)
     with physics_cache(tmp_path):
-        run_session(CONFIG)
-        (stored,) = tmp_path.glob("*.npz")
-        stored.write_bytes(b"not a run")
-        again = run_session(CONFIG)
+        stored = _stored_once(tmp_path)
+        damage(stored)
+        with pytest.warns(pc.PhysicsCacheWarning, match=f"{re.escape(str(stored))}: .*{said}"):
+            again = run_session(CONFIG)
+        after = pc.check_entry(stored, stored.stem)
     _datasets_equal(again, fresh)
-    assert stored.stat().st_size > 100  # written again
+    assert not isinstance(after, str), f"written again: {after}"
+
+
+def test_runs_swapped_between_files_are_refused_by_their_keys(tmp_path):
+    """Two entries swapped (each a valid run of another session) must not give a session another's
+    physics (a session of another duration, a slip found where there is none)."""
+    longer = replace(CONFIG, duration_s=3.0)
+    fresh, fresh_longer = run_session(CONFIG), run_session(longer)
+    with physics_cache(tmp_path):
+        run_session(CONFIG)
+        (a,) = tmp_path.glob("*.npz")
+        run_session(longer)
+        (b,) = set(tmp_path.glob("*.npz")) - {a}
+        data_a, data_b = a.read_bytes(), b.read_bytes()
+        a.write_bytes(data_b)
+        b.write_bytes(data_a)
+        with pytest.warns(pc.PhysicsCacheWarning, match="stored under key"):
+            got = run_session(CONFIG)
+        with pytest.warns(pc.PhysicsCacheWarning, match="stored under key"):
+            got_longer = run_session(longer)
+    _datasets_equal(got, fresh)
+    _datasets_equal(got_longer, fresh_longer)
 
 
 def test_a_temporary_cache_is_removed_and_an_active_one_shared(tmp_path):
@@ -137,10 +231,80 @@ def test_a_run_that_cannot_be_stored_is_used_all_the_same(tmp_path, monkeypatch)
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(np, "savez", full_disk)
+    monkeypatch.setattr(pc, "_UNWRITABLE", set())
     with physics_cache(tmp_path):
-        got = run_session(CONFIG)
+        with pytest.warns(pc.PhysicsCacheWarning, match=f"{re.escape(str(tmp_path))}: .*No space left"):
+            got = run_session(CONFIG)
     _datasets_equal(got, fresh)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_that_cannot_be_written_is_said_and_still_read(tmp_path, monkeypatch):
+    with physics_cache(tmp_path):
+        first = run_session(CONFIG)
+    real_mkstemp = tempfile.mkstemp
+
+    def read_only(*args, dir=None, **kwargs):
+        if dir is not None and pc.Path(dir) == tmp_path:
+            raise OSError(30, "Read-only file system")
+        return real_mkstemp(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    monkeypatch.setattr(pc, "_UNWRITABLE", set())
+    calls = _counting_rollout(monkeypatch)
+    with pytest.warns(pc.PhysicsCacheWarning, match=f"{re.escape(str(tmp_path))}: cannot keep runs there"):
+        with physics_cache(tmp_path):
+            again = run_session(CONFIG)
+    assert calls == [], "the run already there is read"
+    _datasets_equal(again, first)
+
+
+def test_leftovers_of_killed_runs_are_swept_and_live_ones_kept(tmp_path):
+    host = socket.gethostname()
+    gone = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    dead_pid = int(gone.stdout)
+    folders = {}
+    for name, owner, age_s in [
+        ("killed", {"pid": dead_pid, "host": host}, 0.0),
+        ("running", {"pid": os.getpid(), "host": host}, 10 * pc.LEFTOVER_AGE_S),
+        ("old-unowned", None, 2 * pc.LEFTOVER_AGE_S),
+        ("new-unowned", None, 0.5 * pc.LEFTOVER_AGE_S),
+        ("old-other-host", {"pid": os.getpid(), "host": host + "-elsewhere"}, 2 * pc.LEFTOVER_AGE_S),
+    ]:
+        folder = tmp_path / f"{pc.TEMP_PREFIX}{name}"
+        folder.mkdir()
+        (folder / "run.npz").write_bytes(b"x" * 100)
+        if owner is not None:
+            (folder / pc.OWNER_FILE).write_text(json.dumps(owner))
+        then = time.time() - age_s
+        os.utime(folder, (then, then))
+        folders[name] = folder
+    unrelated = tmp_path / "somebody-elses-folder"
+    unrelated.mkdir()
+    os.utime(unrelated, (0, 0))
+    removed = pc.sweep_leftovers(tmp_path)
+    assert sorted(p.name for p in removed) == sorted(
+        f"{pc.TEMP_PREFIX}{n}" for n in ("killed", "old-unowned", "old-other-host")
+    )
+    assert {p.name for p in tmp_path.iterdir()} == {
+        f"{pc.TEMP_PREFIX}running",
+        f"{pc.TEMP_PREFIX}new-unowned",
+        "somebody-elses-folder",
+    }
+
+
+def test_a_temporary_cache_names_its_owner_and_sweeps_before_it_starts(tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.delenv(ENV, raising=False)
+    left = tmp_path / f"{pc.TEMP_PREFIX}left"
+    left.mkdir()
+    os.utime(left, (0, 0))
+    with physics_cache() as folder:
+        owner = json.loads((folder / pc.OWNER_FILE).read_text())
+        assert owner["pid"] == os.getpid() and owner["host"] == socket.gethostname()
+        assert not left.exists()
 
 
 def test_no_temporary_folder_means_no_cache(monkeypatch):

@@ -169,7 +169,8 @@ def run_physics(cm: CaptureModel, plan: SessionPlan) -> tuple[np.ndarray, dict[s
         return run_playback(cm, plan.playback)
     folder = cache_folder()
     key = physics_key(cm, plan, plan.timestep, (SETTLE_S, CHUNK_STEPS)) if folder is not None else ""
-    if folder is not None and (kept := load_run(folder, key)) is not None:
+    shape = (plan.n_samples, cm.model.nsensordata)
+    if folder is not None and (kept := load_run(folder, key, shape)) is not None:
         return kept
     m = cm.model
     model_dt = float(m.opt.timestep)
