@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
+from simbench.cli import main
 from simbench.sim import physics
 from simbench.sim import physics_cache as pc
 from simbench.sim.physics_cache import ENV, code_digest, physics_cache, physics_key
@@ -315,3 +316,32 @@ def test_no_temporary_folder_means_no_cache(monkeypatch):
     with physics_cache() as folder:
         assert folder is None and ENV not in os.environ
         run_session(CONFIG)
+
+
+def test_the_command_line_names_a_damaged_entry_in_one_line(tmp_path, monkeypatch, capsys):
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(ENV, str(cache))
+    cache.mkdir()
+    argv = [
+        "simulate",
+        "--model",
+        "linkage",
+        "--duration",
+        "2",
+        "--seed",
+        "5",
+        "--sensors",
+        "polhemus-liberty",
+    ]
+    assert main([*argv, "-o", str(tmp_path / "a.h5")]) == 0
+    (stored,) = cache.glob("*.npz")
+    _truncate(stored)
+    capsys.readouterr()
+    assert main([*argv, "-o", str(tmp_path / "b.h5")]) == 0
+    err = capsys.readouterr().err
+    assert f"simbench: note: physics cache: {stored}: unreadable" in err, err
+    assert "PhysicsCacheWarning" not in err and "\n  " not in err  # one line, no source line
+    assert (tmp_path / "a.h5").read_bytes() != b"" and not isinstance(
+        pc.check_entry(stored, stored.stem), str
+    )

@@ -11,6 +11,7 @@ import argparse
 import os
 import signal
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -144,6 +145,11 @@ def check_outputs(args: argparse.Namespace) -> None:
                     )
 
 
+def _note(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning raised while a command runs, as one line on stderr."""
+    print(f"simbench: note: {_one_line(message)}", file=sys.stderr if file is None else file)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``simbench`` command (``argv`` defaults to ``sys.argv[1:]``); returns the exit
     status: 0, 1 when ``simbench baseline`` finds a regression, 2 on bad input or any other
@@ -157,7 +163,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         # where BLAS's threads cost more than they give (1M x 32 poses from HDF5: 4.5 s on one
         # thread, 7.2 s on two; benchmarks/results/calibration*.json)
         check_outputs(args)
-        with one_blas_thread():
+        with one_blas_thread(), warnings.catch_warnings():
+            if not args.debug:  # one line a note, as the errors; --debug keeps Python's form
+                warnings.showwarning = _note
             return int(args.func(args))
     except Terminated:
         print("simbench: terminated", file=sys.stderr)
