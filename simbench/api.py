@@ -63,7 +63,7 @@ from simbench.experiments.live import LiveOptions, LiveUpdate
 from simbench.experiments.live import follow as follow_file
 from simbench.experiments.live import replay as replay_recording
 from simbench.experiments.pool import one_blas_thread
-from simbench.io.atomic import atomic_write_text
+from simbench.io.atomic import atomic_write_text, output_set
 from simbench.io.c3d import read_c3d
 from simbench.io.calibration_json import calibration_to_dict, read_calibration_json
 from simbench.io.calibration_json import write_calibration_json as write_calibration
@@ -1054,6 +1054,7 @@ __all__ = [
     "follow",
     "one_blas_thread",
     "orient",
+    "output_set",
     "parse_twin_window",
     "read",
     "read_hierarchy",

@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from simbench.api import one_blas_thread
+from simbench.api import one_blas_thread, output_set
 from simbench.cli import (
     baseline,
     bench,
@@ -80,6 +80,11 @@ def _one_line(exc: BaseException) -> str:
     """The exception's message on one line (MuJoCo's and others' span several)."""
     return " ".join(str(exc).split()) or type(exc).__name__
 
+
+#: Commands whose outputs are one set (:func:`simbench.api.output_set`): a failure part way leaves
+#: none of them. (``sweep``, ``validate``, ``report``, ``bench`` and ``calibrate --follow`` keep what
+#: they finished: their outputs are results of their own, written as they come.)
+OUTPUT_SETS = ("simulate", "export", "calibrate", "scale", "orient", "twin")
 
 #: The options that name a file to write (argparse ``dest``), checked before any work is done.
 FILE_OUTPUTS = ("json", "csv", "output", "trc", "c3d", "sto", "imu_csv", "mjcf", "osim", "truth_json")
@@ -166,6 +171,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         with one_blas_thread(), warnings.catch_warnings():
             if not args.debug:  # one line a note, as the errors; --debug keeps Python's form
                 warnings.showwarning = _note
+            if args.command in OUTPUT_SETS:
+                with output_set():
+                    return int(args.func(args))
             return int(args.func(args))
     except Terminated:
         print("simbench: terminated", file=sys.stderr)

@@ -9,12 +9,18 @@ destination is left as it was. That includes Ctrl-C (``KeyboardInterrupt``) and 
 longer running.
 
 A destination that is a symbolic link is written through to the file it points to (the link
-stays a link); FIFOs and devices are refused.
+stays a link); FIFOs and devices are refused. An error while writing (a full disk) is an
+:class:`~simbench.errors.InputError` naming the destination.
+
+The outputs of one command are one set (:func:`output_set`): each is written to its temporary
+file as above, and only when all of them are written do they replace their destinations, so a
+command that fails part way leaves none of its outputs, not the first few.
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import tempfile
 from collections.abc import Iterator
@@ -71,12 +77,58 @@ def check_writable(path: str | os.PathLike[str]) -> Path:
     return dest
 
 
+#: The pending ``(temporary file, destination)`` pairs of the active :func:`output_set`, or None.
+_PENDING: contextvars.ContextVar[list[tuple[Path, Path]] | None] = contextvars.ContextVar(
+    "simbench_output_set", default=None
+)
+
+
+def _remove(tmp: Path) -> None:
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
+
+
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """A temporary path beside ``path`` that replaces it when the ``with`` block succeeds.
+def output_set() -> Iterator[None]:
+    """Make the files written inside the ``with`` block (:func:`atomic_path`, :func:`atomic_open`,
+    :func:`atomic_write_text`) one set: none replaces its destination until the block ends without
+    error, and then all do; on error every one of them is removed and every destination is left as
+    it was. Sets nest: an inner set's files join the outer one's."""
+    if _PENDING.get() is not None:
+        yield
+        return
+    pending: list[tuple[Path, Path]] = []
+    token = _PENDING.set(pending)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in pending:
+            _remove(tmp)
+        raise
+    finally:
+        _PENDING.reset(token)
+    for k, (tmp, dest) in enumerate(pending):
+        try:
+            os.replace(tmp, dest)
+        except OSError as exc:
+            for later, _ in pending[k:]:
+                _remove(later)
+            raise InputError(f"cannot write {dest}: {exc.strerror or exc}") from exc
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str], *, in_set: bool = True) -> Iterator[Path]:
+    """A temporary path beside ``path`` that replaces it when the ``with`` block succeeds (or,
+    inside an :func:`output_set`, when the set's block does).
 
     For writers that need a file name rather than a file object (HDF5). On error the temporary
-    file is removed and ``path`` is left as it was.
+    file is removed and ``path`` is left as it was; an ``OSError`` of the writer's (a full disk)
+    becomes an :class:`InputError` naming ``path``.
+
+    Args:
+        path: destination file.
+        in_set: join the active :func:`output_set`, if any (``False``: replace at once, for
+            files that are no command's output, such as a cache's).
     """
     dest = check_writable(path)
     folder = dest.parent if str(dest.parent) else Path(".")
@@ -87,17 +139,28 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.{os.getpid()}.", suffix=".tmp", dir=folder)
     except OSError as exc:
         raise InputError(f"cannot write {dest}: {exc.strerror}") from exc
+    pending = _PENDING.get() if in_set else None
     try:  # from here on, any exception (Ctrl-C, SIGTERM as simbench.cli raises it) removes tmp
         os.close(fd)
         os.chmod(tmp, 0o666 & ~umask)
-        yield Path(tmp)
-        with open(tmp, "rb+") as fh:  # the writer has closed it: flush it to disk, then swap
-            os.fsync(fh.fileno())
-        os.replace(tmp, dest)
+        try:
+            yield Path(tmp)
+            with open(tmp, "rb+") as fh:  # the writer has closed it: flush it to disk, then swap
+                os.fsync(fh.fileno())
+            if pending is None:
+                os.replace(tmp, dest)
+        except OSError as exc:
+            raise InputError(f"cannot write {path}: {exc.strerror or exc}") from exc
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        _remove(Path(tmp))
         raise
+    if pending is not None:
+        for k, (earlier, to) in enumerate(pending):
+            if to == dest:  # written twice in one set: the last write is the one kept
+                _remove(earlier)
+                del pending[k]
+                break
+        pending.append((Path(tmp), dest))
 
 
 def _running(pid: int) -> bool:

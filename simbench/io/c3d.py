@@ -411,6 +411,54 @@ def write_c3d_markers(
         named = tmp.with_name(tmp.name + ".c3d")  # ezc3d appends ".c3d" to any other name
         try:
             c.write(str(named))
+            check_c3d_written(named, path, points)
             os.replace(named, tmp)
         finally:
             named.unlink(missing_ok=True)
+
+
+def check_c3d_written(
+    written: str | os.PathLike[str], path: str | os.PathLike[str], points: np.ndarray
+) -> None:
+    """Check a C3D file ezc3d wrote: its size, then what ezc3d reads back from it.
+
+    ezc3d's ``write`` reports no error: on a full disk it leaves a truncated file (384 of 600
+    frames) that crashes ezc3d when read. So the file's size is checked first against what its
+    header says it must hold (the data's start block, then 16 bytes a marker a frame of float
+    data), and only then is it read back: the marker and frame counts, and the positions to
+    float32 precision.
+
+    Args:
+        written: the file ezc3d wrote.
+        path: the destination it stands for (named in the error).
+        points: ``(4, M, F)`` the homogeneous positions given to ezc3d, mm.
+
+    Raises:
+        InputError: naming ``path`` and what is wrong (a full disk, most likely).
+    """
+    _, n_markers, n_frames = points.shape
+    size = os.path.getsize(written)
+    with open(written, "rb") as fh:
+        head = fh.read(24)
+    if len(head) < 24:
+        raise InputError(
+            f"cannot write {path}: the C3D written is {size} bytes, short of its header (disk full?)"
+        )
+    start_block = struct.unpack("<h", head[16:18])[0]
+    need = 512 * (start_block - 1) + 16 * n_markers * n_frames
+    if start_block < 2 or size < need:
+        raise InputError(
+            f"cannot write {path}: the C3D written is {size} bytes, {need} expected for {n_frames} frames of "
+            f"{n_markers} markers (disk full?)"
+        )
+    try:
+        back = ezc3d.c3d(str(written), extract_forceplat_data=False)["data"]["points"]
+    except Exception as exc:  # ezc3d raises assorted errors on damaged files
+        raise InputError(f"cannot write {path}: ezc3d cannot read back the C3D it wrote ({exc})") from exc
+    seen = np.isfinite(back[:3])  # ezc3d gives NaN for the samples marked invalid
+    if back.shape != points.shape or not np.allclose(back[:3][seen], points[:3][seen], rtol=1e-6, atol=1e-3):
+        raise InputError(
+            f"cannot write {path}: the C3D read back holds {back.shape[2]} frames of {back.shape[1]} "
+            f"markers, not the {n_frames} of {n_markers} written, or other positions; "
+            "the file was not written whole"
+        )

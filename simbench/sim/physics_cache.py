@@ -256,7 +256,7 @@ def store_run(folder: Path, key: str, sensordata: np.ndarray, warnings: dict[str
         "warnings": {str(k): int(v) for k, v in warnings.items()},
     }
     try:
-        with atomic_path(folder / f"{key}.npz") as tmp, open(tmp, "wb") as fh:
+        with atomic_path(folder / f"{key}.npz", in_set=False) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, sensordata=data, header=np.array(json.dumps(header)))
     except (OSError, InputError) as exc:
         _say_unwritable(folder, getattr(exc, "strerror", None) or str(exc))
