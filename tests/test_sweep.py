@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import subprocess
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -562,3 +563,70 @@ def test_a_users_estimator_that_hangs_is_stopped_at_the_time_limit(tmp_path, mon
     (row,) = rows(sw.run_study(st.load_study(path), tmp_path / "out", workers=1))
     spec = f"{tmp_path / 'slow.py'}:estimate"
     assert row[f"error:{spec}"] == f"estimator '{spec}' did not return within its time limit of 1 s; stopped"
+
+
+class _TamperingExecutor(Executor):
+    """Runs each trial here and then alters the row it sends back, as a compromised worker could."""
+
+    def __init__(self, tamper):
+        self.tamper = tamper
+
+    def submit(self, fn, *args, **kwargs):
+        fut = Future()
+        fut.set_result(self.tamper(fn(*args, **kwargs)))
+        return fut
+
+
+@pytest.mark.parametrize(
+    ("tamper", "said"),
+    [
+        (lambda row: {**row, "trial": "../../escaped"}, "trial '../../escaped'"),
+        (lambda row: {**row, "cell": row["cell"] + 1}, "cell"),
+        (lambda row: {**row, "payload": object()}, "column 'payload' = a object"),
+        (lambda row: [row], "a list, not a row"),
+    ],
+    ids=["path-in-id", "other-cell", "object-value", "not-a-row"],
+)
+def test_a_row_a_worker_alters_is_refused_and_never_names_a_file(tmp_path, tamper, said):
+    pytest.importorskip("pyarrow")
+    study = st.load_study(study_file(tmp_path, duration=1.0))
+    out = tmp_path / "deep" / "er" / "out"
+    out.parent.mkdir(parents=True)
+    with pytest.raises(InputError, match=re.escape(said)):
+        sw.run_study(study, out, executor=_TamperingExecutor(tamper))
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == ["study.json", "study.toml"]
+
+
+def test_a_plain_scheduler_off_this_machine_is_refused_before_any_work(tmp_path, capsys):
+    path = study_file(tmp_path)
+    out = tmp_path / "out"
+    assert (
+        main(["sweep", str(path), "--out", str(out), "--scheduler", "tcp://10.1.2.3:8786", "--no-progress"])
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert "a plain tcp:// connection off this machine" in err and "--tls-ca-file" in err
+    assert not out.exists()
+    for address in ("tcp://127.0.0.1:8786", "tcp://localhost:8786", "127.0.0.1:8786", "tcp://[::1]:8786"):
+        sw.check_scheduler(address)  # this machine: allowed
+    sw.check_scheduler("tls://10.1.2.3:8786")
+    sw.check_scheduler("tcp://10.1.2.3:8786", insecure=True)
+    with pytest.raises(InputError, match="off this machine"):
+        sw.check_scheduler("10.1.2.3:8786")
+
+
+def test_dask_tls_settings_are_checked_and_require_encryption(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    files = {}
+    for name in ("ca", "cert", "key"):
+        files[name] = tmp_path / f"{name}.pem"
+        files[name].write_text("-----BEGIN CERTIFICATE-----\n")
+    assert sw.dask_security(None, None, None) is None
+    with pytest.raises(InputError, match="--tls-key missing"):
+        sw.dask_security(str(files["ca"]), str(files["cert"]), None)
+    with pytest.raises(InputError, match=r"--tls-cert .*nowhere.pem: no such file"):
+        sw.dask_security(str(files["ca"]), str(tmp_path / "nowhere.pem"), str(files["key"]))
+    security = sw.dask_security(str(files["ca"]), str(files["cert"]), str(files["key"]))
+    assert isinstance(security, distributed.Security) and security.require_encryption
+    assert security.tls_ca_file == str(files["ca"]) and security.tls_client_key == str(files["key"])
+    sw.check_scheduler("tcp://10.1.2.3:8786", security)  # TLS settings given: Dask enforces them

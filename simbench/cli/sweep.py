@@ -13,7 +13,7 @@ from tqdm import tqdm
 from simbench.cli.types import positive_int
 from simbench.errors import InputError
 from simbench.experiments.study import load_study, trials
-from simbench.experiments.sweep import dask_executor, finished, run_study
+from simbench.experiments.sweep import check_scheduler, dask_executor, dask_security, finished, run_study
 from simbench.report.study import plot_study, write_summary
 
 
@@ -26,12 +26,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     swp.add_argument(
         "--workers", type=positive_int, default=os.cpu_count() or 1, help="local worker processes"
     )
-    swp.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
+    swp.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="a Dask scheduler, e.g. tcp://127.0.0.1:8786 or tls://host:8786 (off this machine: TLS or "
+        "--insecure; docs/dask.md)",
+    )
+    swp.add_argument("--tls-ca-file", metavar="PEM", help="Dask TLS: the certificate authority to trust")
+    swp.add_argument("--tls-cert", metavar="PEM", help="Dask TLS: this client's certificate")
+    swp.add_argument("--tls-key", metavar="PEM", help="Dask TLS: this client's private key")
+    swp.add_argument(
+        "--insecure",
+        action="store_true",
+        help="connect to a scheduler off this machine by plain TCP (the network must be yours alone: Dask "
+        "unpickles what the cluster sends back)",
+    )
     swp.add_argument("--out", metavar="DIR", help="output folder (default: the study file's name)")
     swp.add_argument(
         "--force", action="store_true", help="start over in a folder that holds another study's trials"
     )
-    swp.add_argument("--no-progress", action="store_true")
+    swp.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     swp.set_defaults(func=cmd_sweep)
 
 
@@ -50,7 +64,16 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     def progress(done: int, _total: int) -> None:
         bar.update(done - bar.n)
 
-    cluster = dask_executor(args.scheduler) if args.scheduler else nullcontext(None)
+    security = dask_security(args.tls_ca_file, args.tls_cert, args.tls_key)
+    if security is not None and not args.scheduler:
+        raise InputError("--tls-ca-file, --tls-cert and --tls-key are for --scheduler: give its address too")
+    if args.scheduler:
+        check_scheduler(args.scheduler, security, args.insecure)  # before any work
+    cluster = (
+        dask_executor(args.scheduler, security=security, insecure=args.insecure)
+        if args.scheduler
+        else nullcontext(None)
+    )
     try:
         with cluster as executor:
             table = run_study(

@@ -11,11 +11,22 @@ resumes where it stopped: finished trials are read back and never run or written
 
 Parquet (pyarrow) and Dask (distributed) are the optional extra ``simbench[studies]``; without them a
 study stops with an :class:`InputError` saying so. Each trial runs BLAS on one thread.
+
+**Trust.** Dask's protocol pickles: whoever can reach the scheduler can run code on the workers,
+and the rows the workers send back are unpickled here. So a cluster is trusted as this process
+is: :func:`dask_executor` refuses a plain ``tcp://`` scheduler off this machine unless TLS
+settings are given (:func:`dask_security`: a CA, a client certificate and key, encryption
+required) or the caller says the network is trusted (``insecure``). A row sent back is checked
+before it is written: it must be the trial that was sent (its id, cell and replicate), a mapping
+of column names to plain values, and its file name is made from the trial sent, never from what
+came back (docs/dask.md).
 """
 
 from __future__ import annotations
 
+import ipaddress
 import json
+import socket
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, as_completed
@@ -23,6 +34,8 @@ from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+import numpy as np
 
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, optional_module
@@ -138,10 +151,11 @@ def _claim(out: Path, study: Study, force: bool) -> None:
     atomic_write_text(stamp, json.dumps(doc, indent=2) + "\n")
 
 
-def _write_row(out: Path, row: dict[str, Any]) -> None:
+def _write_row(out: Path, row: dict[str, Any], trial: Trial) -> None:
+    """Write a finished trial's row to ``out/trials/<id>.parquet``, the id the trial's own."""
     pa, pq = _optional("pyarrow"), _optional("pyarrow.parquet")
-    table = pa.Table.from_pylist([row])
-    with atomic_path(out / "trials" / f"{row['trial']}.parquet") as tmp:
+    table = pa.Table.from_pylist([checked_row(row, trial)])
+    with atomic_path(out / "trials" / f"{trial.trial_id}.parquet") as tmp:
         pq.write_table(table, tmp)
 
 
@@ -178,13 +192,103 @@ def gather(out: Path, ids: set[str] | None = None) -> Any:
     return table
 
 
-@contextmanager
-def dask_executor(address: str) -> Iterator[Executor]:
-    """An executor on the Dask cluster whose scheduler is at ``address`` (``tcp://host:8786``);
-    the client closes when the ``with`` block ends."""
+def dask_security(ca_file: str | None, cert: str | None, key: str | None) -> Any:
+    """Dask TLS settings from the CA file, the client certificate and its key (PEM files), each
+    checked to be a readable file; encryption required. ``None`` when none is given.
+
+    Raises:
+        InputError: one or two of the three given, or a file that is not there.
+    """
+    given = {"--tls-ca-file": ca_file, "--tls-cert": cert, "--tls-key": key}
+    if not any(given.values()):
+        return None
+    missing = [name for name, value in given.items() if not value]
+    if missing:
+        raise InputError(
+            f"Dask TLS needs the CA file, the certificate and the key: {', '.join(missing)} missing"
+        )
+    for name, value in given.items():
+        if not Path(value).is_file():
+            raise InputError(f"{name} {value}: no such file (expected a PEM file)")
     distributed = optional_module("distributed", EXTRA, f"{FEATURE} --scheduler")
-    with distributed.Client(address) as client:
+    return distributed.Security(
+        tls_ca_file=ca_file, tls_client_cert=cert, tls_client_key=key, require_encryption=True
+    )
+
+
+def _loopback(host: str) -> bool:
+    """Whether ``host`` is this machine's loopback (a name resolved, all its addresses)."""
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(host, None)
+    except OSError:
+        return False
+    return bool(infos) and all(ipaddress.ip_address(info[4][0].split("%")[0]).is_loopback for info in infos)
+
+
+def check_scheduler(address: str, security: Any = None, insecure: bool = False) -> None:
+    """Refuse a scheduler this process should not trust with its pickles (module docstring): a
+    ``tcp://`` (or bare) address off this machine without TLS settings, unless ``insecure``.
+
+    Raises:
+        InputError: naming the address and the ways to connect.
+    """
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    host = rest.rsplit(":", 1)[0] if ":" in rest and not rest.endswith("]") else rest
+    if scheme == "tls" or security is not None or insecure or _loopback(host):
+        return
+    raise InputError(
+        f"--scheduler {address}: a plain {scheme}:// connection off this machine; Dask unpickles what the "
+        "cluster sends back, so anyone on that network could run code here. Give --tls-ca-file, --tls-cert "
+        "and --tls-key (and a tls:// address), or --insecure if the network is yours alone (docs/dask.md)"
+    )
+
+
+@contextmanager
+def dask_executor(address: str, *, security: Any = None, insecure: bool = False) -> Iterator[Executor]:
+    """An executor on the Dask cluster whose scheduler is at ``address`` (``tcp://host:8786``,
+    ``tls://host:8786``); the client closes when the ``with`` block ends.
+
+    Args:
+        address: the scheduler.
+        security: Dask TLS settings (:func:`dask_security`), or ``None`` (Dask's configuration).
+        insecure: connect by plain TCP off this machine (:func:`check_scheduler`).
+    """
+    distributed = optional_module("distributed", EXTRA, f"{FEATURE} --scheduler")
+    check_scheduler(address, security, insecure)
+    with distributed.Client(address, security=security) as client:
         yield client.get_executor()
+
+
+def checked_row(row: Any, trial: Trial) -> dict[str, Any]:
+    """The row a worker sent back for ``trial``, checked (module docstring).
+
+    Raises:
+        InputError: a row that is not a mapping of names to plain values (str, int, float, bool,
+            None), or that names another trial.
+    """
+    if not isinstance(row, dict):
+        raise InputError(f"trial {trial.trial_id}: a worker sent back a {type(row).__name__}, not a row")
+    for name in ("trial", "cell", "replicate"):
+        if row.get(name) != getattr(trial, "trial_id" if name == "trial" else name):
+            raise InputError(
+                f"trial {trial.trial_id}: a worker sent back a row with {name} {row.get(name)!r}; refused "
+                "(not the trial that was sent)"
+            )
+    for name, value in row.items():
+        if not isinstance(name, str) or not (
+            value is None or isinstance(value, str | bool | int | float | np.number | np.bool_)
+        ):
+            raise InputError(
+                f"trial {trial.trial_id}: a worker sent back column {name!r} = a {type(value).__name__}; "
+                "expected plain values (str, int, float, bool, None, numpy numbers)"
+            )
+    return row
 
 
 @contextmanager
@@ -253,12 +357,12 @@ def run_study(
     todo = [t for t in every if t.trial_id not in done][:limit]
     count = len(done)
     with worker_pool(workers) if executor is None else nullcontext(executor) as pool:
-        futures = []
+        futures = {}
         try:
             for trial in todo:
-                futures.append(pool.submit(run_trial, study, trial))
+                futures[pool.submit(run_trial, study, trial)] = trial
             for fut in as_completed(futures):
-                _write_row(out, fut.result())
+                _write_row(out, fut.result(), futures[fut])
                 count += 1
                 if progress:
                     progress(count, len(every))
