@@ -858,11 +858,14 @@ def follow(
             elif update.kind in ("state", "final"):
                 print(update.state.calibration.parent_of, [c.advice for c in update.state.coverage])
 
-    The file is read every 50 ms; the updates (:class:`simbench.experiments.live.LiveUpdate`)
-    come as the frames do: each slip alert when it is raised, the calibration so far every
-    ``refresh_s`` seconds of capture (``waiting`` while there is none), and after
-    ``timeout_s`` seconds of wall time or Ctrl-C (a ``stopped`` update) the ``final`` one. A
-    file without two complete frames ends with no ``final`` update.
+    The file is read every 50 ms, at most 1 MiB at a time; the updates
+    (:class:`simbench.experiments.live.LiveUpdate`) come as the frames do: each slip alert when it
+    is raised, the calibration so far every ``refresh_s`` seconds of capture (``waiting`` while
+    there is none, or while the file does not exist yet), and after ``timeout_s`` seconds of wall
+    time or Ctrl-C (a ``stopped`` update) the ``final`` one. Every time reported is a frame's time
+    stamp. A file without two complete frames ends with no ``final`` update. The file is read by
+    the batch reader's rules (:mod:`simbench.io.follow`), and tracked: truncated, replaced
+    (rotated) or rewritten, the follow stops (``stopped``, ``final``, then the error).
 
     Args:
         path: the pose CSV (``time,sensor,x,y,z,qw,qx,qy,qz``; extra columns ignored).
@@ -879,7 +882,9 @@ def follow(
 
     Raises:
         InputError: (while iterating) a row the batch reader would refuse, naming its line, or
-            an option the calibrator refuses.
+            an option the calibrator refuses; (at the end) a file that never appeared, or one
+            truncated, replaced or rewritten while followed
+            (:class:`simbench.io.follow.FollowStopped`).
         CalibrationError: (at the end) the frames never gave a calibration, saying why.
     """
     options = _live_options(

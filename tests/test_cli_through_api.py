@@ -190,8 +190,9 @@ def _pose_csv(path: Path) -> Path:
 
 
 def _over_at_once():
-    """A clock at which the follow's time is up as soon as it starts: it reads the whole file
-    once (the flush at the end), whatever the machine's speed."""
+    """A clock at which the follow's time is up as soon as it starts: it reads the file once (one
+    piece of at most 1 MiB: the whole of these files) and calibrates what it read, whatever the
+    machine's speed."""
     times = iter([0.0])
     return lambda: next(times, 1e9)
 
@@ -234,7 +235,7 @@ def test_follow_checks_its_options_and_a_bad_row_names_its_line(tmp_path):
         list(sb.follow(path, root="nobody", clock=_over_at_once(), timeout_s=1.0))
     bad = tmp_path / "bad.csv"
     bad.write_text("time,sensor,x,y,z,qw,qx,qy,qz\n0,a,1,2,3,1,0,0,0\n0,b,1,2,3,0,0,0,0\n")
-    with pytest.raises(sb.InputError, match=r"bad\.csv: line 3: zero quaternion"):
+    with pytest.raises(sb.InputError, match=r"bad\.csv, line 3: zero quaternion"):
         list(sb.follow(bad, clock=_over_at_once(), timeout_s=1.0))
     empty = tmp_path / "empty.csv"
     empty.write_text("time,sensor,x,y,z,qw,qx,qy,qz\n")

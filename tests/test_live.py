@@ -19,7 +19,7 @@ from simbench.cli import main
 from simbench.cli.live import follow_csv, parse_speed
 from simbench.errors import InputError
 from simbench.io.dataset import write_dataset
-from simbench.io.follow import CsvFollower
+from simbench.io.follow import CsvFollower, first_seen
 from simbench.io.poses import CSV_COLUMNS, PoseRecording, write_pose_csv
 from simbench.io.read import read_poses
 from simbench.sim.live import live_blocks, with_slip
@@ -191,13 +191,16 @@ def test_calibrate_follow_on_the_command_line(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("t,sensor,x\n")
     assert main(["calibrate", str(bad), "--follow", "--timeout", "0.2"]) == 2
-    assert "header must be time,sensor,x,y,z,qw,qx,qy,qz" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "bad.csv, line 1: missing columns ['time', 'y', 'z', 'qw', 'qx', 'qy', 'qz']" in err
 
 
 def _follow_all(path):
     follower = CsvFollower(path, 1.0)
     try:
-        return [*follower.frames(), *follower.flush()]
+        frames = [*follower.frames(), *follower.flush()]
+        follower.set_names(first_seen(frames))
+        return [follower.arrays(f) for f in frames]
     finally:
         follower.close()
 
@@ -229,11 +232,12 @@ def test_follow_refuses_what_the_batch_reader_refuses_and_names_the_line(tmp_pat
         "empty sensor name": [good.format(s="a"), "0, ,1,2,3,1,0,0,0"],
         "zero quaternion": [good.format(s="a"), "0,b,1,2,3,0,0,0,0"],
         "sensor 'a' appears twice at time 0.0 \\(also on line 2\\)": [good.format(s="a"), good.format(s="a")],
-        "expected 9 values, got 8": [good.format(s="a"), "0,b,1,2,3,1,0,0"],
+        "expected 9 fields, got 8": [good.format(s="a"), "0,b,1,2,3,1,0,0"],
+        "column 'y' is not a number: 'two'": [good.format(s="a"), "0,b,1,two,3,1,0,0,0"],
     }
     for message, rows in cases.items():
         path.write_text("\n".join([header, *rows]) + "\n")
-        with pytest.raises(InputError, match=rf"p\.csv: line 3: {message}"):
+        with pytest.raises(InputError, match=rf"p\.csv, line 3: {message}"):
             _follow_all(path)
 
 

@@ -9,11 +9,12 @@ On a terminal each table replaces the last; otherwise (a log, a pipe) tables fol
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,6 +32,9 @@ from simbench.api import (
 from simbench.cli.table import text_table
 from simbench.cli.types import positive_float
 from simbench.errors import InputError
+
+#: Print a line and flush it: an alert reaches a pipe or a log the moment it is raised.
+PRINT: Callable[..., None] = functools.partial(print, flush=True)
 
 
 def add_replay_parser(sub: argparse._SubParsersAction) -> None:
@@ -121,7 +125,7 @@ class LivePrinter:
     alerts as they are raised, the tables, and the final table."""
 
     source: str
-    out: Callable[[str], None] = print
+    out: Callable[[str], None] = field(default=PRINT)
     clear: bool = False
 
     def show(self, update: LiveUpdate) -> None:
@@ -130,8 +134,7 @@ class LivePrinter:
             assert update.alert is not None
             self.out(f"ALERT at {update.raised_s:.2f} s: {update.alert.message} (joint {update.alert.joint})")
         elif update.kind == "waiting":
-            assert update.calibrator is not None
-            n = update.calibrator.n_frames
+            n = 0 if update.calibrator is None else update.calibrator.n_frames
             self.out(f"simbench live: {self.source}: {n} frames, waiting ({update.reason})")
         elif update.kind in ("state", "final"):
             assert update.state is not None
@@ -139,7 +142,7 @@ class LivePrinter:
             text = live_table(self.source, update.state, final=final)
             self.out(("\x1b[H\x1b[2J" if self.clear and not final else "") + text)
         else:
-            self.out("simbench: stopped (Ctrl-C)")
+            self.out(f"simbench: stopped ({update.reason or 'Ctrl-C'})")
 
     def show_all(self, updates: Generator[LiveUpdate, None, None]) -> StreamingCalibrator | None:
         """Print every update; returns the calibrator of the final one (``None`` without one).
@@ -219,7 +222,7 @@ def follow_csv(
     rate_hz: float | None = None,
     timeout_s: float | None = None,
     refresh_s: float = LIVE_REFRESH_S,
-    out: Callable[[str], None] = print,
+    out: Callable[[str], None] = PRINT,
     clock: Callable[[], float] = time.monotonic,
     **options: Any,
 ) -> StreamingCalibrator | None:

@@ -168,6 +168,13 @@ def read_header(path: Path) -> tuple[list[str], int]:
         else:
             raise fail(path, None, f"the file is empty; expected a header {','.join(CSV_COLUMNS)}")
         line = reader.line_num
+    check_header(path, header, line)
+    return header, line
+
+
+def check_header(path: str | os.PathLike[str], header: list[str], line: int) -> None:
+    """Refuse a header (stripped cells) without every column of :data:`CSV_COLUMNS`, or with one
+    of them twice, naming the file and line."""
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
         raise fail(
@@ -176,7 +183,6 @@ def read_header(path: Path) -> tuple[list[str], int]:
     repeated = sorted({c for c in header if header.count(c) > 1 and c in CSV_COLUMNS})
     if repeated:
         raise fail(path, line, f"columns repeated in the header: {repeated}")
-    return header, line
 
 
 def exact_blocks(path: Path, header: list[str], header_line: int) -> Blocks:
