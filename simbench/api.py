@@ -22,7 +22,6 @@ core are re-exported from here.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -678,32 +677,26 @@ def slip_reports(
     window_s = _positive("window_s (seconds)", window_s)
     false_alarms_per_hour = _positive("false_alarms_per_hour", false_alarms_per_hour)
     _same_sensors(rec, cal)
-    if cal.noisy_frames is not None:  # the frames the calibration left out for their noise
-        out = cal.noisy_frames
-        rec = dataclasses.replace(
-            rec,
-            R_w_s=np.where(out[..., None, None], np.nan, rec.R_w_s),
-            p_w_s=np.where(out[..., None], np.nan, rec.p_w_s),
-            valid=rec.valid & ~out,
-        )
     window = round(window_s * rec.rate_hz) if np.isfinite(rec.rate_hz) else 0
     window = min(max(window, 2), rec.n_frames // 2)
     if window < 2:
         return []
-    return [
-        (
-            j.name,
-            detect_slip(
-                *rec.pair(j.parent, j.child),
-                j.fit.joint_in_parent,
-                j.fit.joint_in_child,
-                window=window,
-                rate_hz=rec.rate_hz,
-                false_alarms_per_hour=false_alarms_per_hour,
-            ),
+    reports = []
+    for j in cal.joints:  # one joint's series at a time: memory is a pair's, not the recording's
+        poses = [np.asarray(x) for x in rec.pair(j.parent, j.child)]
+        if cal.noisy_frames is not None:  # the frames the calibration left out for their noise
+            drop = cal.noisy_frames[:, [rec.names.index(j.parent), rec.names.index(j.child)]].any(axis=1)
+            poses = [np.where(drop.reshape(-1, *[1] * (x.ndim - 1)), np.nan, x) for x in poses]
+        report = detect_slip(
+            *poses,
+            j.fit.joint_in_parent,
+            j.fit.joint_in_child,
+            window=window,
+            rate_hz=rec.rate_hz,
+            false_alarms_per_hour=false_alarms_per_hour,
         )
-        for j in cal.joints
-    ]
+        reports.append((j.name, report))
+    return reports
 
 
 def calibration_document(
