@@ -74,7 +74,7 @@ from simbench.io.hierarchy_json import read_hierarchy_json as read_hierarchy
 from simbench.io.imu import ImuRecording
 from simbench.io.orientation_csv import read_orientation_csv, write_orientation_csv
 from simbench.io.poses import PoseRecording, sample_rate, write_pose_csv
-from simbench.io.read import read, read_imu, read_poses, refuse_unlocated
+from simbench.io.read import POSE_INPUTS, pose_inputs_text, read, read_imu, read_poses, refuse_unlocated
 from simbench.orient import (
     calibrate_magnetometers,
     describe_fit,
@@ -89,9 +89,11 @@ from simbench.report.twin import write_twin_report
 from simbench.score import CalibrationScore, OrientationScore, score_joints, score_orientation
 from simbench.score import score as score_calibration
 from simbench.sim.marker_clusters import MarkerConfig, add_markers
+from simbench.sim.mjcf import BUILTIN as BUILTIN_MODELS
 from simbench.sim.plan import session_defaults
 from simbench.sim.playback import DEFAULT_CUTOFF_HZ as BVH_CUTOFF_HZ
-from simbench.sim.sensor_config import SensorConfig
+from simbench.sim.programs import BUILTIN_PROGRAMS
+from simbench.sim.sensor_config import SensorConfig, preset_names
 from simbench.sim.session import SessionConfig, run_session
 from simbench.twin import DEFAULT_CUTOFF_HZ as TWIN_CUTOFF_HZ
 from simbench.twin import DEFAULT_POSITION_CUTOFF_HZ as TWIN_POSITION_CUTOFF_HZ
@@ -1012,6 +1014,8 @@ def write_twin(
 
 
 __all__ = [
+    "BUILTIN_MODELS",
+    "BUILTIN_PROGRAMS",
     "BVH_CUTOFF_HZ",
     "DEFAULT_JOINTS",
     "DEFAULT_ORIENTATION",
@@ -1020,6 +1024,7 @@ __all__ = [
     "LIVE_RATE_FRAMES",
     "LIVE_REFRESH_S",
     "LOCATED_RANK",
+    "POSE_INPUTS",
     "SLIP_WINDOW_S",
     "TIME_LIMIT_S",
     "TWIN_EFFECTS",
@@ -1054,6 +1059,8 @@ __all__ = [
     "orient",
     "output_set",
     "parse_twin_window",
+    "pose_inputs_text",
+    "preset_names",
     "read",
     "read_hierarchy",
     "read_imu",

@@ -30,6 +30,7 @@ from simbench.cli import (
     twin,
     validate,
 )
+from simbench.cli.examples import epilog
 from simbench.errors import CalibrationError, InputError
 from simbench.versions import __version__
 
@@ -61,7 +62,22 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for command in COMMANDS:
         command.add_parser(sub)
+    summaries = {action.dest: action.help for action in sub._choices_actions}
+    for name, command_parser in sub.choices.items():
+        if not command_parser.description:  # the one-line summary, as the command list gives it
+            command_parser.description = (summaries.get(name) or "").capitalize() + "."
+        command_parser.epilog = epilog(name)
+        command_parser.formatter_class = _Formatter
     return parser
+
+
+class _Formatter(argparse.HelpFormatter):
+    """argparse's formatter, which keeps an ``examples:`` block's lines as they are written."""
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        if text.startswith("examples:\n"):
+            return "\n".join(indent + line for line in text.splitlines())
+        return super()._fill_text(text, width, indent)
 
 
 class Terminated(BaseException):

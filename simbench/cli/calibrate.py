@@ -15,6 +15,7 @@ from simbench.api import (
     calibrate,
     calibration_document,
     estimator_names,
+    pose_inputs_text,
     read_hierarchy,
     read_poses,
     refuse_unlocated,
@@ -49,7 +50,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
         "6-DoF sensor poses (O'Brien et al. 2000).",
     )
-    cal.add_argument("input", help="pose file: a pose CSV (time,sensor,x,y,z,qw,qx,qy,qz) or a dataset .h5")
+    cal.add_argument("input", help=f"the poses: {pose_inputs_text()}")
     cal.add_argument(
         "--method",
         default=DEFAULT_JOINTS,

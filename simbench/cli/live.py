@@ -27,6 +27,7 @@ from simbench.api import (
     LiveUpdate,
     StreamingCalibrator,
     follow,
+    pose_inputs_text,
     replay,
 )
 from simbench.cli.table import text_table
@@ -45,7 +46,7 @@ def add_replay_parser(sub: argparse._SubParsersAction) -> None:
         description="Replay a pose file (dataset .h5 or pose CSV) frame by frame through the "
         "incremental calibration, printing a refreshing table and slip alerts as they are raised.",
     )
-    rep.add_argument("input", help="a simbench dataset .h5 or a pose CSV")
+    rep.add_argument("input", help=f"the poses: {pose_inputs_text(without=('wide',))}")
     rep.add_argument(
         "--rate",
         default="1x",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from simbench.api import pose_inputs_text
 from simbench.cli.calibrate import DROP_NOISY_FRAMES_HELP
 from simbench.errors import InputError
 from simbench.report.dataset import dataset_report
@@ -16,9 +17,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     rep = sub.add_parser(
         "report", help="the report of one dataset (scored against its truth when it has one)"
     )
-    rep.add_argument(
-        "dataset", help="a simbench dataset (.h5), pose CSV, wide tracker export (--wide) or C3D"
-    )
+    rep.add_argument("dataset", help=f"the recording: {pose_inputs_text()}")
     rep.add_argument(
         "--units",
         choices=sorted(LENGTH_UNITS),

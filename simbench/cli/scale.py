@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from simbench.api import read_poses, rigidity, unit_scale
+from simbench.api import pose_inputs_text, read_poses, rigidity, unit_scale
 from simbench.cli.types import positive_float
 from simbench.errors import CalibrationError, InputError
 from simbench.units import LENGTH_UNITS, metres_per_unit
@@ -18,7 +18,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description="Estimate the unit scale factor of a capture system from two sensors mounted "
         "rigidly a known distance apart (O'Brien et al. 2000, section 4).",
     )
-    scale.add_argument("input", help="pose file: a pose CSV")
+    scale.add_argument("input", help=f"the poses: {pose_inputs_text(without=('wide',))}")
     scale.add_argument("--sensors", nargs=2, required=True, metavar=("A", "B"), help="the two sensors")
     scale.add_argument(
         "--distance", type=positive_float, required=True, help="their true distance, in --units"

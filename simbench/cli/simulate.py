@@ -6,8 +6,11 @@ import argparse
 from pathlib import Path
 
 from simbench.api import (
+    BUILTIN_MODELS,
+    BUILTIN_PROGRAMS,
     BVH_CUTOFF_HZ,
     MarkerConfig,
+    preset_names,
     simulate,
     truth_document,
     write_calibration,
@@ -30,15 +33,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     sim.add_argument(
         "--model",
         default=None,
-        help="linkage, humanoid, dm_control:NAME or an MJCF .xml path (default linkage; a recorded motion: "
-        "the model it brings (a .bvh clip's skeleton, a pose trajectory's bodies) or names (a .npz), "
-        "humanoid for OpenSim angles)",
+        help=f"{', '.join(BUILTIN_MODELS)}, dm_control:NAME or an MJCF .xml path (default linkage; a "
+        "recorded motion: the model it brings (a .bvh clip's skeleton, a pose trajectory's bodies) or "
+        "names (a .npz), humanoid for OpenSim angles)",
     )
     sim.add_argument(
         "--motion",
         default="exercise",
         metavar="PROGRAM|FILE",
-        help="exercise, walk, gait (humanoids), single-axis, static, a program .toml, or a recorded motion "
+        help=f"{', '.join(BUILTIN_PROGRAMS)} (gait: humanoids only), a program .toml, or a recorded motion "
         "played back kinematically: a .bvh clip, a qpos series (.npz, .csv), OpenSim angles (.mot, .sto), "
         "pose trajectories (a pose .csv, a .c3d of marker clusters, a BROAD-layout .hdf5) (default exercise)",
     )
@@ -91,8 +94,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--sensors",
         default="ideal",
         metavar="PRESET|FILE.toml",
-        help="sensor preset (ideal, ascension-flock, polhemus-liberty, mems-consumer, mems-industrial, "
-        "skin-paper-human) or a configuration TOML (default ideal)",
+        help=f"sensor preset ({', '.join(preset_names())}) or a configuration TOML (default ideal)",
     )
     sim.add_argument(
         "--sensors-on", metavar="BODY,BODY,...", help="bodies that carry a sensor (default: the model's)"

@@ -32,6 +32,20 @@ from simbench.io.wide_csv import read_wide_csv, read_wide_spec
 
 POSE_SUFFIXES = (".csv", ".txt", ".c3d", ".h5", ".hdf5")
 
+#: The pose recordings simbench reads, by kind: what ``--help`` and the errors list.
+POSE_INPUTS: dict[str, str] = {
+    "csv": "a pose CSV (.csv, .txt: time,sensor,x,y,z,qw,qx,qy,qz)",
+    "wide": "a tracker's wide export (.csv with --wide SPEC.toml)",
+    "c3d": "optical markers (.c3d, clustered by --clusters SPEC.toml or found)",
+    "h5": "a simbench dataset (.h5, .hdf5)",
+}
+
+
+def pose_inputs_text(without: tuple[str, ...] = ()) -> str:
+    """The kinds of :data:`POSE_INPUTS` (less those of ``without``) as one phrase (``a; b or c``)."""
+    kinds = [text for kind, text in POSE_INPUTS.items() if kind not in without]
+    return "; ".join(kinds[:-1]) + " or " + kinds[-1]
+
 
 def is_simbench_dataset(path: str | os.PathLike[str]) -> bool:
     """True for an HDF5 file written by :func:`~simbench.io.dataset.write_dataset`."""
@@ -132,10 +146,7 @@ def _read_poses(
         if units not in (None, "m"):
             raise InputError(f"{path}: simbench datasets hold metres; --units {units} does not apply")
         return read_dataset_poses(path)  # a large file: a chunk of frames at a time
-    raise InputError(
-        f"{path}: unknown pose file type {suffix!r}; expected a pose CSV (.csv), a simbench dataset (.h5) "
-        "or optical markers (.c3d)"
-    )
+    raise InputError(f"{path}: unknown pose file type {suffix!r}; expected {pose_inputs_text()}")
 
 
 def read_imu(path: str | os.PathLike[str]) -> ImuRecording:
