@@ -88,8 +88,10 @@ Frames where a pose is missing are left out of the window means.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from itertools import pairwise
+from typing import Any
 
 import numpy as np
 
@@ -121,6 +123,14 @@ _FRAMES = ("parent", "child")
 #: Units in the last place of the largest position below which a jump is rounding, not a jump
 #: (:func:`_resolution`): 1e3 of them, 2e-13 m at 1 m, far below any tracker's noise.
 RESOLUTION_ULPS = 1e3
+
+#: Frames of a joint's series :func:`detect_slip` holds at once: a longer recording is taken a
+#: chunk at a time (2^18: 36 min at 120 Hz; about 0.5 KB a frame while a chunk is searched).
+CHUNK_FRAMES = 1 << 18
+
+#: Windows of overlap each side between consecutive chunks (the search ignores a step within a
+#: window of a chunk's ends: every frame is at least this far inside one chunk's core).
+OVERLAP_WINDOWS = 4
 
 
 @dataclass(frozen=True)
@@ -384,6 +394,126 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
 
 
 def detect_slip(
+    R_w_p: Any,
+    p_w_p: Any,
+    R_w_c: Any,
+    p_w_c: Any,
+    joint_in_parent: np.ndarray,
+    joint_in_child: np.ndarray,
+    *,
+    window: int,
+    rate_hz: float,
+    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+    chunk_frames: int = CHUNK_FRAMES,
+    series: bool = True,
+) -> SlipReport:
+    """Find the frames where a joint's residual offset jumps (a sensor moved on the body).
+
+    A recording of more than ``chunk_frames`` frames is taken a chunk at a time (memory bounded
+    by the chunk, not the recording): chunks of at most ``chunk_frames`` frames that overlap by
+    :data:`OVERLAP_WINDOWS` windows each side, each searched as a recording of its own (its own
+    noise model and threshold, set for the same rate per hour), an event kept by the chunk whose
+    core (the chunk less its overlaps, the cores tiling the recording) holds its frame. Then
+    ``intervals`` are judged against the first chunk's first piece as in one search, and
+    ``noise``, ``threshold``, ``min_jump`` and ``tests_per_hour`` are the chunks' medians.
+
+    Args:
+        R_w_p, R_w_c: ``(frames, 3, 3)`` parent and child rotations, sensor to world (arrays, or
+            anything that gives one for a slice of frames, e.g. an h5py dataset's view).
+        p_w_p, p_w_c: ``(frames, 3)`` parent and child positions in world, any length unit.
+        joint_in_parent, joint_in_child: ``(3,)`` the fitted joint, the same unit.
+        window: ``w`` of the module docstring, frames (at least 2, at most half the frames).
+        rate_hz: frames per second (turns the rate per hour into a rate per frame).
+        false_alarms_per_hour: expected false alarms per hour of this joint's recording when
+            no sensor moves (module docstring).
+        chunk_frames: the most frames held at once (at least ``8 * window`` more than twice the
+            overlap).
+        series: keep ``jump`` (``False``: an empty array; the events and figures are the same).
+
+    Raises:
+        CalibrationInputError: shapes that do not match, a window out of range, a rate or a
+            false-alarm rate that is not positive and finite.
+    """
+    options = {"window": window, "rate_hz": rate_hz, "false_alarms_per_hour": false_alarms_per_hour}
+    try:
+        n = len(R_w_p)
+    except TypeError:
+        raise CalibrationInputError(
+            f"Expected R_w_p of shape (frames, 3, 3), got {np.shape(R_w_p)}"
+        ) from None
+    if n <= chunk_frames:
+        rep, _ = _detect_chunk(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child, **options)
+        return rep if series else dataclasses.replace(rep, jump=np.empty(0))
+    _check_options(n, window, rate_hz, false_alarms_per_hour)
+    overlap = OVERLAP_WINDOWS * window
+    if chunk_frames < 2 * overlap + 8 * window:
+        raise CalibrationInputError(
+            f"chunk_frames must be at least {2 * overlap + 8 * window} for a window of {window}, got "
+            f"{chunk_frames}"
+        )
+    pieces = _chunks(n, chunk_frames, overlap)
+    reports = []
+    reference = None  # the first chunk's first piece: every chunk's intervals are judged against it
+    for a, b, core_a, core_b in pieces:
+        poses = [np.asarray(x[a:b], dtype=float) for x in (R_w_p, p_w_p, R_w_c, p_w_c)]
+        rep, reference = _detect_chunk(
+            *poses, joint_in_parent, joint_in_child, **options, reference=reference
+        )
+        if not series:
+            rep = dataclasses.replace(rep, jump=np.empty(0))
+        reports.append((a, core_a, core_b, rep))
+    events, intervals, jumps = [], [], []
+    for a, core_a, core_b, rep in reports:
+        events += [
+            dataclasses.replace(ev, frame=ev.frame + a)
+            for ev in rep.events
+            if core_a <= ev.frame + a < core_b
+        ]
+        intervals += [
+            (max(lo + a, core_a), min(hi + a, core_b))
+            for lo, hi in rep.intervals
+            if lo + a < core_b and hi + a > core_a
+        ]
+        if series:
+            jumps.append(rep.jump[core_a - a : core_b - a])
+    return SlipReport(
+        events=tuple(events),
+        intervals=tuple(_merged(intervals, {core_a for _, core_a, _, _ in reports})),
+        jump=np.concatenate(jumps) if series else np.empty(0),
+        noise=float(np.median([r.noise for *_, r in reports])),
+        window=window,
+        threshold=float(np.median([r.threshold for *_, r in reports])),
+        min_jump=float(np.median([r.min_jump for *_, r in reports])),
+        false_alarms_per_hour=false_alarms_per_hour,
+        tests_per_hour=float(np.median([r.tests_per_hour for *_, r in reports])),
+    )
+
+
+def _chunks(n: int, chunk: int, overlap: int) -> list[tuple[int, int, int, int]]:
+    """``(start, stop, core start, core stop)`` of each chunk of ``n`` frames: at most ``chunk``
+    frames, cores of equal length tiling ``[0, n)``, each chunk its core and ``overlap`` each side."""
+    if n <= chunk:
+        return [(0, n, 0, n)]
+    k = -(-n // (chunk - 2 * overlap))
+    edges = np.linspace(0, n, k + 1).round().astype(int)
+    return [
+        (max(0, int(lo) - overlap), min(n, int(hi) + overlap), int(lo), int(hi)) for lo, hi in pairwise(edges)
+    ]
+
+
+def _merged(intervals: list[tuple[int, int]], seams: set[int]) -> list[tuple[int, int]]:
+    """Intervals sorted, those that overlap or meet at a seam between chunk cores joined (one
+    interval cut by the chunks); those that meet at an event stay apart, as in one search."""
+    out: list[tuple[int, int]] = []
+    for lo, hi in sorted(intervals):
+        if out and (lo < out[-1][1] or (lo == out[-1][1] and lo in seams)):
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        else:
+            out.append((lo, hi))
+    return out
+
+
+def _detect_chunk(
     R_w_p: np.ndarray,
     p_w_p: np.ndarray,
     R_w_c: np.ndarray,
@@ -393,23 +523,12 @@ def detect_slip(
     *,
     window: int,
     rate_hz: float,
-    false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
-) -> SlipReport:
-    """Find the frames where a joint's residual offset jumps (a sensor moved on the body).
-
-    Args:
-        R_w_p, R_w_c: ``(frames, 3, 3)`` parent and child rotations, sensor to world.
-        p_w_p, p_w_c: ``(frames, 3)`` parent and child positions in world, any length unit.
-        joint_in_parent, joint_in_child: ``(3,)`` the fitted joint, the same unit.
-        window: ``w`` of the module docstring, frames (at least 2, at most half the frames).
-        rate_hz: frames per second (turns the rate per hour into a rate per frame).
-        false_alarms_per_hour: expected false alarms per hour of this joint's recording when
-            no sensor moves (module docstring).
-
-    Raises:
-        CalibrationInputError: shapes that do not match, a window out of range, a rate or a
-            false-alarm rate that is not positive and finite.
-    """
+    false_alarms_per_hour: float,
+    reference: list[np.ndarray | None] | None = None,
+) -> tuple[SlipReport, list[np.ndarray | None]]:
+    """:func:`detect_slip` on frames held at once (the whole recording, or one chunk), and the
+    mean offsets its intervals were judged against (``reference``: a later chunk's, the first
+    chunk's; :func:`_intervals`)."""
     R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
     n = R_w_p.shape[0]
     _check_options(n, window, rate_hz, false_alarms_per_hour)
@@ -455,9 +574,10 @@ def detect_slip(
             break
         found = kept
     events.sort(key=lambda ev: ev.frame)
-    return SlipReport(
+    intervals, reference = _intervals(es, ok, events, n, min_jump, reference)
+    report = SlipReport(
         events=tuple(events),
-        intervals=_intervals(es, ok, events, n, min_jump),
+        intervals=intervals,
         jump=np.linalg.norm(ds[shown], axis=1),
         noise=noise,
         window=window,
@@ -466,24 +586,33 @@ def detect_slip(
         false_alarms_per_hour=false_alarms_per_hour,
         tests_per_hour=tests_per_hour,
     )
+    return report, reference
 
 
 def _intervals(
-    es: list[np.ndarray], ok: np.ndarray, events: list[SlipEvent], n: int, min_jump: float
-) -> tuple[tuple[int, int], ...]:
-    """Pieces between events whose mean offset (in the moved frame) differs from the first's."""
+    es: list[np.ndarray],
+    ok: np.ndarray,
+    events: list[SlipEvent],
+    n: int,
+    min_jump: float,
+    reference: list[np.ndarray | None] | None = None,
+) -> tuple[tuple[tuple[int, int], ...], list[np.ndarray | None]]:
+    """Pieces between events whose mean offset (in each sensor frame) differs from the reference
+    by more than ``min_jump``, and the reference: the first piece's mean offsets, or those given
+    (a later chunk of a recording is judged against the recording's first piece)."""
     cuts = [0, *(ev.frame for ev in events), n]
     pieces = list(pairwise(cuts))
+    if reference is None:
+        first = ok[: pieces[0][1]]
+        reference = [np.mean(e[: pieces[0][1]][first], axis=0) if first.any() else None for e in es]
+        pieces = pieces[1:]
     out = []
-    for a, b in pieces[1:]:
+    for a, b in pieces:
         seg = ok[a:b]
-        moved = False
-        for e in es:
-            first = ok[: pieces[0][1]]
-            if not (seg.any() and first.any()):
-                continue
-            ref = np.mean(e[: pieces[0][1]][first], axis=0)
-            moved |= bool(np.linalg.norm(np.mean(e[a:b][seg], axis=0) - ref) > min_jump)
+        moved = any(
+            seg.any() and ref is not None and np.linalg.norm(np.mean(e[a:b][seg], axis=0) - ref) > min_jump
+            for e, ref in zip(es, reference, strict=True)
+        )
         if moved:
             out.append((a, b))
-    return tuple(out)
+    return tuple(out), reference

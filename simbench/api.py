@@ -649,13 +649,15 @@ def slip_reports(
     *,
     window_s: float = SLIP_WINDOW_S,
     false_alarms_per_hour: float = FALSE_ALARMS_PER_HOUR,
+    series: bool = True,
 ) -> list[tuple[str, SlipReport]]:
     """Slip detection on every joint of a calibration (O'Brien section 5,
     :func:`calibration.detect_slip`): the reports ``simbench calibrate`` prints and writes.
 
     Frames the calibration left out for their noise (``drop_noisy_frames=True``) are left out
     here too. The window of ``window_s`` seconds becomes frames at the recording's rate (at
-    least 2, at most half the recording).
+    least 2, at most half the recording). One joint at a time, a chunk of its frames at a time
+    (:data:`calibration.slip.CHUNK_FRAMES`): memory is bounded by the chunk, not the recording.
 
     Args:
         data: the recording that was calibrated (a Dataset: its measured poses).
@@ -664,6 +666,8 @@ def slip_reports(
         false_alarms_per_hour: per joint, the expected false alarms per hour of recording when
             no sensor moves, which sets the threshold (default
             :data:`calibration.slip.FALSE_ALARMS_PER_HOUR`).
+        series: keep each report's ``jump`` series (``False``: empty; a frame's worth of memory
+            per joint less).
 
     Returns:
         ``(joint name, report)`` per joint (``parent-child``): the
@@ -684,18 +688,18 @@ def slip_reports(
     if window < 2:
         return []
     reports = []
-    for j in cal.joints:  # one joint's series at a time: memory is a pair's, not the recording's
-        poses = [np.asarray(x) for x in rec.pair(j.parent, j.child)]
+    for j in cal.joints:  # one joint at a time, a chunk of its frames at a time (detect_slip)
+        drop = None
         if cal.noisy_frames is not None:  # the frames the calibration left out for their noise
             drop = cal.noisy_frames[:, [rec.names.index(j.parent), rec.names.index(j.child)]].any(axis=1)
-            poses = [np.where(drop.reshape(-1, *[1] * (x.ndim - 1)), np.nan, x) for x in poses]
         report = detect_slip(
-            *poses,
+            *rec.pair_views(j.parent, j.child, drop),
             j.fit.joint_in_parent,
             j.fit.joint_in_child,
             window=window,
             rate_hz=rec.rate_hz,
             false_alarms_per_hour=false_alarms_per_hour,
+            series=series,
         )
         reports.append((j.name, report))
     return reports

@@ -193,7 +193,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         []
         if args.no_slip
         else slip_reports(
-            rec, cal, window_s=args.slip_window, false_alarms_per_hour=args.slip_false_alarms_per_hour
+            rec,
+            cal,
+            window_s=args.slip_window,
+            false_alarms_per_hour=args.slip_false_alarms_per_hour,
+            series=False,  # the events are printed and written; the statistic's series is not
         )
     )
     print(format_table(rec, cal, slips))

@@ -224,11 +224,42 @@ class PoseRecording:
         p, c = self.names.index(parent), self.names.index(child)
         return self.R_w_s[:, p], self.p_w_s[:, p], self.R_w_s[:, c], self.p_w_s[:, c]
 
+    def pair_views(
+        self, parent: str, child: str, drop: np.ndarray | None = None
+    ) -> tuple[SensorFrames, SensorFrames, SensorFrames, SensorFrames]:
+        """:meth:`pair` read a slice of frames at a time (:class:`SensorFrames`), with the frames
+        ``drop`` (``(frames,)`` bool) NaN: for a recording larger than memory."""
+        p, c = self.names.index(parent), self.names.index(child)
+        return tuple(SensorFrames(x, k, drop) for k in (p, c) for x in (self.R_w_s, self.p_w_s))  # type: ignore[return-value]
+
     @property
     def rate_hz(self) -> float:
         """Sample rate, Hz: from the median step, or from the sample count over the span when
         the time stamps come in bursts (:func:`sample_rate`); NaN with fewer than 2 frames."""
         return sample_rate(self.time_s)[0]
+
+
+@dataclass(frozen=True)
+class SensorFrames:
+    """One sensor's series of a ``(frames, sensors, ...)`` array (or h5py dataset), read a slice of
+    frames at a time: ``view[a:b]`` is ``(b - a, ...)`` float, NaN where ``drop`` is true."""
+
+    data: Any
+    sensor: int
+    drop: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (len(self), *self.data.shape[2:])
+
+    def __getitem__(self, frames: slice) -> np.ndarray:
+        x = np.array(self.data[frames, self.sensor], dtype=float)
+        if self.drop is not None:
+            x[self.drop[frames]] = np.nan
+        return x
 
 
 def read_pose_csv(
