@@ -254,7 +254,7 @@ def test_report_plots_and_summary_of_a_two_parameter_grid(tmp_path):
     assert all(p.read_bytes()[:4] == b"\x89PNG" for p in plots)
     text = study_report.summary_markdown(study, table, plots)
     # parameters in the study's units (the noise in mm as the file gave it), lengths in mm
-    assert "| sensors.tracker.position_noise_m (mm) | rate_hz (hz) | mean joint_centre_error_m (mm) |" in text
+    assert "| sensors.tracker.position_noise_m (mm) | rate_hz (hz) | mean joint-centre error (mm) |" in text
     assert "| 8 | 120 | 40 |" in text  # cell 3's parameters and mean
     assert "condition number with the joint-centre error: 1.00." in text
     assert (
@@ -393,16 +393,24 @@ def test_study_plots_show_proportions_in_0_1_and_panels_in_a_grid(tmp_path):
     assert list(mean) == [0.0, 1.0] and (lo >= 0).all() and (hi <= 1).all()
     assert lo[0] == 0.0 and hi[0] == pytest.approx(0.6576, abs=1e-4)  # Wilson, 0 of 2
     assert lo[1] == pytest.approx(0.3424, abs=1e-4) and hi[1] == 1.0
-    assert study_report.metric_display("hierarchy_correct") == ("hierarchy_correct (proportion)", 1.0, True)
+    # words and units on the axes, never a column's name
+    assert study_report.metric_display("hierarchy_correct") == ("hierarchy correct (proportion)", 1.0, True)
     assert study_report.metric_display("joint_centre_error_m:score") == (
-        "joint_centre_error_m:score (mm)",
+        "joint-centre error, score (mm)",
         1000.0,
         False,
     )
+    assert study_report.metric_display("run_time_s") == ("run time (s)", 1.0, False)
     assert study_report.parameter_display(study.parameters[0]) == (
-        "position_noise_m (mm)",
+        "position noise (mm)",
         pytest.approx(1000.0),
     )
+    # a band of a quantity that cannot be negative stops at zero (two seeds: a wide band)
+    errors = np.array([0.1, 3.0, 0.2, 0.25])
+    _, mean, lo, _ = study_report._confidence_band(x, errors, non_negative=True)
+    assert (lo >= 0).all() and lo[0] == 0.0 and mean[0] == pytest.approx(1.55)
+    assert study_report._confidence_band(x, errors)[2][0] < 0  # the plain normal band would dip
+    assert study_report.non_negative("joint_centre_error_m:score") and not study_report.non_negative("bias_m")
 
 
 def test_figures_of_many_panels_wrap_into_rows(tmp_path):

@@ -28,6 +28,27 @@ METRIC_DISPLAY = {"_m": ("mm", 1000.0), "_deg": ("deg", 1.0), "_s": ("s", 1.0)}
 #: Metrics that are 0 or 1 per trial: shown as a proportion with a Wilson interval.
 BINARY_METRICS = ("hierarchy_correct",)
 
+#: Words for a metric's name where its column name (less the unit suffix, underscores as spaces)
+#: would not read well; the others are read from the name.
+METRIC_WORDS = {
+    "joint_centre_error_m": "joint-centre error",
+    "limb_length_error_m": "limb-length error",
+    "orientation_rmse_deg": "orientation error, rms",
+    "residual_rms_m": "joint residual, rms",
+}
+
+#: Metrics that cannot be negative (errors, sizes, times): their confidence bands stop at zero.
+NON_NEGATIVE_SUFFIXES = ("_error_m", "_rmse_deg", "_rms_m", "_s", "condition")
+
+
+def _words(name: str) -> str:
+    """A column or parameter name as words: its unit suffix dropped, underscores as spaces."""
+    for suffix in (*METRIC_DISPLAY, "_deg"):
+        if name.endswith(suffix):
+            name = name[: -len(suffix)]
+            break
+    return name.replace("_", " ")
+
 
 class StudyParameter(Protocol):
     """What the report reads of a varied parameter."""
@@ -61,13 +82,14 @@ def metric_columns(study: StudyDescription, data: Mapping[str, list]) -> list[st
 def metric_display(metric: str) -> tuple[str, float, bool]:
     """``(axis label, factor from SI, binary)`` of a metric column: lengths in mm, a 0/1 metric as
     a proportion, anything else as its name says (:data:`METRIC_DISPLAY`)."""
-    base = metric.split(":", 1)[0]
+    base, _, method = metric.partition(":")
+    words = METRIC_WORDS.get(base, _words(base)) + (f", {method}" if method else "")
     if base in BINARY_METRICS:
-        return f"{metric} (proportion)", 1.0, True
+        return f"{words} (proportion)", 1.0, True
     for suffix, (unit, factor) in METRIC_DISPLAY.items():
         if base.endswith(suffix):
-            return f"{metric} ({unit})", factor, False
-    return metric, 1.0, False
+            return f"{words} ({unit})", factor, False
+    return words, 1.0, False
 
 
 def mean_of_known(x: np.ndarray) -> float:
@@ -85,7 +107,8 @@ def parameter_display(p: StudyParameter) -> tuple[str, float]:
     short = p.name.split(".")[-1]
     if short.endswith("_deg"):  # a field held in degrees: its values are degrees, not SI
         factor /= UNITS["deg"][1]
-    return (short if unit == "1" else f"{short} ({unit})"), 1.0 / factor
+    words = _words(short)
+    return (words if unit == "1" else f"{words} ({unit})"), 1.0 / factor
 
 
 def wilson_interval(
@@ -102,11 +125,11 @@ def wilson_interval(
 
 
 def _confidence_band(
-    x: np.ndarray, y: np.ndarray, binary: bool = False
+    x: np.ndarray, y: np.ndarray, binary: bool = False, non_negative: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(xs, mean, lo, hi)``: the mean of ``y`` at each distinct ``x`` and its 95 % confidence
-    band over the finite values there: normal for a measurement, Wilson's interval (inside
-    [0, 1]) for a 0/1 metric."""
+    band over the finite values there: normal for a measurement (not below zero for a quantity
+    that cannot be negative), Wilson's interval (inside [0, 1]) for a 0/1 metric."""
     xs = np.unique(x)
     groups = [y[(x == v) & np.isfinite(y)] for v in xs]
     n = np.array([g.size for g in groups], dtype=float)
@@ -115,7 +138,13 @@ def _confidence_band(
         lo, hi = wilson_interval(np.array([g.sum() for g in groups]), n)
         return xs, mean, lo, hi
     sem = np.array([g.std(ddof=1) if g.size > 1 else 0.0 for g in groups]) / np.sqrt(np.maximum(n, 1))
-    return xs, mean, mean - 1.96 * sem, mean + 1.96 * sem
+    lo = mean - 1.96 * sem
+    return xs, mean, np.maximum(lo, 0.0) if non_negative else lo, mean + 1.96 * sem
+
+
+def non_negative(metric: str) -> bool:
+    """Whether a metric column cannot be negative (:data:`NON_NEGATIVE_SUFFIXES`)."""
+    return metric.partition(":")[0].endswith(NON_NEGATIVE_SUFFIXES)
 
 
 def _plot_parameter(
@@ -135,7 +164,7 @@ def _plot_parameter(
         if study.kind == "random":  # every trial its own value: a scatter, no bands
             ax.plot(x, y, ".", color=PALETTE[0], alpha=0.7)
             continue
-        xs, mean, lo, hi = _confidence_band(x, y, binary)
+        xs, mean, lo, hi = _confidence_band(x, y, binary, non_negative(m))
         ax.plot(xs, mean, "o-", color=PALETTE[0])
         ax.fill_between(xs, lo, hi, color=PALETTE[0], alpha=0.25)
         if binary:
