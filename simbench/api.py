@@ -554,6 +554,7 @@ def export(
     markers: str = "measured",
     orientations: str = "measured",
     trc_units: str = "mm",
+    trc_up: str = "z",
     units: str | None = None,
     clusters: str | os.PathLike[str] | None = None,
     wide: str | os.PathLike[str] | None = None,
@@ -595,7 +596,7 @@ def export(
                 units=units,
                 clusters=clusters,
             )
-        return written | export_c3d_markers(recording, trc=trc, c3d=c3d, trc_units=trc_units)
+        return written | export_c3d_markers(recording, trc=trc, c3d=c3d, trc_units=trc_units, trc_up=trc_up)
     ds = data if isinstance(data, Dataset) else read(data, units=units, clusters=clusters, wide=wide)
     if isinstance(ds, ImuRecording):
         raise InputError(
@@ -614,6 +615,7 @@ def export(
         markers=markers,
         orientations=orientations,
         trc_units=trc_units,
+        trc_up=trc_up,
     )
 
 

@@ -73,6 +73,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     exp.add_argument(
         "--trc-units", choices=sorted(LENGTH_UNITS), default="mm", help="the TRC file's units (default mm)"
     )
+    exp.add_argument(
+        "--trc-up",
+        choices=("z", "y"),
+        default="z",
+        help="the TRC file's vertical axis: z, the dataset's world (default), or y, as OpenSim's models and "
+        "marker IK expect ((x, y, z) -> (x, z, -y))",
+    )
     exp.set_defaults(func=cmd_export)
 
 
@@ -96,6 +103,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         markers=args.markers,
         orientations=args.orientations,
         trc_units=args.trc_units,
+        trc_up=args.trc_up,
         units=args.units,
         clusters=args.clusters,
         wide=args.wide,

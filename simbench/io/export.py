@@ -102,6 +102,7 @@ def export_dataset(
     markers: str = "measured",
     orientations: str = "measured",
     trc_units: str = "mm",
+    trc_up: str = "z",
 ) -> dict[str, Path]:
     """Write the requested exports of a dataset.
 
@@ -118,6 +119,8 @@ def export_dataset(
         markers: ``"measured"`` or ``"truth"`` marker positions for ``trc`` and ``c3d``.
         orientations: ``"measured"`` or ``"truth"`` orientations for ``sto``.
         trc_units: the TRC file's length unit (``mm``, ``m``, ``cm``, ``in``).
+        trc_up: the TRC file's vertical axis: ``z`` (the world's) or ``y`` (OpenSim's;
+            :func:`simbench.io.trc.turned`).
 
     Returns:
         ``{kind: path}`` of the files written (kinds ``trc``, ``c3d``, ``sto``, ``imu_csv``, ``mjcf``,
@@ -140,7 +143,7 @@ def export_dataset(
         labels, xyz = export_markers(ds, markers)
         if "trc" in asked:
             texts["trc"] = trc_text(
-                labels, ds.time_s, xyz, units=trc_units, rate_hz=rate, name=asked["trc"].name
+                labels, ds.time_s, xyz, units=trc_units, rate_hz=rate, name=asked["trc"].name, up=trc_up
             )
     if "sto" in asked:
         texts["sto"] = sto_text(ds.sensors, ds.time_s, export_orientations(ds, orientations), rate_hz=rate)
@@ -148,10 +151,11 @@ def export_dataset(
         texts["imu_csv"] = imu_csv_text(ds.sensors, ds.time_s, *_imu_readings(ds))
     if "mjcf" in asked or "osim" in asked:
         doc = _calibration_doc(ds, calibration)
+        name = "true_skeleton" if calibration is None else "calibrated_skeleton"  # what it is, named
         if "mjcf" in asked:
-            texts["mjcf"] = skeleton_mjcf(doc).xml
+            texts["mjcf"] = skeleton_mjcf(doc, model_name=name).xml
         if "osim" in asked:
-            texts["osim"] = skeleton_osim(doc)
+            texts["osim"] = skeleton_osim(doc, model_name=name)
     for kind, text in texts.items():
         atomic_write_text(asked[kind], text)
     if "c3d" in asked:
@@ -176,6 +180,7 @@ def export_c3d_markers(
     trc: PathLike | None = None,
     c3d: PathLike | None = None,
     trc_units: str = "mm",
+    trc_up: str = "z",
 ) -> dict[str, Path]:
     """A C3D recording's markers, as read (:func:`simbench.io.c3d.read_c3d`: metres, gaps and
     invalid or (0, 0, 0) samples missing), to TRC (in ``trc_units``) and C3D (mm): no clusters
@@ -197,6 +202,7 @@ def export_c3d_markers(
             units=trc_units,
             rate_hz=recording.rate_hz,
             name=asked["trc"].name,
+            up=trc_up,
         )
         atomic_write_text(asked["trc"], text)
     if "c3d" in asked:

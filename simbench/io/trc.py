@@ -12,8 +12,10 @@ Layout (tab-separated; OpenSim's ``TRCFileAdapter`` reads it)::
 
 Frames are numbered from 1; ``Time`` is in seconds; coordinates are in ``Units`` (``mm`` by
 default, or ``m``, ``cm``, ``in``); a marker not seen in a frame has its three fields empty.
-Coordinates are in the dataset's world frame, z up (OpenSim's models are y up: rotate the data
-there, e.g. ``-90`` degrees about x, if a model needs it). The reader converts to metres.
+Coordinates are in the dataset's world frame, z up (``up="z"``, the default), or turned to y up
+(``up="y"``: ``(x, y, z) -> (x, z, -y)``, a -90 degree turn about x), as OpenSim's models and
+marker IK expect. The reader converts to metres and turns a y-up file back to z up when told
+(``read_trc(path, up="y")``; the file itself does not say).
 """
 
 from __future__ import annotations
@@ -60,6 +62,26 @@ class TrcMarkers:
     units: str
 
 
+#: The vertical axes a TRC file can be written with (the world's z, or OpenSim's y).
+UP_AXES = ("z", "y")
+
+
+def turned(xyz: np.ndarray, up: str, *, back: bool = False) -> np.ndarray:
+    """``(..., 3)`` positions of the z-up world with ``up`` as the vertical axis: unchanged for
+    ``z``; for ``y`` turned -90 degrees about x, ``(x, y, z) -> (x, z, -y)`` (``back``: the
+    inverse, ``(x, y, z) -> (x, -z, y)``).
+
+    Raises:
+        InputError: ``up`` not one of :data:`UP_AXES`.
+    """
+    if up not in UP_AXES:
+        raise InputError(f"Expected the up axis to be one of {list(UP_AXES)}, got {up!r}")
+    if up == "z":
+        return xyz
+    x, y, z = np.moveaxis(np.asarray(xyz, dtype=float), -1, 0)
+    return np.stack([x, -z, y] if back else [x, z, -y], axis=-1)
+
+
 def _rate(time_s: np.ndarray) -> float:
     """Samples per second from the count over the span (DESIGN.md: loggers stamp in bursts)."""
     span = float(time_s[-1] - time_s[0]) if time_s.size > 1 else 0.0
@@ -77,6 +99,7 @@ def trc_text(
     decimals: int = 6,
     rate_hz: float | None = None,
     name: str = "markers.trc",
+    up: str = "z",
 ) -> str:
     """The TRC text of markers (module docstring).
 
@@ -88,6 +111,7 @@ def trc_text(
         decimals: digits after the point, in ``units``.
         rate_hz: ``DataRate`` and ``CameraRate``, Hz (default: from the times, count over span).
         name: the file name written on the first line.
+        up: the file's vertical axis, ``z`` (the world's) or ``y`` (OpenSim's): :func:`turned`.
     """
     labels = tuple(labels)
     time_s = np.asarray(time_s, dtype=float)
@@ -107,7 +131,7 @@ def trc_text(
     if not (math.isfinite(rate) and rate > 0):
         raise InputError(f"Expected a positive rate in Hz, got {rate_hz!r}")
     f, m = xyz.shape[:2]
-    scaled = xyz / LENGTH_UNITS[units]
+    scaled = turned(xyz, up) / LENGTH_UNITS[units]
     head = [
         f"PathFileType\t4\t(X/Y/Z)\t{name}",
         "\t".join(HEADER_KEYS),
@@ -133,10 +157,11 @@ def write_trc(
     units: str = "mm",
     decimals: int = 6,
     rate_hz: float | None = None,
+    up: str = "z",
 ) -> None:
     """Write markers to a TRC file atomically (arguments as :func:`trc_text`)."""
     text = trc_text(
-        labels, time_s, xyz_m, units=units, decimals=decimals, rate_hz=rate_hz, name=Path(path).name
+        labels, time_s, xyz_m, units=units, decimals=decimals, rate_hz=rate_hz, name=Path(path).name, up=up
     )
     atomic_write_text(path, text)
 
@@ -148,8 +173,9 @@ def _float(text: str, where: str) -> float:
         raise InputError(f"{where}: expected a number, got {text!r}") from None
 
 
-def read_trc(path: str | os.PathLike[str]) -> TrcMarkers:
-    """Read a TRC file (module docstring): labels, times, positions in metres, rate, units.
+def read_trc(path: str | os.PathLike[str], *, up: str = "z") -> TrcMarkers:
+    """Read a TRC file (module docstring): labels, times, positions in metres (z up: a file
+    written with ``up="y"`` is turned back), rate, units.
 
     Raises:
         InputError: naming the file and line: not a TRC file, unknown units, a header that
@@ -195,7 +221,7 @@ def read_trc(path: str | os.PathLike[str]) -> TrcMarkers:
     time_s = data[:, 1]
     if not np.isfinite(time_s).all():
         raise InputError(f"{path}: every frame needs a time")
-    xyz = data[:, 2:].reshape(n_frames, n_markers, 3) * LENGTH_UNITS[units]
+    xyz = turned(data[:, 2:].reshape(n_frames, n_markers, 3) * LENGTH_UNITS[units], up, back=True)
     return TrcMarkers(labels=labels, time_s=time_s, xyz=xyz, rate_hz=rate, units=units)
 
 
