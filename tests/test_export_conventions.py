@@ -3,11 +3,16 @@ truth (issue 44)."""
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import pytest
 
+from calibration.rotations import quat_to_matrix
 from simbench.cli import main
 from simbench.errors import InputError
+from simbench.io.dataset import read_dataset
+from simbench.io.export import marker_locations
 from simbench.io.trc import read_trc, turned
 
 
@@ -48,3 +53,25 @@ def test_the_truth_s_skeleton_is_named_the_truth(dataset, tmp_path):
     calibrated = tmp_path / "cal.xml"
     assert main(["export", str(dataset), "--mjcf", str(calibrated), "--calibration", str(cal)]) == 0
     assert '<mujoco model="calibrated_skeleton"' in calibrated.read_text()
+
+
+def test_the_osim_carries_the_markers_so_the_trc_drives_marker_ik(dataset, tmp_path):
+    """Each marker in the .osim's MarkerSet, on its segment's body, at its place in that body's
+    frame: where the model puts it is where the TRC has it (ideal sensors: to rounding)."""
+    osim = tmp_path / "m.osim"
+    assert main(["export", str(dataset), "--osim", str(osim)]) == 0
+    ds = read_dataset(dataset)
+    markers = ET.parse(osim).getroot().findall(".//MarkerSet/objects/Marker")
+    assert [m.get("name") for m in markers] == list(ds.markers.labels)
+    placed = {lab: (seg, loc) for lab, seg, loc in marker_locations(ds, "truth")}
+    for m in markers:
+        seg, loc = placed[m.get("name")]
+        assert m.findtext("socket_parent_frame") == f"/bodyset/{seg}"
+        np.testing.assert_allclose(
+            [float(v) for v in m.findtext("location").split()], loc, rtol=0, atol=1e-12
+        )
+    # the location put back in the world by the truth's poses is the marker, every frame
+    k, s = 0, ds.sensors.index(ds.markers.segment[0])
+    R = quat_to_matrix(np.asarray(ds.truth.rigid.q_w_s[:, s]))
+    world = np.einsum("fij,j->fi", R, placed[ds.markers.labels[k]][1]) + ds.truth.rigid.p_w_s[:, s]
+    np.testing.assert_allclose(world, ds.markers.xyz_true[:, k], atol=1e-9)

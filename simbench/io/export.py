@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text, check_writable
 from simbench.io.c3d import C3DMarkers, write_c3d_markers
@@ -89,6 +90,31 @@ def _calibration_doc(ds: Dataset, calibration: PathLike | Mapping[str, Any] | No
     return read_calibration_json(calibration)
 
 
+def marker_locations(ds: Dataset, source: str = "measured") -> list[tuple[str, str, np.ndarray]]:
+    """``(label, segment, (3,) location)`` of each optical marker of a dataset in its segment's
+    sensor frame, m: the median over frames of ``R_w_s^T (x_w - p_w_s)``, from the measured
+    markers and poses (``source="measured"``, what a calibration is made from), or from the truth's
+    (the markers' exact fixed points and the sensors' poses on their bones, ``"truth"``). A marker
+    never seen with its segment's sensor is left out. ``[]`` without markers."""
+    m = ds.markers
+    if m is None:
+        return []
+    if source == "truth" and ds.truth is not None:
+        q, p = ds.truth.rigid.q_w_s, ds.truth.rigid.p_w_s
+        xyz = m.xyz_true if m.xyz_true is not None else m.xyz
+    else:
+        q, p, xyz = ds.measured.q_w_s, ds.measured.p_w_s, m.xyz
+    out = []
+    for k, (label, segment) in enumerate(zip(m.labels, m.segment, strict=True)):
+        s = ds.sensors.index(segment)
+        R = quat_to_matrix(np.asarray(q[:, s], dtype=float))
+        local = np.einsum("fji,fj->fi", R, np.asarray(xyz[:, k], dtype=float) - np.asarray(p[:, s]))
+        seen = np.isfinite(local).all(axis=1)
+        if seen.any():
+            out.append((label, segment, np.median(local[seen], axis=0)))
+    return out
+
+
 def export_dataset(
     ds: Dataset,
     *,
@@ -155,7 +181,8 @@ def export_dataset(
         if "mjcf" in asked:
             texts["mjcf"] = skeleton_mjcf(doc, model_name=name).xml
         if "osim" in asked:
-            texts["osim"] = skeleton_osim(doc, model_name=name)
+            located = marker_locations(ds, "truth" if calibration is None else "measured")
+            texts["osim"] = skeleton_osim(doc, model_name=name, markers=located)
     for kind, text in texts.items():
         atomic_write_text(asked[kind], text)
     if "c3d" in asked:

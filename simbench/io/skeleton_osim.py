@@ -14,20 +14,23 @@ the joint centre on the parent (``joint_in_parent``) and on the child (``joint_i
   coordinate is the MJCF hinge's angle.
 
 Ground is simbench's world: z up, gravity ``0 0 -9.81`` (OpenSim's models are y up; this one is
-not). Masses are nominal (1 kg, 0.01 kg m^2): the model is for kinematics. Offset-frame
-orientations are OpenSim's body-fixed X-Y-Z angles, radians.
+not: drive it with a z-up TRC, ``simbench export --trc``). Masses are nominal (1 kg, 0.01 kg m^2):
+the model is for kinematics. Offset-frame orientations are OpenSim's body-fixed X-Y-Z angles,
+radians. Optical markers given (``markers``: label, body, location in that body's frame) become its
+``MarkerSet``, so that the exported TRC drives OpenSim's marker inverse kinematics.
 """
 
 from __future__ import annotations
 
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from calibration.rotations import matrix_to_euler, quat_to_matrix
+from simbench.errors import InputError
 from simbench.io.atomic import atomic_write_text
 from simbench.io.skeleton_mjcf import SkeletonJoint, rotation_between, skeleton_joints
 
@@ -80,8 +83,20 @@ def _joint_element(j: SkeletonJoint) -> ET.Element:
     return element
 
 
-def skeleton_osim(doc: Mapping[str, Any], *, model_name: str = "calibrated_skeleton") -> str:
+def skeleton_osim(
+    doc: Mapping[str, Any],
+    *,
+    model_name: str = "calibrated_skeleton",
+    markers: Sequence[tuple[str, str, np.ndarray]] = (),
+) -> str:
     """The OpenSim model (``.osim`` XML text) of a calibration document (module docstring).
+
+    Args:
+        doc: the calibration document (``simbench calibrate --json``, or a dataset's truth).
+        model_name: the model's name.
+        markers: ``(label, body, (3,) location)`` of optical markers: the body a sensor name of
+            the skeleton, the location in its (sensor) frame, metres; a marker on another body is
+            refused.
 
     Raises:
         InputError: a document that is not a tree of joints
@@ -110,6 +125,18 @@ def skeleton_osim(doc: Mapping[str, Any], *, model_name: str = "calibrated_skele
     frames.append(_offset_frame(f"{root}_offset", f"/bodyset/{root}", np.zeros(3), np.eye(3)))
     for j in joints:
         jointset.append(_joint_element(j))
+    bodies = {root, *(j.child for j in joints)}
+    if markers:
+        markerset = ET.SubElement(ET.SubElement(model, "MarkerSet", name="markerset"), "objects")
+        for label, body, location in markers:
+            if body not in bodies:
+                raise InputError(
+                    f"marker {label!r} is on {body!r}, not a body of the skeleton ({sorted(bodies)})"
+                )
+            marker = ET.SubElement(markerset, "Marker", name=label)
+            ET.SubElement(marker, "socket_parent_frame").text = f"/bodyset/{body}"
+            ET.SubElement(marker, "location").text = _v(location)
+            ET.SubElement(marker, "fixed").text = "false"
     ET.indent(document)
     return '<?xml version="1.0" encoding="UTF-8" ?>\n' + ET.tostring(document, encoding="unicode") + "\n"
 
