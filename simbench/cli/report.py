@@ -8,6 +8,7 @@ from pathlib import Path
 from simbench.api import pose_inputs_text
 from simbench.cli.calibrate import DROP_NOISY_FRAMES_HELP
 from simbench.errors import InputError
+from simbench.report.dataset import SOURCES as REPORT_SOURCES
 from simbench.report.dataset import dataset_report
 from simbench.units import LENGTH_UNITS
 
@@ -33,6 +34,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--calibration", metavar="FILE.json", help="report this calibration JSON instead of calibrating"
     )
     rep.add_argument("--drop-noisy-frames", action="store_true", help=DROP_NOISY_FRAMES_HELP)
+    rep.add_argument(
+        "--source",
+        choices=REPORT_SOURCES,
+        default="auto",
+        help="of a simbench dataset, what is calibrated: its optical markers' clusters or its sensors' "
+        "poses (default auto: the markers when it has them)",
+    )
     rep.add_argument("--out", default="report", metavar="DIR", help="report folder (default ./report)")
     rep.set_defaults(func=cmd_report)
 
@@ -52,6 +60,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         clusters=args.clusters,
         wide=args.wide,
         drop_noisy_frames=args.drop_noisy_frames,
+        source=args.source,
     )
     for p in paths.values():
         print(f"wrote {p}")

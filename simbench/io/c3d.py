@@ -34,6 +34,7 @@ from calibration.clusters import (
 from calibration.errors import CalibrationError
 from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_path
+from simbench.io.marker_data import MarkerData
 from simbench.io.poses import PoseRecording
 from simbench.units import LENGTH_UNITS
 
@@ -305,6 +306,54 @@ def auto_clusters(
     return clusters, notes
 
 
+def cluster_fits(
+    labels: list[str] | tuple[str, ...], xyz: np.ndarray, clusters: dict[str, list[str]], where: str
+) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Each cluster's pose per frame by a least-squares rigid fit of its markers (Kabsch), and notes.
+
+    Args:
+        labels: ``(M,)`` marker names.
+        xyz: ``(F, M, 3)`` positions in world, any length unit (NaN where not seen).
+        clusters: ``{name: [labels]}``.
+        where: the source, for messages.
+
+    Returns:
+        ``(names, R (F, N, 3, 3), p (F, N, 3), valid (F, N), notes)``: a frame with fewer than
+        three of a cluster's markers has no pose (never interpolated); the notes give each
+        cluster's rigidity residual and flag one far above the others'.
+    """
+    index = {label: k for k, label in enumerate(labels)}
+    names = tuple(clusters)
+    f = xyz.shape[0]
+    R = np.full((f, len(names), 3, 3), np.nan)
+    p = np.full((f, len(names), 3), np.nan)
+    valid = np.zeros((f, len(names)), dtype=bool)
+    residual = np.zeros(len(names))
+    notes = []
+    for k, (name, marker_labels) in enumerate(clusters.items()):
+        x = xyz[:, [index[m] for m in marker_labels]]
+        try:
+            shape = reference_shape(x)
+        except CalibrationError as exc:
+            raise InputError(f"{where}: cluster {name}: {exc}") from None
+        fit = rigid_fit(shape, x)
+        R[:, k], p[:, k], valid[:, k] = fit.R_w_c, fit.p_w_c, fit.valid
+        residual[k] = np.nanmedian(fit.rms_residual)
+        gaps = int((~fit.valid).sum())
+        notes.append(
+            f"cluster {name} ({', '.join(marker_labels)}): rigidity residual median "
+            f"{residual[k] * 1e3:.2f} mm, {gaps} of {f} frames without a pose"
+        )
+    for k, name in enumerate(names):
+        others = np.delete(residual, k)
+        if len(others) and residual[k] > 2 * np.median(others):
+            notes.append(
+                f"high rigidity residual: cluster {name} {residual[k] * 1e3:.2f} mm, more than twice the "
+                f"others' median {np.median(others) * 1e3:.2f} mm: markers moving on skin or not one body"
+            )
+    return names, R, p, valid, notes
+
+
 def c3d_poses(
     path: str | os.PathLike[str],
     *,
@@ -344,33 +393,9 @@ def c3d_poses(
         raise InputError(
             f"{path}: {len(clusters)} marker cluster given ({list(clusters)}); calibration needs 2 or more"
         )
-    names = tuple(clusters)
+    names, R, p, valid, fitted = cluster_fits(labels, xyz, clusters, str(path))
+    notes += fitted
     f = xyz.shape[0]
-    R = np.full((f, len(names), 3, 3), np.nan)
-    p = np.full((f, len(names), 3), np.nan)
-    valid = np.zeros((f, len(names)), dtype=bool)
-    residual = np.zeros(len(names))
-    for k, (name, marker_labels) in enumerate(clusters.items()):
-        x = xyz[:, [index[m] for m in marker_labels]]
-        try:
-            shape = reference_shape(x)
-        except CalibrationError as exc:
-            raise InputError(f"{path}: cluster {name}: {exc}") from None
-        fit = rigid_fit(shape, x)
-        R[:, k], p[:, k], valid[:, k] = fit.R_w_c, fit.p_w_c, fit.valid
-        residual[k] = np.nanmedian(fit.rms_residual)
-        gaps = int((~fit.valid).sum())
-        notes.append(
-            f"cluster {name} ({', '.join(marker_labels)}): rigidity residual median "
-            f"{residual[k] * 1e3:.2f} mm, {gaps} of {f} frames without a pose"
-        )
-    for k, name in enumerate(names):
-        others = np.delete(residual, k)
-        if len(others) and residual[k] > 2 * np.median(others):
-            notes.append(
-                f"high rigidity residual: cluster {name} {residual[k] * 1e3:.2f} mm, more than twice the "
-                f"others' median {np.median(others) * 1e3:.2f} mm: markers moving on skin or not one body"
-            )
     notes[:0] = [
         f"read {len(labels)} markers in {read.units}, {f} frames at {rate:g} Hz; {len(names)} clusters",
         *read.notes,
@@ -383,6 +408,34 @@ def c3d_poses(
         valid=valid,
         source=str(path),
         notes=tuple(notes),
+    )
+
+
+def marker_poses(markers: MarkerData, time_s: np.ndarray, where: str = "dataset") -> PoseRecording:
+    """The poses of a dataset's optical markers: one cluster per segment (the markers' ``segment``),
+    each segment's pose per frame by :func:`cluster_fits` (in the cluster's own frame, not the
+    sensor's: its joint centres are compared in the world).
+
+    Raises:
+        InputError: fewer than two segments with three or more markers.
+    """
+    clusters: dict[str, list[str]] = {}
+    for label, segment in zip(markers.labels, markers.segment, strict=True):
+        clusters.setdefault(segment, []).append(label)
+    clusters = {name: labels for name, labels in clusters.items() if len(labels) >= 3}
+    if len(clusters) < 2:
+        raise InputError(
+            f"{where}: its markers make {len(clusters)} cluster(s) of 3 or more; calibration needs 2"
+        )
+    names, R, p, valid, notes = cluster_fits(list(markers.labels), np.asarray(markers.xyz), clusters, where)
+    return PoseRecording(
+        names=names,
+        time_s=np.asarray(time_s, dtype=float),
+        R_w_s=R,
+        p_w_s=p,
+        valid=valid,
+        source=f"{where} (markers)",
+        notes=(f"poses of the {len(names)} marker clusters ({len(markers.labels)} markers)", *notes),
     )
 
 

@@ -20,6 +20,7 @@ from calibration.joint import JointFit
 from calibration.pipeline import Joint
 from calibration.skeleton import SegmentLength, segment_lengths
 from simbench.errors import InputError
+from simbench.io.c3d import marker_poses
 from simbench.io.calibration_json import calibration_joints, read_calibration_json
 from simbench.io.dataset import Dataset, read_dataset
 from simbench.io.poses import PoseRecording
@@ -55,14 +56,54 @@ class ReportedCalibration:
     warnings: tuple[str, ...] = ()
 
 
+#: What a simbench dataset's report calibrates: ``auto`` (its markers when it has them, else its
+#: sensors' poses), ``poses`` or ``markers``.
+SOURCES = ("auto", "poses", "markers")
+
+
 def _read_input(
-    dataset: Path, units: str | None, clusters: str | None, wide: str | None
+    dataset: Path, units: str | None, clusters: str | None, wide: str | None, source: str = "auto"
 ) -> tuple[Dataset | None, PoseRecording, float]:
-    """``(dataset or None, poses, metres per input unit)`` of a simbench dataset or a pose file."""
+    """``(dataset or None, poses, metres per input unit)`` of a simbench dataset (its sensors' poses,
+    or its markers' clusters: ``source``) or a pose file."""
+    if source not in SOURCES:
+        raise InputError(f"--source must be one of {', '.join(SOURCES)}, got {source!r}")
     if Path(dataset).suffix.lower() in (".h5", ".hdf5"):
         ds = read_dataset(dataset)
+        if source == "markers" or (source == "auto" and ds.markers is not None):
+            if ds.markers is None:
+                raise InputError(f"{dataset}: --source markers, but the dataset has no markers")
+            return ds, marker_poses(ds.markers, ds.time_s, str(dataset)), 1.0
         return ds, check_plausible(ds.poses(), dataset), ds.position_unit_scale
+    if source == "markers":
+        raise InputError(f"{dataset}: --source markers is for a simbench dataset with markers")
     return None, read_poses(str(dataset), units, clusters, wide), 1.0
+
+
+def joint_centre_errors(
+    cal: ReportedCalibration, rec: PoseRecording, ds: Dataset, scale: float
+) -> dict[tuple[str, str], float]:
+    """``{(parent, child): rms error, m}`` of each joint the truth has: the estimated centre in the
+    world (the midpoint of where the parent's and the child's pose put it) against the truth's
+    ``joint_w``, rms over the frames where both poses are valid. In the world, so that joints found
+    in marker clusters' frames are scored as those found in the sensors'."""
+    assert ds.truth is not None
+    t = ds.truth
+    index = {name: k for k, name in enumerate(rec.names)}
+    true = {(a, b): i for i, (a, b) in enumerate(zip(t.parent, t.child, strict=True))}
+    out = {}
+    for j in cal.joints:
+        i = true.get((j.parent, j.child))
+        if i is None:
+            continue
+        a, b = index[j.parent], index[j.child]
+        both = np.asarray(rec.valid[:, a]) & np.asarray(rec.valid[:, b])
+        R_a, R_b = np.asarray(rec.R_w_s[:, a])[both], np.asarray(rec.R_w_s[:, b])[both]
+        p_a, p_b = np.asarray(rec.p_w_s[:, a])[both], np.asarray(rec.p_w_s[:, b])[both]
+        at = 0.5 * (R_a @ j.fit.joint_in_parent + p_a + R_b @ j.fit.joint_in_child + p_b) * scale
+        error = np.linalg.norm(at - np.asarray(t.joint_w)[both, i], axis=1)
+        out[(j.parent, j.child)] = float(np.sqrt(np.mean(error**2))) if error.size else float("nan")
+    return out
 
 
 def _calibrated_here(rec: PoseRecording, drop_noisy_frames: bool = False) -> ReportedCalibration:
@@ -147,7 +188,7 @@ def _lengths(
     for key, true_m in truth_lengths(ds).items():
         computed_m = length_of(got, key) * scale
         rows.append(
-            [f"{key[0]}: {key[1]} / {key[2]}", true_m * 100, computed_m * 100, (true_m - computed_m) * 100]
+            [f"{key[0]}: {key[1]} / {key[2]}", true_m * 100, computed_m * 100, (computed_m - true_m) * 100]
         )
     results["hierarchy_correct"] = compare_trees(cal.parent_of, ds.truth.parent_of).correct
     results["lengths_cm"] = [
@@ -156,7 +197,7 @@ def _lengths(
     return [
         f"Hierarchy: {'correct' if results['hierarchy_correct'] else 'WRONG'} (against the truth).",
         "",
-        markdown_table(["length", "true", "computed", "true - computed"], rows),
+        markdown_table(["length", "true", "computed", "computed - true"], rows),
         "",
     ]
 
@@ -170,6 +211,7 @@ def dataset_report(
     clusters: str | None = None,
     wide: str | None = None,
     drop_noisy_frames: bool = False,
+    source: str = "auto",
 ) -> dict[str, Path]:
     """The report of one recording: residuals, hierarchy and lengths; scored when it has truth.
 
@@ -181,6 +223,8 @@ def dataset_report(
             calibrating the recording here.
         units, clusters, wide, drop_noisy_frames: as for ``simbench calibrate``
             (``drop_noisy_frames`` only for a calibration made here).
+        source: of a simbench dataset, what is calibrated (:data:`SOURCES`): by default its
+            optical markers' clusters when it has markers, else its sensors' poses.
 
     Returns:
         ``{"md": ..., "html": ..., "json": ...}``: the paths written (the PNG lies beside them).
@@ -195,7 +239,8 @@ def dataset_report(
             f"--drop-noisy-frames leaves frames out of a calibration made here; {calibration_file} is "
             "reported as it is (give one or the other)"
         )
-    ds, rec, scale = _read_input(dataset, units, clusters, wide)
+    ds, rec, scale = _read_input(dataset, units, clusters, wide, source)
+    what = "marker clusters" if rec.source.endswith("(markers)") else "sensor poses"
     try:
         cal = (
             _calibrated_here(rec, drop_noisy_frames)
@@ -209,11 +254,14 @@ def dataset_report(
     odd = implausible_lengths(list(cal.lengths), units, dataset, wide=wide is not None)
     warnings = [*cal.warnings, *([odd] if odd else [])]
     out.mkdir(parents=True, exist_ok=True)
-    plot_residual_histograms(cal.joints, out / "residual_histograms.png", scale)
+    plot_residual_histograms(
+        cal.joints, out / "residual_histograms.png", scale, f"{Path(dataset).name}, {what}"
+    )
     residuals_mm = [j.fit.rms_residual * scale * 1e3 for j in cal.joints]
     results: dict[str, Any] = {
         "dataset": str(dataset),
         "calibration": cal.source,
+        "poses": what,
         "sensors": list(rec.names),
         "frames": rec.n_frames,
         "position_unit_scale": scale,
@@ -229,7 +277,7 @@ def dataset_report(
     lines = [
         f"# simbench report: {dataset}",
         "",
-        f"Calibration: {cal.source}. Lengths in cm (x {scale:g} to metres).",
+        f"Calibration: {cal.source}, of the {what}. Lengths in cm (x {scale:g} to metres).",
         "",
         markdown_table(
             ["joint", "rms residual (mm)"],
@@ -241,6 +289,20 @@ def dataset_report(
         lines += ["What was read:", "", *[f"- {note}" for note in rec.notes], ""]
     if warnings:
         lines += ["## Warnings", "", *[f"- {w}" for w in warnings], ""]
+    if ds is not None and ds.truth is not None:
+        errors = joint_centre_errors(cal, rec, ds, scale)
+        results["joint_centre_error_mm"] = {f"{a}-{b}": e * 1e3 for (a, b), e in errors.items()}
+        lines += [
+            "## Joint centres against the truth",
+            "",
+            "Estimate in the world (midpoint of the two segments' placings) against the true centre, rms "
+            "over frames.",
+            "",
+            markdown_table(
+                ["joint", "error, rms (mm)"], [[f"{a} -> {b}", e * 1e3] for (a, b), e in errors.items()]
+            ),
+            "",
+        ]
     lines += _lengths(cal, ds, scale, results)
     lines += ["## Residual norms per joint", "", "![residual norms](residual_histograms.png)", ""]
     return write_report_files(out, "\n".join(lines), results)

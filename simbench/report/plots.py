@@ -114,13 +114,14 @@ def panel_grid(n: int, width_in: float, height_in: float) -> tuple[np.ndarray, F
     return axes, fig
 
 
-def residual_histograms_figure(joints: Sequence[Joint], scale: float) -> Figure:
+def residual_histograms_figure(joints: Sequence[Joint], scale: float, session: str = "") -> Figure:
     """Residual-norm histogram of every joint (O'Brien Figures 6-7).
 
     Args:
         joints: the calibrated joints; each ``fit.frame_residual`` is ``(frames,)`` residual
             norms in the input's units (NaN where a frame was dropped).
         scale: metres per input unit (the residuals are plotted in mm).
+        session: what the residuals are of (a file, a trial), the figure's title.
     """
     joints = list(joints)
     axes, fig = panel_grid(len(joints), 3.2, 2.8)
@@ -131,13 +132,15 @@ def residual_histograms_figure(joints: Sequence[Joint], scale: float) -> Figure:
         ax.set_xlabel("residual norm (mm)")
         if k % PANELS_PER_ROW == 0:
             ax.set_ylabel("frames")
+    if session:
+        fig.suptitle(f"joint residuals: {session}", fontsize=10)
     fig.tight_layout()
     return fig
 
 
-def plot_residual_histograms(joints: Sequence[Joint], path: Path, scale: float) -> None:
+def plot_residual_histograms(joints: Sequence[Joint], path: Path, scale: float, session: str = "") -> None:
     """Write :func:`residual_histograms_figure` to ``path`` (PNG)."""
-    save_figure(residual_histograms_figure(joints, scale), path)
+    save_figure(residual_histograms_figure(joints, scale, session), path)
 
 
 #: Bars of the trials of one group (subject and motion) share its colour and differ in hatching.
