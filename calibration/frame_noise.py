@@ -1,7 +1,7 @@
 """Frames whose pose noise drowns the rest: left out of the fits.
 
 A tracker is not equally noisy everywhere. A magnetic tracker's position noise grows as about the
-fourth power of the distance to its transmitter (DESIGN.md): within its range it is a millimetre,
+fourth power of the distance to its transmitter (docs/conventions.md): within its range it is a millimetre,
 two metres out centimetres, a walk of five metres away from it metres. A least-squares joint fit
 gives every frame the same say, so the far frames, even a minority of them, carry the fit (a
 humanoid walking away from a Polhemus source: joint residuals of 4.6 m, every joint of the

@@ -3,7 +3,7 @@
 A pair's residual (O'Brien eq. 13) mixes two things: the *misfit* of the joint model -- zero for
 an ideal joint, centimetres between two bodies that share no joint -- and the *noise* of both
 sensors. Trackers are not equally noisy everywhere: a magnetic tracker's position noise grows as
-about the fourth power of the distance to its transmitter (DESIGN.md), so in a walk the sensors
+about the fourth power of the distance to its transmitter (docs/conventions.md), so in a walk the sensors
 furthest out carry several times the noise of the others. A minimum spanning tree of raw residuals
 then favours the quiet sensors: their pairs fit "well" whether or not they are joints.
 

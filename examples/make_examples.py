@@ -2,7 +2,7 @@
 
     python examples/make_examples.py
 
-``linkage_exercise.csv``: O'Brien's wooden linkage (DESIGN.md dimensions) moved through
+``linkage_exercise.csv``: O'Brien's wooden linkage (docs/conventions.md dimensions) moved through
 smooth motion exercising every joint, 20 s at 60 Hz, with 2 mm position noise and 0.5 degree
 rotation noise per sensor, like a magnetic tracker near its transmitter.
 ``linkage_exercise_truth.json`` holds the exact joint locations and lengths it was made with.

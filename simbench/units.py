@@ -1,7 +1,7 @@
 """Units accepted at the edges (files, options, study parameters), as SI per unit.
 
 One table for every reader: a length unit converts to metres, an angle to radians, a time to
-seconds. Inside simbench everything is SI (DESIGN.md).
+seconds. Inside simbench everything is SI (docs/conventions.md).
 """
 
 from __future__ import annotations

@@ -155,7 +155,7 @@ def test_missing_poses_and_short_recordings():
 
 
 def test_humanoid_walking_away_from_a_flock_of_birds():
-    """The Flock of Birds' noise grows as the fourth power of the range (DESIGN.md): the walk
+    """The Flock of Birds' noise grows as the fourth power of the range (docs/conventions.md): the walk
     takes the sensors metres out. Leaving out the frames whose noise drowns the rest brings the
     joint centres closer to the truth by more than half."""
     ds = sb.simulate(model="humanoid", motion="walk", duration_s=30.0, seed=0, sensors="ascension-flock")

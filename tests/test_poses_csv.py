@@ -1,4 +1,4 @@
-"""The pose CSV of DESIGN.md: round trip, units, and every kind of bad input."""
+"""The pose CSV of docs/conventions.md: round trip, units, and every kind of bad input."""
 
 from __future__ import annotations
 

@@ -172,7 +172,7 @@ def test_quick_realism_structure_and_factor(quick_realism):
         assert {"preset", "model", "motion", "seeds", "duration_s"} <= set(cp)
     assert out["recordings"]["biobuddy_hip"]["counterpart"]["preset"] == "skin-markers"
     assert out["recordings"]["broad_02"]["counterpart"]["preset"] == "imu-lab"
-    # real figures as measured on the files (DESIGN.md's hip residual, BROAD's field at rest)
+    # real figures as measured on the files (docs/conventions.md's hip residual, BROAD's field at rest)
     hip = out["recordings"]["biobuddy_hip"]["real"]
     assert hip["hip_residual_rms_m"] == pytest.approx(0.0095, abs=0.0005)
     assert out["recordings"]["broad_02"]["real"]["dip_median_deg"] == pytest.approx(69.3, abs=0.2)

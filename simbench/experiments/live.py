@@ -37,7 +37,7 @@ REFRESH_S = 1.0
 #: Seconds to wait before looking at a followed file again when it has not grown.
 POLL_S = 0.05
 
-#: Frames a followed file must hold before its rate is estimated (count over span, DESIGN.md).
+#: Frames a followed file must hold before its rate is estimated (count over span, docs/conventions.md).
 RATE_FRAMES = 64
 
 _OBRIEN = resolve(DEFAULT_JOINTS)

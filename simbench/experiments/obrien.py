@@ -41,7 +41,7 @@ from simbench.sim.sensor_config import SensorConfig, load_sensor_config
 from simbench.sim.sensor_models import TrackerConfig, apply_tracker
 from simbench.sim.session import SessionConfig, load_session_model, run_session
 
-#: The paper's published figures (DESIGN.md).
+#: The paper's published figures (docs/conventions.md).
 PAPER = {
     "linkage_max_error_cm": 1.1,
     "linkage_hierarchy": "correct in 6 of 6 sets",

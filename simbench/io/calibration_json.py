@@ -1,6 +1,6 @@
-"""The calibration JSON of DESIGN.md: what ``simbench calibrate --json`` writes.
+"""The calibration JSON of docs/conventions.md: what ``simbench calibrate --json`` writes.
 
-The fields of DESIGN.md (``units``, ``root``, ``joints`` with ``parent``, ``child``,
+The fields of docs/conventions.md (``units``, ``root``, ``joints`` with ``parent``, ``child``,
 ``joint_in_parent``, ``joint_in_child``, ``rms_residual``, ``single_axis``, ``axis_in_parent``,
 ``axis_in_child``) are kept as they are; everything else is added beside them. Lengths are in
 ``units`` (always ``"m"`` here); a value JSON cannot hold (an infinite condition number) is
@@ -72,7 +72,7 @@ def _vec(v: np.ndarray | None) -> list[float] | None:
 
 
 def _joint_dict(joint: Joint) -> dict[str, Any]:
-    """One joint: the fields of DESIGN.md, then the fit's diagnostics."""
+    """One joint: the fields of docs/conventions.md, then the fit's diagnostics."""
     fit = joint.fit
     s = fit.singular_values
     return {
@@ -180,7 +180,7 @@ def calibration_to_dict(
     options: dict[str, Any] | None = None,
     ranges: dict[str, tuple[np.ndarray, float]] | None = None,
 ) -> dict[str, Any]:
-    """The calibration as a JSON-ready dict (schema: module docstring and DESIGN.md).
+    """The calibration as a JSON-ready dict (schema: module docstring and docs/conventions.md).
 
     Args:
         cal: the calibration.

@@ -561,7 +561,7 @@ def _check_times(time_s: np.ndarray, path: Path) -> None:
 
 
 def truth_calibration_dict(ds: Dataset) -> dict[str, Any]:
-    """The truth in the calibration JSON schema of DESIGN.md, to compare field by field."""
+    """The truth in the calibration JSON schema of docs/conventions.md, to compare field by field."""
     if ds.truth is None:
         raise InputError("the dataset has no ground truth")
     t = ds.truth

@@ -1,4 +1,4 @@
-"""Sensor pose recordings and the pose CSV format of DESIGN.md.
+"""Sensor pose recordings and the pose CSV format of docs/conventions.md.
 
 **Pose CSV**: header ``time,sensor,x,y,z,qw,qx,qy,qz`` (extra columns are ignored), one row per
 sensor per frame; ``time`` in seconds, rows of one frame share the same time; positions in the

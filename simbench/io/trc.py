@@ -83,7 +83,7 @@ def turned(xyz: np.ndarray, up: str, *, back: bool = False) -> np.ndarray:
 
 
 def _rate(time_s: np.ndarray) -> float:
-    """Samples per second from the count over the span (DESIGN.md: loggers stamp in bursts)."""
+    """Samples per second from the count over the span (docs/conventions.md: loggers stamp in bursts)."""
     span = float(time_s[-1] - time_s[0]) if time_s.size > 1 else 0.0
     if not span > 0:
         raise InputError("Expected at least 2 sample times spanning a positive time to give a rate")

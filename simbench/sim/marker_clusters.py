@@ -8,7 +8,7 @@ marker positions come from the truth's segment poses ``p_w_b``, ``q_w_b``:
 
 - **skin motion**: each marker slides on its segment by a smooth random displacement (the sums of
   sines of :func:`simbench.sim.markers.smooth_noise`, in the segment frame), of standard deviation
-  ``skin_sd_m`` per coordinate -- millimetres on real skin clusters (DESIGN.md: distances within a
+  ``skin_sd_m`` per coordinate -- millimetres on real skin clusters (docs/conventions.md: distances within a
   cluster vary by 2-7 mm);
 - **camera noise**: white Gaussian noise of standard deviation ``camera_noise_m`` on every
   coordinate (:data:`simbench.sim.markers.CAMERA_NOISE_M` is a typical value).

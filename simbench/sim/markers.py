@@ -4,7 +4,7 @@ Used to check automatic cluster finding (:func:`calibration.clusters.find_cluste
 4-6 segments turning about random axes (smooth in time) carries 3-4 markers per segment; each
 marker slides on the skin with smooth random motion sized so that the distances within a
 cluster vary by 2-7 mm (standard deviation, drawn per cluster, as measured on real skin
-clusters, DESIGN.md); a few static markers (the lab, a body at rest) carry camera noise only.
+clusters, docs/conventions.md); a few static markers (the lab, a body at rest) carry camera noise only.
 """
 
 from __future__ import annotations

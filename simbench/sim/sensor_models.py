@@ -10,7 +10,7 @@ of Birds or a Polhemus Liberty/Fastrak reports poses:
 - white position and orientation noise whose standard deviation grows with the distance ``r``
   from the transmitter: ``sigma = sigma_ref (r / r_ref)^n a(theta)``. A dipole field falls as
   ``r^-3``, so at fixed signal noise the position error grows about as ``r^4`` (``n = 4``,
-  DESIGN.md, after Day et al. 2000) and the orientation error as ``r^3``. The dipole's field is
+  docs/conventions.md, after Day et al. 2000) and the orientation error as ``r^3``. The dipole's field is
   twice as strong along its axis (the transmitter's z axis) as across it,
   ``|B| ~ sqrt(1 + 3 cos^2 theta)``, so ``a(theta) ~ (1 + 3 cos^2 theta)^(-n/6)``, normalised to a
   mean of 1 over all directions: ``sigma_ref`` is the direction-averaged noise at ``r_ref`` (as
@@ -287,7 +287,7 @@ class ImuConfig:
     """Accelerometer, magnetometer and gyroscope imperfections (module docstring).
 
     Attributes:
-        accel_noise_density: m/s^2/sqrt(Hz) (60-230 ug/sqrt(Hz) for MEMS parts, DESIGN.md).
+        accel_noise_density: m/s^2/sqrt(Hz) (60-230 ug/sqrt(Hz) for MEMS parts, docs/conventions.md).
         accel_bias: std of each sensor's constant bias per axis, m/s^2.
         accel_scale_error: std of each axis's relative scale error.
         accel_misalignment_rad: std of each sensor's small axis misalignment (rotation), rad.

@@ -9,7 +9,7 @@ arises from physics, is part of the MuJoCo model: :mod:`simbench.sim.mounts`):
   ``d(t) = A tanh(W phi(t))`` in the segment frame, with ``phi`` the adjacent joints' rotation
   vectors (rad) and ``W`` a fixed random matrix per sensor (seeded, entries ``N(0, 1/k)`` for
   ``k`` adjacent joints): displacements reaching about the amplitude ``A`` over a radian of joint
-  rotation (centimetres on the thigh over the knee's range, DESIGN.md), following the motion as
+  rotation (centimetres on the thigh over the knee's range, docs/conventions.md), following the motion as
   skin does. Being a function of the joint angles, STA biases the joint centre a calibration
   finds, which is what makes it the dominant error on people;
 - **slip events** (:class:`SkinSlip`): a sensor shifts on its segment by a fixed offset

@@ -229,7 +229,7 @@ def _neck_position(d_left: float, d_right: float, half_span: float) -> tuple[flo
 def linkage() -> Skeleton:
     """O'Brien et al.'s wooden linkage: six pieces, five ball joints, one sensor per piece.
 
-    Joint-to-joint distances are the paper's measured values (DESIGN.md): neck-left shoulder
+    Joint-to-joint distances are the paper's measured values (docs/conventions.md): neck-left shoulder
     39.0 cm, neck-right shoulder 39.7 cm, between shoulders 34.3 cm, right upper arm 28.6 cm,
     left upper arm 31.4 cm. Sensors sit off the joint axes.
     """
