@@ -183,6 +183,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         # BLAS on one thread: simbench's products are small (a chunk of frames, a 6 x 6 system),
         # where BLAS's threads cost more than they give (1M x 32 poses from HDF5: 4.5 s on one
         # thread, 7.2 s on two; benchmarks/results/calibration*.json)
+        if args.command == "simulate" and args.output is None:
+            args.output = simulate.default_output(args)
         check_outputs(args)
         with one_blas_thread(), warnings.catch_warnings():
             if not args.debug:  # one line a note, as the errors; --debug keeps Python's form

@@ -122,10 +122,32 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="MM",
         help="markers' camera noise, standard deviation per coordinate in mm (default 0)",
     )
-    sim.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="the dataset (HDF5)")
+    sim.add_argument(
+        "-o",
+        "--output",
+        metavar="OUT.h5",
+        help="the dataset (HDF5; default MODEL-MOTION-SENSORS-seedSEED.h5 here, e.g. "
+        "linkage-exercise-ideal-seed0.h5)",
+    )
     sim.add_argument("--csv", metavar="OUT.csv", help="also export the measured poses as a pose CSV")
     sim.add_argument("--truth-json", metavar="OUT.json", help="also export the truth as calibration JSON")
     sim.set_defaults(func=cmd_simulate)
+
+
+def default_output(args: argparse.Namespace) -> str:
+    """The dataset's file name when ``-o`` is not given: what made it, ``MODEL-MOTION-SENSORS-seedSEED.h5``
+    (a file's stem for a model, motion or sensor file), in the current folder."""
+
+    def part(value: str | None, default: str) -> str:
+        text = Path(value).stem if value and value.lower().endswith(FILE_SUFFIXES) else (value or default)
+        return "".join(c if c.isalnum() or c in "-_." else "_" for c in text)
+
+    model = part(args.model, "linkage")
+    return f"{model}-{part(args.motion, 'exercise')}-{part(args.sensors, 'ideal')}-seed{args.seed}.h5"
+
+
+#: File suffixes of a model, motion or sensor file (:func:`default_output` names them by their stem).
+FILE_SUFFIXES = (".xml", ".toml", ".bvh", ".npz", ".csv", ".mot", ".sto", ".c3d", ".hdf5", ".h5")
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
