@@ -68,6 +68,7 @@ from simbench.io.calibration_json import calibration_to_dict, read_calibration_j
 from simbench.io.calibration_json import write_calibration_json as write_calibration
 from simbench.io.dataset import Dataset, write_dataset
 from simbench.io.dataset import truth_calibration_dict as truth_document
+from simbench.io.examples import write_examples
 from simbench.io.export import SOURCES as EXPORT_SOURCES
 from simbench.io.export import check_outputs, export_c3d_markers, export_dataset
 from simbench.io.hierarchy_json import read_hierarchy_json as read_hierarchy
@@ -1085,6 +1086,7 @@ __all__ = [
     "unit_scale",
     "write_calibration",
     "write_dataset",
+    "write_examples",
     "write_orientation_csv",
     "write_pose_csv",
     "write_twin",

@@ -18,7 +18,7 @@ from simbench.api import (
     preset_names,
 )
 from simbench.cli import build_parser
-from simbench.cli.examples import EXAMPLES
+from simbench.cli.help_examples import EXAMPLES
 
 COMMANDS = tuple(build_parser()._subparsers._group_actions[0].choices)
 

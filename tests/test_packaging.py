@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 import simbench
+from simbench.io.examples import EXAMPLE_FILES
 
 ROOT = Path(simbench.__file__).resolve().parent.parent
 SOURCES = ("pyproject.toml", "README.md", "simbench", "calibration")
@@ -99,6 +100,20 @@ def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
     )
     assert run.returncode == 0, run.stderr
     assert (work / "h.h5").is_file() and "sensors: 16" in run.stdout
+    # the examples come out of the installed package, and the README's first calibration runs on them
+    cli = target / "bin" / "simbench"
+    run = subprocess.run([cli, "examples", "first"], cwd=work, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    for place in EXAMPLE_FILES.values():
+        assert (work / "first" / place).read_bytes() == (ROOT / place).read_bytes(), place
+    run = subprocess.run(
+        [cli, "calibrate", "examples/linkage_exercise.csv", "--no-slip"],
+        cwd=work / "first",
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0 and "hierarchy: inferred" in run.stdout, run.stderr
 
 
 @pytest.mark.slow

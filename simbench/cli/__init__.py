@@ -26,11 +26,12 @@ from simbench.cli import (
     report,
     scale,
     simulate,
+    starter,
     sweep,
     twin,
     validate,
 )
-from simbench.cli.examples import epilog
+from simbench.cli.help_examples import epilog
 from simbench.errors import CalibrationError, InputError
 from simbench.versions import __version__
 
@@ -48,6 +49,7 @@ COMMANDS = (
     baseline,
     sweep,
     bench,
+    starter,
 )
 
 

@@ -10,6 +10,7 @@ from simbench.cli.types import non_negative_float
 from simbench.errors import InputError
 from simbench.experiments.baseline import (
     BASELINE_FILE,
+    CHECKOUT_BASELINE,
     compare,
     compute,
     diff_lines,
@@ -41,7 +42,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--tolerance", type=non_negative_float, default=0.10, help="relative tolerance (default 0.10)"
     )
     bas.add_argument(
-        "--file", metavar="PATH", help="baseline file (default reports/baseline.json, or beside --scenarios)"
+        "--file",
+        metavar="PATH",
+        help="baseline file (default: a checkout's reports/baseline.json, else the package's; or beside "
+        "--scenarios)",
     )
     bas.set_defaults(func=cmd_baseline)
 
@@ -54,6 +58,11 @@ def cmd_baseline(args: argparse.Namespace) -> int:
     scenarios = load_scenarios(args.scenarios) if args.scenarios else None
     default = Path(args.scenarios).with_suffix(".baseline.json") if args.scenarios else BASELINE_FILE
     path = Path(args.file) if args.file else default
+    if args.update and not args.file and not args.scenarios and path != CHECKOUT_BASELINE:
+        raise InputError(
+            f"--update: {path} is the installed package's baseline, not yours to rewrite; give --file PATH "
+            "(simbench examples DIR writes a copy to start from)"
+        )
     if args.update:
         if not path.resolve().parent.is_dir():
             raise InputError(f"cannot write {path}: folder {path.parent} does not exist")

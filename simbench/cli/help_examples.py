@@ -61,6 +61,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "simbench sweep studies/noise.toml --workers 2",
         "simbench sweep studies/noise.toml --scheduler tcp://127.0.0.1:8786",
     ),
+    "examples": (
+        "simbench examples first-steps  # then there: simbench calibrate examples/linkage_exercise.csv",
+        "simbench examples . --force",
+    ),
     "bench": (
         "simbench bench --quick",
         "simbench bench --estimator mypkg.joints:estimate --kind joints",
