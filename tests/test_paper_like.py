@@ -136,32 +136,32 @@ def test_female_subject_has_table_4_lengths():
 def test_difference_summary_and_side_by_side():
     s = difference_summary({"a": [-1.0, 0.5], "b": [2.0, float("nan")]})
     assert s["max_abs_cm"] == 2.0 and s["max_row"] == "b"
-    assert s["negative"] == 1 and s["n"] == 3
+    assert s["longer"] == 2 and s["n"] == 3
     assert s["mean_cm"] == pytest.approx(0.5)
     assert s["row_mean_cm"] == {"a": -0.25, "b": 2.0}
     assert s["largest_rows"] == ["b", "a"]
     run = {
-        r: {"true_cm": m, "computed_cm": m + 1.0, "difference_cm": -1.0}
+        r: {"true_cm": m, "computed_cm": m + 1.0, "difference_cm": 1.0}
         for r, m in TABLE_1.measured_cm.items()
     }
     table = side_by_side(TABLE_1, [run, run])
-    assert table["simbench"]["negative"] == 10
+    assert table["simbench"]["longer"] == 10
     assert table["rows"]["Between Shoulders"]["simbench_computed_cm"] == {"mean": 35.3, "sd": 0.0, "n": 2}
-    assert table["paper"]["negative"] == 23
+    assert table["paper"]["longer"] == 23  # the paper's computed lengths longer than measured
     with pytest.raises(ValueError, match="lack rows"):
         side_by_side(TABLE_1, [{"Between Shoulders": run["Between Shoulders"]}])
 
 
 def test_paper_like_linkage_reproduces_table_1():
     """The fitted preset on the six seeded sets (set 6 with the sensors moved): the largest error
-    within a factor 1.5 of the paper's 1.1 cm and 18-28 of the 30 differences negative, every
+    within a factor 1.5 of the paper's 1.1 cm and 18-28 of the 30 computed lengths longer, every
     hierarchy right; with its systematic effects off the errors fall back below 0.5 cm."""
     scale = rigid_pair_scale()["scale"]
     assert scale == pytest.approx(0.94, abs=0.005)  # the paper's measured factor
     sets = linkage_experiment(6, 45.0, scale)["sets"]
     d = np.array([[s["rows"][r]["difference_cm"] for r in LINKAGE_ROWS] for s in sets])
     assert 1.1 / 1.5 <= np.abs(d).max() <= 1.1 * 1.5
-    assert 18 <= int((d < 0).sum()) <= 28
+    assert 18 <= int((d > 0).sum()) <= 28  # computed - true: positive where computed longer
     assert all(s["hierarchy_correct"] for s in sets)
     flock = load_sensor_config("ascension-flock")
     plain = linkage_experiment(6, 45.0, rigid_pair_scale(tracker=flock.tracker)["scale"], sensors=flock)
@@ -172,22 +172,20 @@ def test_explain_names_the_cause_that_moves_the_paper_s_largest_row():
     """Two causes: switching off ``a`` moves the paper's largest row by 2 cm, ``b`` by 0.5 cm and
     the mean more: the sentence names ``a`` for the row and ``b`` for the mean, with the numbers."""
     rows = list(TABLE_1.rows)
-    top = difference_summary({r: list(TABLE_1.printed_difference_cm[r]) for r in rows})["largest_rows"][0]
+    printed = {r: [-x for x in TABLE_1.printed_difference_cm[r]] for r in rows}  # computed - measured
+    top = difference_summary(printed)["largest_rows"][0]
 
     def summary(top_value: float, other: float) -> dict:
         return difference_summary({r: [top_value if r == top else other] for r in rows})
 
-    table = {
-        "paper": difference_summary({r: list(TABLE_1.printed_difference_cm[r]) for r in rows}),
-        "simbench": summary(-2.0, -0.5),
-    }
-    causes = {"a": summary(0.0, -0.5), "b": summary(-1.5, 1.0), "all": summary(0.0, 0.0)}
+    table = {"paper": difference_summary(printed), "simbench": summary(2.0, 0.5)}
+    causes = {"a": summary(0.0, 0.5), "b": summary(1.5, -1.0), "all": summary(0.0, 0.0)}
     text = explain(table, causes)
     assert (
-        f"the {top} (the paper's largest row, -0.38 cm on average) comes out 2.00 cm longer through the a"
+        f"the {top} (the paper's largest row, +0.38 cm on average) comes out 2.00 cm longer through the a"
         in text
     )
     assert (
-        "(-2.00 cm with it, +0.00 without); the b moves the mean difference most (-0.80 with it, +0.50"
+        "(+2.00 cm with it, +0.00 without); the b moves the mean difference most (+0.80 with it, -0.50"
         in text
     )

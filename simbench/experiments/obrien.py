@@ -95,12 +95,12 @@ HUMANOID_ROWS = {
 def _length_rows(
     labels: dict[str, tuple[str, str, str]], truth: dict, got: dict, scale: float
 ) -> dict[str, dict[str, float]]:
-    """True, computed (scaled to metres) and true - computed lengths in cm for labelled rows."""
+    """True, computed (scaled to metres) and computed - true lengths in cm for labelled rows."""
     rows = {}
     for label, key in labels.items():
         true_cm = length_of(truth, key) * 100
         computed_cm = length_of(got, key) * scale * 100
-        rows[label] = {"true_cm": true_cm, "computed_cm": computed_cm, "difference_cm": true_cm - computed_cm}
+        rows[label] = {"true_cm": true_cm, "computed_cm": computed_cm, "difference_cm": computed_cm - true_cm}
     return rows
 
 
@@ -442,12 +442,12 @@ def explain(table: dict[str, Any], causes: dict[str, dict[str, Any]]) -> str:
     row_cause = max(single, key=lambda c: abs(causes[c]["row_mean_cm"][row] - base["row_mean_cm"][row]))
     mean_cause = max(single, key=lambda c: abs(causes[c]["mean_cm"] - base["mean_cm"]))
     with_, without = base["row_mean_cm"][row], causes[row_cause]["row_mean_cm"][row]
-    longer = "longer" if with_ < without else "shorter"
+    longer = "longer" if with_ > without else "shorter"
     return (
         f"The paper's largest error is {paper['max_abs_cm']:.1f} cm ({paper['max_row']}), simbench's "
         f"{sim['max_abs_cm']:.2f} cm ({sim['max_row']}); the mean difference {paper['mean_cm']:+.2f} "
-        f"against {sim['mean_cm']:+.2f} cm, computed longer in {paper['negative']} of {paper['n']} "
-        f"against {sim['negative']} of {sim['n']}. Why: {where}, the {row} (the paper's largest "
+        f"against {sim['mean_cm']:+.2f} cm, computed longer in {paper['longer']} of {paper['n']} "
+        f"against {sim['longer']} of {sim['n']}. Why: {where}, the {row} (the paper's largest "
         f"row, {paper['row_mean_cm'][row]:+.2f} cm on average) comes out {abs(with_ - without):.2f} cm "
         f"{longer} through the {row_cause} ({with_:+.2f} cm with it, {without:+.2f} without); "
         f"{'it also' if mean_cause == row_cause else f'the {mean_cause}'} moves the mean difference "

@@ -31,7 +31,8 @@ class PaperTable:
         trials: ``(T,)`` the trials' names, in the table's order.
         measured_cm: row name -> the length measured by hand, cm.
         computed_cm: row name -> ``(T,)`` the paper's computed lengths, cm.
-        printed_difference_cm: row name -> ``(T,)`` the printed measured minus computed, cm.
+        printed_difference_cm: row name -> ``(T,)`` the printed measured minus computed, cm
+            (kept as printed; :func:`side_by_side` shows them negated, computed minus measured).
     """
 
     title: str
@@ -124,7 +125,7 @@ TABLES = (TABLE_1, TABLE_2, TABLE_3, TABLE_4)
 
 
 def difference_summary(differences_cm: dict[str, list[float]]) -> dict[str, Any]:
-    """The figures a table's differences are compared by (measured/true minus computed, cm).
+    """The figures a table's differences are compared by (computed minus measured or true, cm).
 
     Args:
         differences_cm: row name -> the differences of its trials, cm (NaN where a trial has no
@@ -132,7 +133,7 @@ def difference_summary(differences_cm: dict[str, list[float]]) -> dict[str, Any]
 
     Returns:
         ``max_abs_cm`` and the row it is in (``max_row``), ``mean_cm`` over all differences,
-        ``negative`` (computed longer) of ``n``, ``row_mean_cm`` (each row's mean difference) and
+        ``longer`` (computed longer: positive) of ``n``, ``row_mean_cm`` (each row's mean difference) and
         ``largest_rows``: the rows by mean absolute difference, largest first.
     """
     rows = list(differences_cm)
@@ -145,7 +146,7 @@ def difference_summary(differences_cm: dict[str, list[float]]) -> dict[str, Any]
         "max_abs_cm": float(np.max(np.abs(flat[ok]))) if ok.any() else float("nan"),
         "max_row": rows[int(np.argmax(row_max))],
         "mean_cm": float(np.mean(flat[ok])) if ok.any() else float("nan"),
-        "negative": int(np.sum(flat[ok] < 0)),
+        "longer": int(np.sum(flat[ok] > 0)),
         "n": int(ok.sum()),
         "row_mean_cm": {
             r: float(np.nanmean(x)) if np.isfinite(x).any() else float("nan")
@@ -169,11 +170,13 @@ def side_by_side(table: PaperTable, runs: list[dict[str, dict[str, float]]]) -> 
     Args:
         table: the paper's table.
         runs: simbench's trials (each its own seed), each ``{row: {"true_cm", "computed_cm",
-            "difference_cm"}}`` with every row of ``table`` (cm; difference = true - computed).
+            "difference_cm"}}`` with every row of ``table`` (cm; difference = computed - true).
 
     Returns:
         JSON-ready: ``title``, ``trials`` (the paper's), per row the measured length, the paper's
-        computed lengths and differences, simbench's true length and its computed lengths and
+        computed lengths and differences (computed minus measured: the paper printed the opposite,
+        measured minus computed; one sign, estimate minus truth, in every simbench table),
+        simbench's true length and its computed lengths and
         differences as mean, sample standard deviation and count over the trials; and the
         :func:`difference_summary` of the paper's and of simbench's differences.
     """
@@ -185,7 +188,7 @@ def side_by_side(table: PaperTable, runs: list[dict[str, dict[str, float]]]) -> 
         rows[r] = {
             "measured_cm": table.measured_cm[r],
             "paper_computed_cm": list(table.computed_cm[r]),
-            "paper_difference_cm": list(table.printed_difference_cm[r]),
+            "paper_difference_cm": [-x for x in table.printed_difference_cm[r]],  # computed - measured
             "true_cm": runs[0][r]["true_cm"],
             "simbench_computed_cm": _spread([run[r]["computed_cm"] for run in runs]),
             "simbench_difference_cm": _spread([run[r]["difference_cm"] for run in runs]),
@@ -194,6 +197,6 @@ def side_by_side(table: PaperTable, runs: list[dict[str, dict[str, float]]]) -> 
         "title": table.title,
         "trials": list(table.trials),
         "rows": rows,
-        "paper": difference_summary({r: list(table.printed_difference_cm[r]) for r in table.rows}),
+        "paper": difference_summary({r: [-x for x in table.printed_difference_cm[r]] for r in table.rows}),
         "simbench": difference_summary({r: [run[r]["difference_cm"] for run in runs] for r in table.rows}),
     }

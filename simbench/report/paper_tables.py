@@ -54,7 +54,7 @@ def _cause_rows(table: dict[str, Any]) -> list[list[Any]]:
             s["max_abs_cm"],
             s["max_row"],
             f"{s['mean_cm']:+.2f}",
-            f"{s['negative']} of {s['n']}",
+            f"{s['longer']} of {s['n']}",
             s["row_mean_cm"][row],
         ]
         for label, s in summaries
@@ -71,8 +71,9 @@ def paper_tables_markdown(tables: list[dict[str, Any]], presets: dict[str, str])
     out = [
         "## The paper's tables side by side",
         "",
-        "Differences are measured (paper) or true (simbench) minus computed, in cm; negative: "
-        "computed longer. simbench's columns are mean ± standard deviation over its seeded trials "
+        "Differences are computed minus measured (paper) or true (simbench), in cm, the estimate "
+        "minus the truth as everywhere in simbench (the paper printed measured minus computed); "
+        "positive: computed longer. simbench's columns are mean ± standard deviation over its seeded trials "
         "(the paper's are its trials' values). Under each table, the same figures with each "
         "effect of the preset switched off in turn (the unit scale factor measured again each "
         "time); for the human tables over the table's first trial.",

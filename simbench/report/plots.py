@@ -156,7 +156,7 @@ def _trial_groups(trials: Sequence[dict[str, Any]]) -> dict[tuple[str, str], str
 
 
 def limb_errors_figure(humanoid: dict[str, Any]) -> Figure:
-    """Limb-length error (true - computed, cm) per segment and trial: one colour per subject
+    """Limb-length error (computed - true, cm) per segment and trial: one colour per subject
     and motion, the trials of one by their hatching; the legend below the axes.
 
     Args:
@@ -187,7 +187,7 @@ def limb_errors_figure(humanoid: dict[str, Any]) -> Figure:
         )
     ax.axhline(0, color=INK, lw=0.8)
     ax.set_xticks(x + 0.4 - width / 2, labels, rotation=20, fontsize=8)
-    ax.set_ylabel("true - computed (cm)")
+    ax.set_ylabel("computed - true (cm)")
     ax.legend(fontsize=7, ncol=5, loc="upper center", bbox_to_anchor=(0.5, -0.25), frameon=False)
     fig.tight_layout()
     return fig

@@ -103,7 +103,7 @@ def _linkage(linkage: dict[str, Any]) -> list[str]:
         f"## Linkage (Table 1): {len(sets)} sets, `{linkage['preset']}`, {linkage['duration_s']:g} s each",
         "",
         "Computed joint-to-joint distances (cm, converted with the measured unit scale factor) and "
-        "true minus computed differences.",
+        "computed minus true differences.",
         "",
         _lengths_table(
             "distance", sets, [f"set {x['set']}" for x in sets], [f"diff {x['set']}" for x in sets]
@@ -138,8 +138,8 @@ def _humanoid(humanoid: dict[str, Any]) -> list[str]:
     return [
         f"## Human subject (Tables 2-4): `{humanoid['preset']}`, {humanoid['duration_s']:g} s trials",
         "",
-        "Limb lengths (cm) computed with the true hierarchy, as the paper reports them; true minus "
-        "computed in the difference columns.",
+        "Limb lengths (cm) computed with the true hierarchy, as the paper reports them; computed minus "
+        "true in the difference columns.",
         "",
         _lengths_table("limb", trials, [t["trial"] for t in trials], [f"diff {t['trial']}" for t in trials]),
         "",
