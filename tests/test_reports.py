@@ -433,6 +433,10 @@ def test_limb_length_scatter_shows_every_trial_and_the_spread(quick_report):
             sd = estimates.std(ddof=1) if estimates.size > 1 else 0.0
             spread.append((10 * row["true_cm"], estimates.mean(), sd))
     spread = np.array(spread)
+    # every limb named beside its error bar in the error panel, once per subject
+    named = sorted(t.get_text() for t in ax_diff.texts)
+    subjects = {t["subject"] for t in trials}
+    assert named == sorted(limb for limb in trials[0]["rows"] for _ in subjects)
     for axes, minus_truth in ((ax, 0.0), (ax_diff, 1.0)):
         drawn = np.concatenate([c.get_offsets() for c in axes.collections if isinstance(c, PathCollection)])
         want = points - [0.0, minus_truth] * points[:, :1]

@@ -312,9 +312,18 @@ def limb_lengths_figure(humanoid: dict[str, Any]) -> Figure:
     spreads = limb_spread(humanoid)
     subjects = {s: PALETTE[k % len(PALETTE)] for k, s in enumerate(dict.fromkeys(x.subject for x in spreads))}
     (ax, ax_diff), fig = figure_axes(12, 4.6, width_ratios=(1.0, 1.0))
-    for spread in spreads:
+    for k, spread in enumerate(spreads):
         _draw_spread(ax, spread, subjects[spread.subject], minus_truth=False)
         _draw_spread(ax_diff, spread, subjects[spread.subject], minus_truth=True)
+        if np.isfinite(spread.mean_mm):  # the limb named beside its error bar, alternately above and below
+            ax_diff.annotate(
+                spread.limb,
+                (spread.true_mm, spread.mean_mm - spread.true_mm),
+                xytext=(4, 6 if k % 2 else -9),
+                textcoords="offset points",
+                fontsize=6,
+                color=subjects[spread.subject],
+            )
     lengths_mm = _finite([x for s in spreads for x in (s.true_mm, *s.estimated_mm)])
     span = np.array([lengths_mm.min() - 20.0, lengths_mm.max() + 20.0])
     ax.plot(span, span, "--", color=INK, lw=0.8)
