@@ -607,6 +607,18 @@ def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
     )
 
 
+def _flipped(delta: np.ndarray) -> np.ndarray:
+    """The window differences of the pose products (``(..., 15)``, :class:`_SlipMonitor`) of a joint
+    with its parent and child swapped: ``M' = M^T``, ``v_p' = -v_c``, ``v_c' = -v_p``."""
+    out = np.empty_like(delta)
+    out[..., :9] = np.swapaxes(delta[..., :9].reshape(*delta.shape[:-1], 3, 3), -1, -2).reshape(
+        *delta.shape[:-1], 9
+    )
+    out[..., 9:12] = -delta[..., 12:15]
+    out[..., 12:15] = -delta[..., 9:12]
+    return out
+
+
 def _correlation_frames(x: np.ndarray) -> np.ndarray:
     """``(k,)`` :func:`calibration.slip_stats.correlation_frames` of each column of ``x``
     (``(n, k)``, no gaps), in one batch of FFTs."""
@@ -665,13 +677,13 @@ class _SlipMonitor:
         self.n_hist = np.zeros(j, dtype=np.int64)
         self.scale = np.zeros((j, 2, 3))
         self.threshold = np.full((j, 2), np.inf)
-        self.motion0 = np.full(j, np.inf)  # typical |dM| of the history (_model)
+        self.motion0 = np.full(j, np.inf)  # typical |dM| of the history (_models)
         self.quiet_until = np.full(j, -1, dtype=np.int64)  # no alert, no history, up to this frame
 
     def arrays(self) -> list[np.ndarray]:
         """Every array held (for :attr:`StreamingCalibrator.nbytes`)."""
         names = ("R", "p", "ok", "par", "chi", "lp", "lc", "q", "hist", "n_hist", "scale", "threshold")
-        return [getattr(self, k) for k in (*names, "quiet_until")]
+        return [getattr(self, k) for k in (*names, "motion0", "quiet_until")]
 
     def take_new(self) -> list[SlipAlert]:
         out = self.alerts[self._taken :]
@@ -708,8 +720,9 @@ class _SlipMonitor:
         return d
 
     def set_joints(self, cal: Calibration) -> None:
-        """Follow the tree's joints (a joint new to the tree starts afresh) and refresh every noise
-        model with the joints as now fitted."""
+        """Follow the tree's joints (a joint new to the tree starts afresh; one whose parent and
+        child swapped, as a new root turns them, keeps its history) and refresh every noise model
+        with the joints as now fitted."""
         names = self.owner.names
         keys = [(names.index(j.parent), names.index(j.child)) for j in cal.joints]
         if keys != self.keys:  # the tree changed: rows move, new joints start afresh
@@ -717,9 +730,16 @@ class _SlipMonitor:
             kept = {name: getattr(self, name) for name in ("hist", "n_hist", "quiet_until")}
             self._rows(len(keys))
             for i, key in enumerate(keys):
+                flipped = key[::-1]
                 if key in old:
                     for name, arr in kept.items():
                         getattr(self, name)[i] = arr[old[key]]
+                elif flipped in old:
+                    k = old[flipped]
+                    self.hist[i] = _flipped(kept["hist"][k])
+                    self.n_hist[i], self.quiet_until[i] = kept["n_hist"][k], kept["quiet_until"][k]
+                    if flipped in self.armed_at:
+                        self.armed_at.setdefault(key, self.armed_at[flipped])
             self.keys = keys
             self.par = np.array([k[0] for k in keys], dtype=np.int64)
             self.chi = np.array([k[1] for k in keys], dtype=np.int64)

@@ -315,3 +315,20 @@ def test_slip_statistic_is_the_window_difference_with_the_joint_as_fitted_now():
                 assert_allclose(got[k, side], want, atol=1e-12)
                 if lp is fitted[0]:  # what the monitor tested at the last frame
                     assert_allclose(d[-1, k, side], want, atol=1e-12)
+
+
+def test_a_joint_whose_parent_and_child_swap_keeps_its_slip_history():
+    # a new root turns a joint round: its residual changes sign and its two frames swap, so its
+    # history's window differences give d' = -d with the frames swapped (the joint kept, not reset)
+    from calibration.streaming import _flipped
+
+    skeleton, cap = _capture(n_frames=400, noise=0.003)
+    sc = StreamingCalibrator(skeleton.names, rate_hz=RATE)
+    sc.push(cap.R_w_s, cap.p_w_s)
+    monitor = sc._monitor
+    hist = monitor.hist[:, : int(monitor.n_hist.min())]  # (J, n, 15)
+    lp, lc = monitor.lp, monitor.lc
+    d = np.stack([monitor._d(hist[k], lp[k], lc[k]) for k in range(len(monitor.keys))])
+    d_swapped = np.stack([monitor._d(_flipped(hist[k]), lc[k], lp[k]) for k in range(len(monitor.keys))])
+    assert hist.shape[1] >= 10 and np.abs(d).max() > 1e-3  # something to compare
+    assert_allclose(d_swapped, -d[..., ::-1, :], atol=1e-12)
