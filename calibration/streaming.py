@@ -673,6 +673,7 @@ class _SlipMonitor:
         self.lp = np.zeros((j, 3))
         self.lc = np.zeros((j, 3))
         self.q = np.zeros((self.R.shape[0], j, _Q))  # the held frames' products (_products)
+        self.cs = np.zeros((self.R.shape[0] + 1, j, _Q))  # their running sums, from 0
         self.hist = np.zeros((j, self.history, _Q - 1))  # rings of the products' window difference
         self.n_hist = np.zeros(j, dtype=np.int64)
         self.scale = np.zeros((j, 2, 3))
@@ -682,7 +683,7 @@ class _SlipMonitor:
 
     def arrays(self) -> list[np.ndarray]:
         """Every array held (for :attr:`StreamingCalibrator.nbytes`)."""
-        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "q", "hist", "n_hist", "scale", "threshold")
+        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "q", "cs", "hist", "n_hist", "scale", "threshold")
         return [getattr(self, k) for k in (*names, "motion0", "quiet_until")]
 
     def take_new(self) -> list[SlipAlert]:
@@ -744,6 +745,7 @@ class _SlipMonitor:
             self.par = np.array([k[0] for k in keys], dtype=np.int64)
             self.chi = np.array([k[1] for k in keys], dtype=np.int64)
             self.q = self._products(self.R, self.p, self.ok)
+            self.cs = np.concatenate([np.zeros((1, *self.q.shape[1:])), np.cumsum(self.q, axis=0)])
         self.lp = np.array([j.fit.joint_in_parent for j in cal.joints]).reshape(-1, 3)
         self.lc = np.array([j.fit.joint_in_child for j in cal.joints]).reshape(-1, 3)
         for i, key in enumerate(keys):
@@ -757,22 +759,25 @@ class _SlipMonitor:
         w = self.w
         if self.ok.shape[0] and self.end != start:  # a gap in the stream
             self.R, self.p, self.ok = self.R[:0], self.p[:0], self.ok[:0]
-            self.q = self.q[:0]
+            self.q, self.cs = self.q[:0], self.cs[:1] * 0.0
         held = self.ok.shape[0]
-        q = np.concatenate([self.q, self._products(R, p, ok)])
+        new = self._products(R, p, ok)
+        q = np.concatenate([self.q, new])
+        # running sums of the held and the new frames' products (cs[i]: frames before q[i])
+        cs = np.concatenate([self.cs, self.cs[-1] + np.cumsum(new, axis=0)])
         e0 = start - held  # frame of q[0]
         keep = 2 * w
         self.R = np.concatenate([self.R, R])[-keep:]
         self.p = np.concatenate([self.p, p])[-keep:]
         self.ok = np.concatenate([self.ok, ok])[-keep:]
         self.q = q[-keep:]
+        tail = cs[-keep - 1 :]
+        self.cs = tail - tail[0]  # from the first frame held on: no growth
         self.end = start + R.shape[0]
         m = q.shape[0]
         ends = np.arange(max(held, 2 * w - 1), m)  # windows ending at each new frame
         if not self.keys or not ends.size:
             return
-        cs = np.zeros((m + 1, *q.shape[1:]))
-        np.cumsum(q, axis=0, out=cs[1:])
         hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
         after, before = cs[hi] - cs[mid], cs[mid] - cs[lo]  # (c, J, 16)
         na, nb = after[..., 15], before[..., 15]
