@@ -11,6 +11,11 @@ incremental calibrator, :mod:`calibration.streaming`.)
   and the time per frame as a fraction of the 240 Hz frame period (target: at most 1/10, i.e.
   at least 2,400 frames/s on one core), against the batch calibration of the same frames in the
   same process; and the cost of one ``state()`` (what a refreshing table asks for).
+- ``update_real``: the same on real recordings (marker clusters of C3D files, pushed one frame at
+  a time at their own rate, slip monitor on and off; against the batch in the same process), and
+  on a 16-sensor real composite (three recordings' clusters side by side, cut to the shortest,
+  resampled to 240 Hz by repeating frames) when the files are at hand (``/tmp/realc3d``).
+- Every cost is stated with the machine's load (``os.getloadavg()``) when it was measured.
 - ``memory``: tracemalloc peak while 10 min and 60 min at 120 Hz of 16 sensors are pushed in
   10 s blocks (one 10 min capture generated once, pushed again and again), and the arrays the
   calibrator holds (``nbytes``); target: independent of the session's length.
@@ -24,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import time
 import tracemalloc
@@ -34,11 +40,21 @@ import numpy as np
 from calibration import calibrate
 from calibration.streaming import StreamingCalibrator
 from simbench.experiments.decisions import SKIN_SENSORS
+from simbench.io.c3d import c3d_poses, read_cluster_spec
 from simbench.sim.live import live_session, with_slip
 from simbench.sim.plan import SessionConfig
 from simbench.sim.synthetic import random_tree, simulate_motion
 
 RESULTS = Path(__file__).resolve().parent / "results"
+HIP_C3D = Path(__file__).resolve().parents[2] / "shared" / "data" / "biobuddy_right_hip.c3d"
+HIP_SPEC = Path(__file__).resolve().parents[1] / "studies" / "hip_c3d.toml"
+REAL_C3D = [
+    HIP_C3D,
+    Path("/tmp/realc3d/pyomeca__examples_data_functional_trials_right_knee.c3d"),
+    Path("/tmp/realc3d/felixchenier__data_kinematics_racing_full.c3d"),
+    Path("/tmp/realc3d/felixchenier__data_kinematics_sprintbasket.c3d"),
+    Path("/tmp/realc3d/pyomeca__tests_data_markers_analogs.c3d"),
+]
 
 
 def _capture(n_frames: int, rate_hz: float):
@@ -49,13 +65,87 @@ def _capture(n_frames: int, rate_hz: float):
     return skeleton.names, cap.R_w_s, cap.p_w_s
 
 
+def _frame_by_frame(names, R, p, ok, rate: float, slip: bool) -> tuple[float, float]:
+    """Seconds to push every frame one at a time and read the calibration: wall clock, and this
+    process's CPU time (what the frames cost whatever else the machine runs)."""
+    sc = StreamingCalibrator(names, rate_hz=rate, slip=slip)
+    t0, c0 = time.perf_counter(), time.process_time()
+    for f in range(R.shape[0]):
+        sc.push(R[f], p[f], ok[f])
+    sc.calibration()
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def update_real() -> dict:
+    """Frames per second on real recordings, one frame at a time (module docstring)."""
+    out: dict = {}
+    recs = []
+    for path in REAL_C3D:
+        if not path.exists():
+            continue
+        rec = c3d_poses(path, clusters=read_cluster_spec(HIP_SPEC) if path == HIP_C3D else None)
+        recs.append(rec)
+        out[path.name] = _real_cost(rec.names, rec.R_w_s, rec.p_w_s, rec.valid, rec.rate_hz)
+    # 16 sensors of real data: the first recordings' clusters side by side, 240 Hz
+    names: list[str] = []
+    parts = []
+    for k, rec in enumerate(recs):
+        take = min(len(rec.names), 16 - len(names))
+        if take <= 0:
+            break
+        names += [f"{k}:{n}" for n in rec.names[:take]]
+        parts.append((rec, take))
+    if len(names) == 16:
+        seconds = min(rec.n_frames / rec.rate_hz for rec, _ in parts)
+        n = int(seconds * 240.0)
+        idx = [
+            np.minimum((np.arange(n) / 240.0 * rec.rate_hz).astype(int), rec.n_frames - 1) for rec, _ in parts
+        ]
+        R = np.concatenate([rec.R_w_s[i, :t] for (rec, t), i in zip(parts, idx, strict=True)], axis=1)
+        p = np.concatenate([rec.p_w_s[i, :t] for (rec, t), i in zip(parts, idx, strict=True)], axis=1)
+        ok = np.concatenate([rec.valid[i, :t] for (rec, t), i in zip(parts, idx, strict=True)], axis=1)
+        out["composite_16_sensors_240hz"] = _real_cost(tuple(names), R, p, ok, 240.0)
+    return out
+
+
+def _real_cost(names, R, p, ok, rate: float) -> dict:
+    t0, c0 = time.perf_counter(), time.process_time()
+    calibrate(R, p, names, valid=ok)
+    batch, batch_cpu = time.perf_counter() - t0, time.process_time() - c0
+    on, on_cpu = _frame_by_frame(names, R, p, ok, rate, slip=True)
+    off, off_cpu = _frame_by_frame(names, R, p, ok, rate, slip=False)
+    return {
+        "sensors": len(names),
+        "frames": int(R.shape[0]),
+        "rate_hz": rate,
+        "frames_per_s": R.shape[0] / on,
+        "frames_per_cpu_s": R.shape[0] / on_cpu,
+        "frames_per_s_without_slip": R.shape[0] / off,
+        "frames_per_cpu_s_without_slip": R.shape[0] / off_cpu,
+        "vs_batch": on / batch,
+        "vs_batch_cpu": on_cpu / batch_cpu,
+        "load_1min": os.getloadavg()[0],
+    }
+
+
 def update_cost() -> dict:
     rate = 240.0
     names, R, p = _capture(14400, rate)
-    out: dict = {"sensors": 16, "frames": int(R.shape[0]), "rate_hz": rate}
+    out: dict = {"sensors": 16, "frames": int(R.shape[0]), "rate_hz": rate, "load_1min": os.getloadavg()[0]}
     t0 = time.perf_counter()
     batch = calibrate(R, p, names)
     out["batch_s"] = time.perf_counter() - t0
+    ok = np.ones(R.shape[:2], dtype=bool)
+    wall, cpu = _frame_by_frame(names, R, p, ok, rate, slip=False)
+    out["frame_by_frame_without_slip"] = {
+        "frames_per_s": R.shape[0] / wall,
+        "frames_per_cpu_s": R.shape[0] / cpu,
+    }
+    wall, cpu = _frame_by_frame(names, R, p, ok, rate, slip=True)
+    c0 = time.process_time()
+    calibrate(R, p, names)
+    batch_cpu = time.process_time() - c0
+    out["frame_by_frame_cpu"] = {"frames_per_cpu_s": R.shape[0] / cpu, "vs_batch_cpu": cpu / batch_cpu}
     for label, step in (("frame_by_frame", 1), ("blocks_0.1s", 24)):
         sc = StreamingCalibrator(names, rate_hz=rate)
         t0 = time.perf_counter()
@@ -188,6 +278,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--minutes", type=float, nargs="+", default=[10.0, 60.0])
     parser.add_argument("--save", action="store_true", help="write benchmarks/results/live.json")
+    parser.add_argument("--update-only", action="store_true", help="only the update costs (no memory, slips)")
     args = parser.parse_args()
     out = {"python": platform.python_version(), "numpy": np.__version__, "machine": platform.machine()}
     out["update"] = update_cost()
@@ -200,7 +291,26 @@ def main() -> None:
             f"{x['vs_batch']:.2f} x batch ({u['batch_s']:.2f} s)  centre diff "
             f"{x['max_centre_difference_vs_batch_m']:.1e} m"
         )
-    print(f"state() {u['state_s'] * 1e3:.1f} ms")
+    print(
+        f"update frame_by_frame CPU time: {u['frame_by_frame_cpu']['frames_per_cpu_s']:.0f} frames per "
+        "CPU-second, "
+        f"{u['frame_by_frame_cpu']['vs_batch_cpu']:.2f} x batch (CPU); without the slip monitor "
+        f"{u['frame_by_frame_without_slip']['frames_per_cpu_s']:.0f}"
+    )
+    print(
+        f"state() {u['state_s'] * 1e3:.1f} ms; without the slip monitor "
+        f"{u['frame_by_frame_without_slip']['frames_per_s']:.0f} frames/s; load {u['load_1min']:.2f}"
+    )
+    out["update_real"] = update_real()
+    for k, v in out["update_real"].items():
+        print(
+            f"real {k:55s} {v['sensors']:2d} sensors {v['rate_hz']:5.0f} Hz: "
+            f"{v['frames_per_s']:7.0f} frames/s ({v['frames_per_cpu_s']:.0f} per CPU-second) "
+            f"({v['frames_per_s_without_slip']:.0f} without the slip monitor), {v['vs_batch']:.1f} x batch, "
+            f"load {v['load_1min']:.2f}"
+        )
+    if args.update_only:
+        args.minutes, args.seeds = [], 0
     out["memory"] = memory(args.minutes)
     for k, v in out["memory"].items():
         if isinstance(v, dict):

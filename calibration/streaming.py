@@ -21,7 +21,7 @@ what the batch calibration would answer on the frames pushed so far:
   pushes.
 
 Memory does not grow with the session: the statistics are ``O(N_BLOCKS * sensors^2)``, the slip
-monitor keeps :data:`SLIP_HISTORY_S` seconds of its statistic per joint, and frames are held
+monitor keeps :data:`SLIP_HISTORY_S` seconds of its window differences per joint, and frames are held
 only until the next flush (:data:`FLUSH_S`).
 
 **Residuals.** The rms residuals come from the normal equations (as the batch's
@@ -33,25 +33,45 @@ residual itself is at the rounding floor of the normal equations (about 1e-8 m o
 **Slip alerts** (:class:`SlipAlert`) are the detector of :mod:`calibration.slip` made causal: per
 joint of the current tree, the residual (with the joint as fitted so far) in the parent's and in
 the child's frame; ``d`` the mean over the last ``w`` frames minus the mean over the ``w`` frames
-before; its robust scale, correlation time and tail threshold
-(:mod:`calibration.slip_stats`, the same functions) from the last :data:`SLIP_HISTORY_S` seconds
-of ``d`` (frames near an alert left out), refreshed every 5 s; an alert when ``|d / scale|``
-crosses the threshold, which is set for ``false_alarms_per_hour`` per joint (default
-:data:`calibration.slip.FALSE_ALARMS_PER_HOUR`, the batch's: ``J`` joints give ``J`` expected false
-alarms an hour under the detector's exponential-tail model). A jump of ``X`` times the threshold
-is seen ``w / X`` frames after it happens (at most ``w``; default :data:`LIVE_SLIP_WINDOW_S`). The
-alert names the sensor whose other joints jump too (or a leaf sensor whose neighbour's other joints do not;
-failing both, the sensor whose frame holds the jump more significantly), the least-squares change
-point within the
-last ``2 w`` frames as the time, and the change of mean across it as the size. One slip moves
+before (default :data:`LIVE_SLIP_WINDOW_S`); an alert when ``|d / scale|`` crosses the threshold,
+set for ``false_alarms_per_hour`` per joint (default :data:`calibration.slip.FALSE_ALARMS_PER_HOUR`,
+the batch's). The noise model is the data's own, as the batch's, from the last
+:data:`SLIP_HISTORY_S` seconds of ``d`` (frames near an alert left out):
+
+- *With the joint as fitted now.* ``d`` is affine in the joint: ``d_p = dv_p - dM l_c`` and
+  ``d_c = dv_c + dM^T l_p`` with ``dM``, ``dv_p``, ``dv_c`` the window differences of
+  ``M = R_p^T R_c``, ``v_p = R_p^T (p_p - p_c)`` and ``v_c = R_c^T (p_p - p_c)``. The history keeps
+  those (every ``w / 8``-th frame: ``d`` is a mean over ``w`` frames), and each refit
+  (:data:`REFIT_S`) recomputes the whole history's ``d`` with the new joint. Nothing restarts
+  when the fit moves (an earlier version restarted when it moved by 10 times the white noise, so
+  that on skin, whose residual is not white, a joint never armed).
+- *Motion.* Soft tissue that follows the joint, and the fit's own error, grow with the joint's
+  rotation between the two windows: ``d`` is divided by ``sqrt(1 + (|dM| / m0)^2)``, ``m0`` the
+  history's median ``|dM|``, so a fast movement is judged against fast movements.
+- *Scale* per joint and frame: :func:`calibration.slip_stats.robust_scale`, raised to its upper
+  confidence bound (:data:`LIVE_TAIL_CONFIDENCE`, chi-square with the history's independent values,
+  its length over the correlation time): a joint seconds old has few.
+- *Tail* pooled over the joints: the exponential tail of the whitened ``z`` above its upper
+  quartile (:func:`calibration.slip_stats.tail_threshold`, at :data:`LIVE_TAIL_CONFIDENCE`) is
+  fitted to every armed joint's ``z`` together: in units of each joint's own scale the tail's
+  shape is the recording's, and one joint's first seconds hold too few independent values for it.
+
+A joint arms (has a threshold) once its history holds :data:`SLIP_WARMUP_S` seconds, ``2 w``
+after it joined the tree (3 s at the default window). A jump of ``X`` times the threshold is seen
+``w / X`` frames after it happens (at most ``w``). The alert names the sensor whose other joints
+repeat the jump in its frame (a slip of a sensor moves every one of its joints' residuals by the
+same vector in its frame; a leaf sensor when its neighbour's other joints do not; failing both,
+the sensor whose frame holds the jump more significantly), the least-squares change point within
+the last ``2 w`` frames as the time, and the change of mean across it as the size. One slip moves
 every joint of its sensor: alerts on joints sharing a sensor within ``2 w`` frames of an alert are
 folded into it, and a sensor once alerted on raises no more alerts (its joints' fits now mix
 two placements; re-fix the sensor and start a new calibration). A crossing must also be a step
-that the joint's own fit error does not explain (:meth:`_SlipMonitor._steady`). No alert is
-raised in the first :data:`SLIP_WARMUP_S` seconds of a joint
-(the noise model needs history). Unlike the batch detector, the joint is not refitted around a
-candidate (that needs the frames after it): a slip's misfit spreads into later frames slowly, as
-the fit absorbs it.
+that the joint's own fit error does not explain (:meth:`_SlipMonitor._steady`). Unlike the batch
+detector, the joint is not refitted around a candidate (that needs the frames after it).
+
+Measured (``studies/live_slip_real.py``, ``studies/results/live_slip_real.json``): on 7 real
+recordings (marker clusters of hip, knee, wheelchair racing and propulsion, arm), 2 cm slips
+injected, and on the skin-artefact presets; the figures are in ``docs/live.md``.
 
 **Operator guidance** (:class:`Coverage`): the three weak singular values of a joint's normal
 matrix, ``s_k^2 = n (1 - sigma_k(M))`` with ``M`` the mean relative rotation
@@ -82,10 +102,10 @@ from calibration.hierarchy import (
 )
 from calibration.hinge import N_BLOCKS
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO
-from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.pair_sums import PairSums, ThirdDifferenceSums
 from calibration.pairs import PairSolutions, PairStatistics, solve_pairs, statistics_of_blocks
 from calibration.pipeline import Calibration, Joint, checked_names, fit_warnings, solved_joint
+from calibration.quantiles import chi2_ppf
 from calibration.skeleton import segment_lengths, sensor_placements
 from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.slip_stats import (
@@ -109,21 +129,26 @@ LIVE_SLIP_WINDOW_S = 0.5
 #: Seconds of the slip statistic each joint keeps for its noise model.
 SLIP_HISTORY_S = 60.0
 
-#: Seconds of a joint's history before it may raise an alert.
-SLIP_WARMUP_S = 5.0
+#: Seconds of a joint's slip history (its window differences, from ``2 w`` after it joins the tree)
+#: before it may raise an alert: it arms ``2 w + SLIP_WARMUP_S`` (3 s at the default window) after
+#: it joins. A short history gets a high threshold (the confidence bounds on its scale and on the
+#: pooled tail), not none. Measured: 1 s (armed at 2 s) alerted 22 of 34 slips on the right sensor
+#: in the real recordings (studies/live_slip_real.py) and 6 of 8 in the Polhemus humanoid sessions
+#: of benchmarks/bench_live.py with 7 false alarms per joint-hour, one of them early in the session
+#: of tests/test_live.py; 2 s, 21 of 34 and 6 of 8 with 8, none there.
+SLIP_WARMUP_S = 2.0
 
-#: A joint's slip history restarts when its fit moves by more than this many times its residual's
-#: white noise (one component's standard deviation) since the history began (early in a session
-#: the fit moves by centimetres) ... Measured on 8 humanoid exercise sessions (Polhemus Liberty,
-#: 2 cm slips, benchmarks/bench_live.py): 3 restarted so often that 2 slips fell in a warm-up;
-#: 10 caught 7 of 8 within 0.5 s with the same false alarms; never restarting, 7 with one more.
-SETTLED_NOISE_FACTOR = 10.0
+#: Confidence of the upper bound on the tail's scale behind the live threshold
+#: (:func:`calibration.slip_stats.tail_threshold`; the batch detector's is
+#: :data:`calibration.slip_stats.TAIL_CONFIDENCE`, 0.75). The live threshold is estimated again at
+#: every refit from a history seconds long at first, so each refit is one more chance to draw a low
+#: bound. Measured (studies/live_slip_real.py, 7 real recordings, 34 injected 2 cm slips, before
+#: the scale's bound was added): 0.75 gave 5 false alarms in 7.4 joint-minutes and 25 slips alerted
+#: within 0.5 s; 0.95 gave 2 and 24.
+LIVE_TAIL_CONFIDENCE = 0.95
 
-#: ... or by more than this, metres (the floor for noise-free data).
-SETTLED_FLOOR_M = 1e-6
-
-#: Seconds between refreshes of a joint's noise model (scale, correlation, threshold).
-SLIP_MODEL_S = 5.0
+#: Per-frame products held per joint (``M`` 9, ``v_p`` 3, ``v_c`` 3, valid 1: :class:`_SlipMonitor`).
+_Q = 16
 
 #: A joint has moved enough when its second-largest rms rotation reaches this, degrees (a sinusoid
 #: of +-7 degrees; a joint moved less than about 10 degrees gets a centre decimetres off: DESIGN.md).
@@ -457,6 +482,16 @@ class StreamingCalibrator:
         """Every slip alert raised so far (frames still pending are not yet examined)."""
         return () if self._monitor is None else tuple(self._monitor.alerts)
 
+    def slip_armed_s(self) -> dict[str, float]:
+        """``{"parent-child": seconds}``: when each joint's slip monitor first had a noise model
+        (could raise an alert), seconds after the first frame; joints never armed are absent."""
+        if self._monitor is None:
+            return {}
+        names = self.names
+        return {
+            f"{names[a]}-{names[b]}": frame / self.rate_hz for (a, b), frame in self._monitor.armed_at.items()
+        }
+
     def new_alerts(self) -> list[SlipAlert]:
         """The alerts raised since the last call."""
         return [] if self._monitor is None else self._monitor.take_new()
@@ -572,6 +607,18 @@ def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
     )
 
 
+def _flipped(delta: np.ndarray) -> np.ndarray:
+    """The window differences of the pose products (``(..., 15)``, :class:`_SlipMonitor`) of a joint
+    with its parent and child swapped: ``M' = M^T``, ``v_p' = -v_c``, ``v_c' = -v_p``."""
+    out = np.empty_like(delta)
+    out[..., :9] = np.swapaxes(delta[..., :9].reshape(*delta.shape[:-1], 3, 3), -1, -2).reshape(
+        *delta.shape[:-1], 9
+    )
+    out[..., 9:12] = -delta[..., 12:15]
+    out[..., 12:15] = -delta[..., 9:12]
+    return out
+
+
 def _correlation_frames(x: np.ndarray) -> np.ndarray:
     """``(k,)`` :func:`calibration.slip_stats.correlation_frames` of each column of ``x``
     (``(n, k)``, no gaps), in one batch of FFTs."""
@@ -589,26 +636,31 @@ def _correlation_frames(x: np.ndarray) -> np.ndarray:
 class _SlipMonitor:
     """The causal slip detector over the joints of the current tree (module docstring).
 
-    The last ``2 w + 3`` poses of every sensor are held once for all joints; each joint's row of
-    the ``(J, ...)`` arrays holds its fit, its history of the normalised window difference and its
-    noise model.
+    Per joint and frame it keeps the pose products the window difference is affine in
+    (``M = R_p^T R_c``, ``v_p = R_p^T (p_p - p_c)``, ``v_c = R_c^T (p_p - p_c)``): the last ``2 w``
+    frames' values for the windows, and every :attr:`stride`-th frame's window difference of them
+    for :data:`SLIP_HISTORY_S` seconds, so that the noise model is that of ``d`` with the joint as
+    fitted now, whenever it was recorded. Each joint's row of the ``(J, ...)`` arrays holds its fit,
+    its history and its noise model.
     """
 
     def __init__(self, owner: StreamingCalibrator, window: int) -> None:
         self.owner = owner
         self.w = window
         self.rate = owner.rate_hz
-        self.history = max(4 * window, round(SLIP_HISTORY_S * self.rate))
-        self.warmup = max(2 * window, round(SLIP_WARMUP_S * self.rate))
-        self.model_every = max(1, round(SLIP_MODEL_S * self.rate))
+        # d is a mean over w frames: samples w / 8 apart hold nearly all its distribution
+        self.stride = max(1, window // 8)
+        self.history = max(4 * window, round(SLIP_HISTORY_S * self.rate)) // self.stride
+        self.warmup = max(2, round(SLIP_WARMUP_S * self.rate) // self.stride)
         n = len(owner.names)
-        self.R = np.zeros((0, n, 3, 3))  # held poses, from frame frame0 on
+        self.R = np.zeros((0, n, 3, 3))  # held poses, the last 2 w frames up to frame end
         self.p = np.zeros((0, n, 3))
         self.ok = np.zeros((0, n), dtype=bool)
-        self.frame0 = 0
+        self.end = 0  # frames examined
         self.keys: list[tuple[int, int]] = []
         self.slipped: set[int] = set()  # sensors alerted on
         self.alerts: list[SlipAlert] = []
+        self.armed_at: dict[tuple[int, int], int] = {}  # joint -> first frame with a noise model
         self._taken = 0
         self.ready = False
         self._rows(0)
@@ -620,170 +672,228 @@ class _SlipMonitor:
         self.chi = np.zeros(j, dtype=np.int64)
         self.lp = np.zeros((j, 3))
         self.lc = np.zeros((j, 3))
-        self.hist = np.full((j, self.history, 2, 3), np.nan)  # rings of the normalised d
+        self.q = np.zeros((self.R.shape[0], j, _Q))  # the held frames' products (_products)
+        self.cs = np.zeros((self.R.shape[0] + 1, j, _Q))  # their running sums, from 0
+        self.hist = np.zeros((j, self.history, _Q - 1))  # rings of the products' window difference
         self.n_hist = np.zeros(j, dtype=np.int64)
         self.scale = np.zeros((j, 2, 3))
         self.threshold = np.full((j, 2), np.inf)
-        self.model_at = np.full(j, -(2**62), dtype=np.int64)
+        self.motion0 = np.full(j, np.inf)  # typical |dM| of the history (_models)
         self.quiet_until = np.full(j, -1, dtype=np.int64)  # no alert, no history, up to this frame
-        self.hist_fit = np.full((j, 6), np.nan)  # the joint as fitted when its history (re)started
-        self.sigma = np.zeros(j)  # white noise of one residual component lately, metres
 
     def arrays(self) -> list[np.ndarray]:
         """Every array held (for :attr:`StreamingCalibrator.nbytes`)."""
-        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "hist", "n_hist", "scale", "threshold")
-        return [getattr(self, k) for k in (*names, "model_at", "quiet_until", "hist_fit", "sigma")]
+        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "q", "cs", "hist", "n_hist", "scale", "threshold")
+        return [getattr(self, k) for k in (*names, "motion0", "quiet_until")]
 
     def take_new(self) -> list[SlipAlert]:
         out = self.alerts[self._taken :]
         self._taken = len(self.alerts)
         return out
 
+    def _products(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> np.ndarray:
+        """``(F, J, 16)`` per frame and joint: ``M`` (9), ``v_p`` (3), ``v_c`` (3), valid (1); zero
+        where either pose is missing."""
+        par, chi = self.par, self.chi
+        Rp, Rc = R[:, par], R[:, chi]  # (F, J, 3, 3)
+        dp = p[:, par] - p[:, chi]
+        out = np.empty((R.shape[0], par.size, _Q))
+        out[..., :9] = np.matmul(np.swapaxes(Rp, 2, 3), Rc).reshape(R.shape[0], par.size, 9)
+        out[..., 9:12] = np.einsum("fjba,fjb->fja", Rp, dp)
+        out[..., 12:15] = np.einsum("fjba,fjb->fja", Rc, dp)
+        okj = ok[:, par] & ok[:, chi]
+        out[..., :15] *= okj[..., None]
+        out[..., 15] = okj
+        return out
+
+    def _d(self, delta: np.ndarray, lp: np.ndarray, lc: np.ndarray) -> np.ndarray:
+        """``(..., J, 2, 3)`` the window difference of the residual in the parent's and the child's
+        frame from that of the products (``(..., J, 15)``) and the joints (``(J, 3)`` each)."""
+        dM = delta[..., :9].reshape(*delta.shape[:-1], 3, 3)
+        d = np.empty((*delta.shape[:-1], 2, 3))
+        # e_p = l_p + v_p - M l_c and e_c = M^T l_p + v_c - l_c: the constants drop out of d
+        d[..., 0, :] = delta[..., 9:12] - np.einsum(
+            "...ab,...b->...a", dM, np.broadcast_to(lc, dM.shape[:-1])
+        )
+        d[..., 1, :] = delta[..., 12:15] + np.einsum(
+            "...ba,...b->...a", dM, np.broadcast_to(lp, dM.shape[:-1])
+        )
+        return d
+
     def set_joints(self, cal: Calibration) -> None:
-        """Follow the tree's joints (a joint new to the tree starts afresh)."""
+        """Follow the tree's joints (a joint new to the tree starts afresh; one whose parent and
+        child swapped, as a new root turns them, keeps its history) and refresh every noise model
+        with the joints as now fitted."""
         names = self.owner.names
         keys = [(names.index(j.parent), names.index(j.child)) for j in cal.joints]
         if keys != self.keys:  # the tree changed: rows move, new joints start afresh
             old = {k: i for i, k in enumerate(self.keys)}
-            kept = {
-                name: getattr(self, name) for name in ("hist", "n_hist", "scale", "threshold", "model_at")
-            }
-            kept |= {name: getattr(self, name) for name in ("quiet_until", "hist_fit", "sigma")}
+            kept = {name: getattr(self, name) for name in ("hist", "n_hist", "quiet_until")}
             self._rows(len(keys))
             for i, key in enumerate(keys):
+                flipped = key[::-1]
                 if key in old:
                     for name, arr in kept.items():
                         getattr(self, name)[i] = arr[old[key]]
-        self.keys = keys
-        self.par = np.array([k[0] for k in keys], dtype=np.int64)
-        self.chi = np.array([k[1] for k in keys], dtype=np.int64)
+                elif flipped in old:
+                    k = old[flipped]
+                    self.hist[i] = _flipped(kept["hist"][k])
+                    self.n_hist[i], self.quiet_until[i] = kept["n_hist"][k], kept["quiet_until"][k]
+                    if flipped in self.armed_at:
+                        self.armed_at.setdefault(key, self.armed_at[flipped])
+            self.keys = keys
+            self.par = np.array([k[0] for k in keys], dtype=np.int64)
+            self.chi = np.array([k[1] for k in keys], dtype=np.int64)
+            self.q = self._products(self.R, self.p, self.ok)
+            self.cs = np.concatenate([np.zeros((1, *self.q.shape[1:])), np.cumsum(self.q, axis=0)])
         self.lp = np.array([j.fit.joint_in_parent for j in cal.joints]).reshape(-1, 3)
         self.lc = np.array([j.fit.joint_in_child for j in cal.joints]).reshape(-1, 3)
         for i, key in enumerate(keys):
             if self.slipped & set(key):
                 self.quiet_until[i] = _FOREVER
-        # a statistic computed with a joint since moved by more than the residual's white noise is
-        # not this joint's noise (early in a session the fit still moves by centimetres)
-        shift = np.max(
-            np.abs(np.concatenate([self.lp, self.lc], axis=1) - self.hist_fit), axis=1, initial=0.0
-        )
-        restart = ~(shift <= np.maximum(SETTLED_NOISE_FACTOR * self.sigma, SETTLED_FLOOR_M))
-        self.n_hist[restart] = 0
-        self.threshold[restart] = np.inf
-        self.model_at[restart] = -(2**62)
-        self.hist_fit[restart] = np.concatenate([self.lp, self.lc], axis=1)[restart]
         self.ready = True
+        self._models()
 
     def update(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, start: int) -> None:
         """Examine frames ``start .. start + len(R)`` (already validated, invalid poses zeroed)."""
         w = self.w
-        if self.ok.shape[0] and self.frame0 + self.ok.shape[0] != start:  # a gap in the stream
+        if self.ok.shape[0] and self.end != start:  # a gap in the stream
             self.R, self.p, self.ok = self.R[:0], self.p[:0], self.ok[:0]
-        if not self.ok.shape[0]:
-            self.frame0 = start
-        Rs, ps, oks = np.concatenate([self.R, R]), np.concatenate([self.p, p]), np.concatenate([self.ok, ok])
-        first, m, e0 = start - self.frame0, oks.shape[0], self.frame0
-        keep = 2 * w + 3
-        self.R, self.p, self.ok = Rs[-keep:], ps[-keep:], oks[-keep:]
-        self.frame0 += m - self.ok.shape[0]
-        ends = np.arange(max(first, 2 * w + 2), m)  # windows ending at each new frame, 3 frames before
+            self.q, self.cs = self.q[:0], self.cs[:1] * 0.0
+        held = self.ok.shape[0]
+        new = self._products(R, p, ok)
+        q = np.concatenate([self.q, new])
+        # running sums of the held and the new frames' products (cs[i]: frames before q[i])
+        cs = np.concatenate([self.cs, self.cs[-1] + np.cumsum(new, axis=0)])
+        e0 = start - held  # frame of q[0]
+        keep = 2 * w
+        self.R = np.concatenate([self.R, R])[-keep:]
+        self.p = np.concatenate([self.p, p])[-keep:]
+        self.ok = np.concatenate([self.ok, ok])[-keep:]
+        self.q = q[-keep:]
+        tail = cs[-keep - 1 :]
+        self.cs = tail - tail[0]  # from the first frame held on: no growth
+        self.end = start + R.shape[0]
+        m = q.shape[0]
+        ends = np.arange(max(held, 2 * w - 1), m)  # windows ending at each new frame
         if not self.keys or not ends.size:
             return
-        par, chi = self.par, self.chi
-        # O'Brien eq. 8 for every joint with the joint as fitted now, for the held and the new
-        # frames; then in the parent's and the child's frame
-        Rp, Rc = Rs[:, par], Rs[:, chi]  # (m, J, 3, 3)
-        r = np.einsum("mjab,jb->mja", Rp, self.lp) + ps[:, par] - np.einsum("mjab,jb->mja", Rc, self.lc)
-        r -= ps[:, chi]
-        okj = oks[:, par] & oks[:, chi]  # (m, J)
-        r = np.where(okj[:, :, None], r, 0.0)
-        e = np.stack([np.einsum("mjab,mja->mjb", Rp, r), np.einsum("mjab,mja->mjb", Rc, r)], axis=2)
-        cs = np.concatenate([np.zeros((1, *e.shape[1:])), np.cumsum(e, axis=0)])
-        cn = np.concatenate([np.zeros((1, okj.shape[1])), np.cumsum(okj, axis=0)])
-        # white noise of the residual from its third differences (calibration.pair_noise), over
-        # the *earlier* window only: a jump in the later one does not inflate it
-        d3 = np.diff(r, n=3, axis=0)
-        ok4 = okj[3:] & okj[2:-1] & okj[1:-2] & okj[:-3]
-        q = np.where(ok4, np.einsum("fja,fja->fj", d3, d3), 0.0)
-        cq = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(q, axis=0)])
-        cq_n = np.concatenate([np.zeros((1, q.shape[1])), np.cumsum(ok4, axis=0)])
         hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
-        na, nb = cn[hi] - cn[mid], cn[mid] - cn[lo]  # (c, J)
-        n_q = cq_n[mid - 3] - cq_n[lo - 3]  # third differences over the earlier window's frames
-        n_qa = cq_n[hi - 3] - cq_n[mid]  # ... and over the later window's
-        gain = 3.0 * THIRD_DIFFERENCE_GAIN  # per component
+        after, before = cs[hi] - cs[mid], cs[mid] - cs[lo]  # (c, J, 16)
+        na, nb = after[..., 15], before[..., 15]
         with np.errstate(invalid="ignore", divide="ignore"):
-            var = (cq[mid - 3] - cq[lo - 3]) / n_q / gain
-            var_a = (cq[hi - 3] - cq[mid]) / n_qa / gain
-            d = (cs[hi] - cs[mid]) / na[..., None, None] - (cs[mid] - cs[lo]) / nb[..., None, None]
-            # each window's mean with its own noise: a magnetic tracker's noise jumps with the
-            # distance to its transmitter (a step adds only 6 step^2 to the later window's sum)
-            se = np.sqrt(var_a / na + var / nb)
-            dn = np.where(se[..., None, None] > 0, d / se[..., None, None], 0.0)  # (c, J, 2, 3)
-        dn[~((na >= w / 2) & (nb >= w / 2) & (n_q >= w / 2) & (n_qa >= w / 2))] = np.nan
-        last = var[-1]  # the newest earlier window's white noise
-        self.sigma = np.where(np.isfinite(last), np.sqrt(np.where(np.isfinite(last), last, 0.0)), self.sigma)
+            delta = after[..., :15] / na[..., None] - before[..., :15] / nb[..., None]  # (c, J, 15)
+        delta[~((na >= w / 2) & (nb >= w / 2))] = np.nan
+        d = self._d(delta, self.lp, self.lc)  # (c, J, 2, 3)
         frames = e0 + ends
-        self._latest = (dn, frames)
-        self._examine(dn, frames, e, okj, Rs, e0)
+        self._latest = (d, frames)
+        factor = self._motion_factor(delta[..., :9], self.motion0)  # (c, J)
+        self._examine(d / factor[..., None, None], factor, delta, frames, q, e0)
 
     def _examine(
-        self, dn: np.ndarray, frames: np.ndarray, e: np.ndarray, okj: np.ndarray, Rs: np.ndarray, e0: int
+        self, d: np.ndarray, factor: np.ndarray, delta: np.ndarray, frames: np.ndarray, q: np.ndarray, e0: int
     ) -> None:
-        """Test the new normalised ``d`` of every joint (``(c, J, 2, 3)`` at ``frames``), then add the
-        quiet ones to the histories."""
-        # every SLIP_MODEL_S, and as soon as a joint without a model has its warm-up's history
-        fresh = (self.n_hist >= self.warmup) & ~np.isfinite(self.threshold).all(axis=1)
-        for j in np.flatnonzero((frames[0] - self.model_at >= self.model_every) | fresh):
-            if self._model(j):
-                self.model_at[j] = frames[0]
-        ready = (self.n_hist >= self.warmup) & np.isfinite(self.threshold).all(axis=1)
+        """Test the new ``d`` of every joint (``(c, J, 2, 3)`` at ``frames``, divided by the motion
+        ``factor``, ``(c, J)``), then add the quiet ones' product differences (``(c, J, 15)``) to the
+        histories."""
+        ready = np.isfinite(self.threshold).all(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            z = np.linalg.norm(
-                np.where(self.scale > 0, dn / np.where(self.scale > 0, self.scale, 1.0), 0.0), axis=3
-            )
-            ratio = np.nan_to_num(z / self.threshold, nan=0.0, posinf=0.0)  # (c, J, 2)
-        over = (ratio.max(axis=2) > 1.0) & ready
-        for j in np.flatnonzero(over.any(axis=0)):
-            for at in np.flatnonzero(over[:, j]):
-                frame = int(frames[at])
-                if frame <= self.quiet_until[j]:
+            z = np.linalg.norm(d / np.where(self.scale > 0, self.scale, np.inf), axis=3)  # (c, J, 2)
+            over = ((z > self.threshold).any(axis=2) & ready) & (frames[:, None] > self.quiet_until)
+        if over.any():
+            for j in np.flatnonzero(over.any(axis=0)):
+                # an alert just raised silences its sensor's joints (and quiets its neighbours)
+                still = np.flatnonzero(over[:, j] & (frames > self.quiet_until[j]))
+                if not still.size:
                     continue
-                pair = [self.par[j], self.chi[j]]
-                if self._steady(j, frame, e[:, j], okj[:, j], e0, Rs[:, pair]):
-                    self._alert(j, z[at, j], frame, e[:, j], okj[:, j], e0)
+                at = int(still[0])
+                frame = int(frames[at])
+                e, okj, M = self._residual(q[:, j], j)
+                if self._steady(j, frame, e, okj, M, e0, float(factor[at, j])):
+                    self._alert(j, z[at, j], frame, e, okj, e0)
                 else:  # the joint's misfit following the motion: look again a little later
                     self.quiet_until[j] = max(self.quiet_until[j], frame + self.w // 4)
-                break
-        use = np.isfinite(dn).all(axis=(2, 3)) & (frames[:, None] > self.quiet_until[None, :])
-        for j in range(len(self.keys)):
-            idx = np.flatnonzero(use[:, j])
-            if idx.size:
-                slots = (self.n_hist[j] + np.arange(idx.size)) % self.history
-                self.hist[j, slots] = dn[idx, j]
-                self.n_hist[j] += idx.size
+        use = (frames[:, None] > self.quiet_until) & np.isfinite(delta).all(axis=2)
+        use &= (frames % self.stride == 0)[:, None]
+        ci, ji = np.nonzero(use)
+        if ci.size:
+            rank = np.cumsum(use, axis=0)[ci, ji] - 1  # order of each sample within its joint
+            self.hist[ji, (self.n_hist[ji] + rank) % self.history] = delta[ci, ji]
+            counts = use.sum(axis=0)
+            before = self.n_hist.copy()
+            self.n_hist += counts
+            if ((before < self.warmup) & (self.n_hist >= self.warmup)).any():
+                self._models()
 
-    def _model(self, j: int) -> bool:
-        """Refresh joint ``j``'s noise model from its history (:mod:`calibration.slip`'s); False
-        while the history is shorter than the warm-up."""
-        n_hist = int(self.n_hist[j])
-        if n_hist < self.warmup:
-            return False
-        filled = min(n_hist, self.history)
-        # the ring in time order, so that the correlation time sees neighbours as neighbours
-        start = n_hist % self.history if n_hist > self.history else 0
-        hist = self.hist[j, (start + np.arange(filled)) % self.history]  # (filled, 2, 3)
-        tau = _correlation_frames(hist.reshape(filled, 6)).reshape(2, 3).max(axis=1)
-        use = np.ones(filled, dtype=bool)
-        for i in range(2):
-            scale = robust_scale(hist[:, i], use)
-            z = whitened_norm(hist[:, i], scale)
-            tests_per_hour = len(_FRAME_NAMES) * 3600.0 * self.rate / tau[i]
-            self.scale[j, i] = scale
-            self.threshold[j, i] = tail_threshold(z, tests_per_hour, self.owner.false_alarms_per_hour, tau[i])
-        return True
+    @staticmethod
+    def _motion_factor(dM: np.ndarray, typical: np.ndarray | float) -> np.ndarray:
+        """``sqrt(1 + (|dM| / typical)^2)`` (``dM``: ``(..., 9)`` window differences of ``R_p^T R_c``):
+        what ``d`` is divided by, so that the residual's motion-driven part (soft tissue following
+        the joint, fit error: both grow with the joint's rotation between the windows) weighs as
+        much in a fast movement as in a slow one (module docstring)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.sqrt(1.0 + (np.linalg.norm(dM, axis=-1) / typical) ** 2)
 
-    def _steady(self, j: int, frame: int, e: np.ndarray, ok: np.ndarray, e0: int, Rs: np.ndarray) -> bool:
+    def _residual(self, q: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``e`` ``(m, 2, 3)`` (the residual in the parent's and the child's frame, joint ``j`` as
+        fitted now), valid ``(m,)`` and ``M`` ``(m, 3, 3)`` from the held products ``q`` (``(m, 16)``)."""
+        M = q[:, :9].reshape(-1, 3, 3)
+        ok = q[:, 15] > 0.5
+        lp, lc = self.lp[j], self.lc[j]
+        e = np.empty((q.shape[0], 2, 3))
+        e[:, 0] = lp + q[:, 9:12] - M @ lc
+        e[:, 1] = np.einsum("fba,b->fa", M, lp) + q[:, 12:15] - lc
+        return e * ok[:, None, None], ok, M
+
+    def _models(self) -> None:
+        """Every joint's noise model from its history with the joints as fitted now.
+
+        Each side's scale is its own (:func:`calibration.slip_stats.robust_scale` of its ``d``); the
+        tail of the whitened ``z`` above its upper quartile (:func:`calibration.slip_stats.
+        tail_threshold`) is pooled over every joint with its warm-up's history: in units of each
+        joint's own scale the tail's shape is the recording's, and a few seconds of one joint hold
+        too few independent values to bound it (module docstring).
+        """
+        ready = np.flatnonzero(self.n_hist >= self.warmup)
+        if not ready.size:
+            return
+        zs, taus = [], []
+        for j in ready:
+            n_hist = int(self.n_hist[j])
+            filled = min(n_hist, self.history)
+            # the ring in time order, so that the correlation time sees neighbours as neighbours
+            start = n_hist % self.history if n_hist > self.history else 0
+            hist = self.hist[j, (start + np.arange(filled)) % self.history]  # (filled, 15)
+            d = self._d(hist, self.lp[j], self.lc[j])  # (filled, 2, 3)
+            self.motion0[j] = max(float(np.median(np.linalg.norm(hist[:, :9], axis=1))), 1e-12)
+            d = d / self._motion_factor(hist[:, :9], self.motion0[j])[:, None, None]
+            tau = _correlation_frames(d.reshape(filled, 6)).reshape(2, 3).max(axis=1)  # samples
+            use = np.ones(filled, dtype=bool)
+            for i in range(2):
+                # the scale's upper confidence bound from the history's independent values: a joint
+                # seconds old has few (a chi-square bound, as the tail's in tail_threshold)
+                n_eff = max(filled / tau[i], 1.0)
+                bound = np.sqrt(n_eff / float(chi2_ppf(1.0 - LIVE_TAIL_CONFIDENCE, n_eff)))
+                self.scale[j, i] = robust_scale(d[:, i], use) * bound
+                zs.append(whitened_norm(d[:, i], self.scale[j, i]))
+                taus.append(tau[i])
+        tau_all = float(np.median(taus))
+        tests_per_hour = len(_FRAME_NAMES) * 3600.0 * self.rate / (tau_all * self.stride)
+        threshold = tail_threshold(
+            np.concatenate(zs),
+            tests_per_hour,
+            self.owner.false_alarms_per_hour,
+            tau_all,
+            confidence=LIVE_TAIL_CONFIDENCE,
+        )
+        self.threshold[ready] = threshold
+        if np.isfinite(threshold):
+            for j in ready:
+                self.armed_at.setdefault(self.keys[j], self.end - 1)
+
+    def _steady(
+        self, j: int, frame: int, e: np.ndarray, ok: np.ndarray, M: np.ndarray, e0: int, factor: float
+    ) -> bool:
         """Whether a jump up to ``frame`` is a step of the residual's mean that the joint's own fit
         error does not explain.
 
@@ -791,59 +901,67 @@ class _SlipMonitor:
         ``R_i^T A_f dx`` (O'Brien eq. 12's ``A``), which a fast movement turns into a jump of the
         window means. Over the last ``2 w`` frames, each sensor frame's residual is regressed on a
         step at its least-squares change point, a constant and those six columns; the jump stands
-        when the fitted step, over its white-noise standard error, still crosses the threshold.
-        ``e`` is ``(m, 2, 3)`` from frame ``e0``, ``Rs`` the two sensors' ``(m, 2, 3, 3)``.
+        when the fitted step, divided by the crossing's motion ``factor`` and whitened by the noise
+        model of ``d`` (the step a window difference sees at the change point), still crosses the
+        threshold. ``e`` is ``(m, 2, 3)`` from frame
+        ``e0``, ``M`` ``(m, 3, 3)`` the relative rotation ``R_p^T R_c``.
         """
         end = frame - e0 + 1
         lo = max(0, end - 2 * self.w)
         ok_w = ok[lo:end]
-        R = Rs[lo:end][ok_w]  # (m, 2, 3, 3)
-        m = R.shape[0]
-        if m < 12 or not self.sigma[j] > 0:
+        m = int(ok_w.sum())
+        if m < 12:
             return True  # nothing to regress on: the window test alone decides
+        Mw = M[lo:end][ok_w]
+        eye = np.broadcast_to(np.eye(3), Mw.shape)
         for i in range(2):
             e_i = e[lo:end, i][ok_w]
             cp = change_point(e_i, np.ones(m, dtype=bool), 0, m)
             X = np.zeros((m, 3, 12))
             X[cp:, :, 0:3] = np.eye(3)
             X[:, :, 3:6] = np.eye(3)
-            X[:, :, 6:9] = np.einsum("fab,fac->fbc", R[:, i], R[:, 0])  # R_i^T R_p
-            X[:, :, 9:12] = -np.einsum("fab,fac->fbc", R[:, i], R[:, 1])  # -R_i^T R_c
-            X = X.reshape(3 * m, 12)
-            gram_inv = np.linalg.pinv(X.T @ X)
-            theta = gram_inv @ (X.T @ e_i.reshape(3 * m))
-            se = self.sigma[j] * np.sqrt(np.clip(np.diagonal(gram_inv)[:3], 0.0, None))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = np.where(se > 0, theta[:3] / se, 0.0)
-            if whitened_norm(t[None], self.scale[j, i])[0] > self.threshold[j, i]:
+            # R_i^T R_p and -R_i^T R_c: (I, -M) in the parent's frame, (M^T, -I) in the child's
+            X[:, :, 6:9] = eye if i == 0 else np.swapaxes(Mw, 1, 2)
+            X[:, :, 9:12] = -Mw if i == 0 else -eye
+            theta = np.linalg.lstsq(X.reshape(3 * m, 12), e_i.reshape(3 * m), rcond=None)[0]
+            if whitened_norm(theta[None, :3] / factor, self.scale[j, i])[0] > self.threshold[j, i]:
                 return True
         return False
 
     def _moved_side(self, j: int, z: np.ndarray, frame: int) -> int:
         """0 (parent) or 1 (child): which sensor of the jumping joint ``j`` moved.
 
-        A moved sensor's other joints jump with it, the other sensor's do not: each side's evidence
-        is the largest ``z / threshold`` of its other joints at the jump (from ``w / 4`` frames
-        before it to the newest frame). A side without other joints (a leaf) is the moved one when
-        the other side's joints stay below half their threshold. Where that does not decide (two
-        sensors only, or both sides jumping alike), the side whose frame holds the jump more
-        significantly (:mod:`calibration.slip`'s rule, weak over a short window).
+        A sensor that moves by ``delta`` shifts the residual of every one of its joints by
+        ``delta`` in its own frame, over the same frames: the window difference of each of its other
+        joints, in its frame and at the crossing's frame, repeats joint ``j``'s; those of the other
+        sensor's joints do not. Each side's evidence is the largest share of ``j``'s jump one of its
+        other joints repeats (``d_k . d_j / |d_j|^2``, unit-free; the shift enters a joint's
+        residual with ``+`` where the sensor is the parent, ``-`` where it is the child). A side
+        without other joints (a leaf) is the moved one when the other side's evidence is below one
+        half; two sides with other joints, the larger. Where that does not decide (two sensors
+        only, or no valid window), the side whose frame holds the jump more significantly
+        (:mod:`calibration.slip`'s rule, weak over a short window).
         """
         assert self._latest is not None
-        dn, frames = self._latest
-        near = frames >= frame - self.w // 4
-        # joints still in their warm-up have no model: their normalised d against this joint's
-        # threshold (the normalised d's scale is about 1 where the noise is white)
-        modelled = np.isfinite(self.threshold).all(axis=1) & (self.scale > 0).all(axis=(1, 2))
-        scale = np.where(modelled[:, None, None], self.scale, 1.0)
-        threshold = np.where(modelled[:, None], self.threshold, np.max(self.threshold[j]))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            zz = np.linalg.norm(dn[near] / scale, axis=3)  # (c, J, 2)
-            ratio = np.nan_to_num(zz / threshold, nan=0.0, posinf=0.0).max(axis=(0, 2), initial=0.0)  # (J,)
-        evidence: list[float | None] = []
-        for sensor in (self.par[j], self.chi[j]):
-            others = [k for k, key in enumerate(self.keys) if k != j and sensor in key]
-            evidence.append(float(ratio[others].max()) if others else None)
+        d, frames = self._latest
+        at = np.flatnonzero(frames == frame)
+        evidence: list[float | None] = [None, None]
+        if at.size:
+            d_at = d[int(at[0])]  # (J, 2, 3)
+            for side, sensor in enumerate((self.par[j], self.chi[j])):
+                own = d_at[j, side]
+                norm2 = float(own @ own)
+                shares = []
+                for k, key in enumerate(self.keys):
+                    if k == j or sensor not in key:
+                        continue
+                    # joint k's d in this sensor's frame; the sensor's shift enters a joint's
+                    # residual with + as its parent, - as its child
+                    k_side = 0 if key[0] == sensor else 1
+                    other = d_at[k, k_side] * (1.0 if k_side == side else -1.0)
+                    if np.isfinite(other).all() and norm2 > 0:
+                        shares.append(float(other @ own) / norm2)
+                evidence[side] = max(shares) if shares else None
         a, b = evidence
         if a is None and b is not None and b < 0.5:
             return 0
@@ -851,6 +969,10 @@ class _SlipMonitor:
             return 1
         if a is not None and b is not None and max(a, b) >= 0.5 and a != b:
             return 0 if a > b else 1
+        if a is not None and a >= 0.5 and b is None:
+            return 0
+        if b is not None and b >= 0.5 and a is None:
+            return 1
         return int(np.argmax(np.nan_to_num(z / self.threshold[j], nan=0.0, posinf=0.0)))
 
     def _alert(self, j: int, z: np.ndarray, frame: int, e: np.ndarray, ok: np.ndarray, e0: int) -> None:

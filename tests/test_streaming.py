@@ -281,3 +281,54 @@ def test_equals_the_batch_on_a_simulated_session():
         batch = calibrate(rec.R_w_s[sl], rec.p_w_s[sl], rec.names, valid=rec.valid[sl])
         # the batch's exact residuals: millimetres of noise, far above the rounding floor
         _assert_same(batch, sc.calibration(), rms_atol=1e-9)
+
+
+def test_slip_statistic_is_the_window_difference_with_the_joint_as_fitted_now():
+    # the monitor keeps window differences of pose products, in which d is affine in the joint:
+    # with any joint they give exactly the window difference of the residual in each frame
+    from calibration.slip_stats import window_difference
+
+    skeleton, cap = _capture(n_frames=600, noise=0.003)
+    valid = np.random.default_rng(4).random((600, 8)) > 0.1  # missing poses in the windows
+    sc = StreamingCalibrator(skeleton.names, rate_hz=RATE)
+    sc.push(cap.R_w_s, cap.p_w_s, valid)
+    monitor = sc._monitor
+    d, frames = monitor._latest
+    assert frames[-1] == 599
+    w = monitor.w
+    fitted = (monitor.lp, monitor.lc)
+    other = np.random.default_rng(5).normal(scale=0.1, size=(2, len(monitor.keys), 3))
+    for lp, lc in (fitted, other):
+        after, before = monitor.q[w:], monitor.q[:w]  # the last 2 w frames' products
+        delta = after[..., :15].sum(0) / after[..., 15:].sum(0) - before[..., :15].sum(0) / before[
+            ..., 15:
+        ].sum(0)
+        got = monitor._d(delta, lp, lc)  # (J, 2, 3)
+        for k, (a, b) in enumerate(monitor.keys):
+            Rp, Rc = cap.R_w_s[:, a], cap.R_w_s[:, b]
+            ok = valid[:, a] & valid[:, b]
+            r = np.einsum("fab,b->fa", Rp, lp[k]) + cap.p_w_s[:, a] - np.einsum("fab,b->fa", Rc, lc[k])
+            r -= cap.p_w_s[:, b]
+            for side, Rs in enumerate((Rp, Rc)):
+                e = np.einsum("fba,fb->fa", Rs, r)
+                want = window_difference(e, ok, w)[600 - w]  # [600 - 2w, 600 - w) against [600 - w, 600)
+                assert_allclose(got[k, side], want, atol=1e-12)
+                if lp is fitted[0]:  # what the monitor tested at the last frame
+                    assert_allclose(d[-1, k, side], want, atol=1e-12)
+
+
+def test_a_joint_whose_parent_and_child_swap_keeps_its_slip_history():
+    # a new root turns a joint round: its residual changes sign and its two frames swap, so its
+    # history's window differences give d' = -d with the frames swapped (the joint kept, not reset)
+    from calibration.streaming import _flipped
+
+    skeleton, cap = _capture(n_frames=400, noise=0.003)
+    sc = StreamingCalibrator(skeleton.names, rate_hz=RATE)
+    sc.push(cap.R_w_s, cap.p_w_s)
+    monitor = sc._monitor
+    hist = monitor.hist[:, : int(monitor.n_hist.min())]  # (J, n, 15)
+    lp, lc = monitor.lp, monitor.lc
+    d = np.stack([monitor._d(hist[k], lp[k], lc[k]) for k in range(len(monitor.keys))])
+    d_swapped = np.stack([monitor._d(_flipped(hist[k]), lc[k], lp[k]) for k in range(len(monitor.keys))])
+    assert hist.shape[1] >= 10 and np.abs(d).max() > 1e-3  # something to compare
+    assert_allclose(d_swapped, -d[..., ::-1, :], atol=1e-12)

@@ -55,6 +55,32 @@ def with_slip(
     return dataclasses.replace(config, skin=skin)
 
 
+def recording_with_slip(
+    recording: PoseRecording, sensor: str, time_s: float, offset: Sequence[float]
+) -> PoseRecording:
+    """A recording with one slip injected into its poses: from the first frame at or after ``time_s``
+    (seconds, the recording's clock), ``sensor`` sits ``offset`` (``(3,)``, the recording's length
+    unit, in the sensor's own frame) away from where it was on its segment (``p += R @ offset``).
+
+    Raises:
+        InputError: an unknown sensor, or a time past the recording's end.
+    """
+    if sensor not in recording.names:
+        raise InputError(f"no sensor {sensor!r} in the recording; sensors are {list(recording.names)}")
+    frame = int(np.searchsorted(recording.time_s, time_s))
+    if frame >= recording.time_s.size:
+        raise InputError(
+            f"slip time {time_s:g} s is past the recording's last frame ({recording.time_s[-1]:g} s)"
+        )
+    delta = np.asarray(offset, dtype=float)
+    if delta.shape != (3,):
+        raise InputError(f"Expected offset to have shape (3,), got {delta.shape}")
+    k = recording.names.index(sensor)
+    p = recording.p_w_s.copy()
+    p[frame:, k] += np.einsum("fab,b->fa", recording.R_w_s[frame:, k], delta)
+    return dataclasses.replace(recording, p_w_s=p)
+
+
 def live_blocks(
     recording: PoseRecording,
     *,
