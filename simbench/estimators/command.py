@@ -35,6 +35,7 @@ from typing import Any
 
 from simbench.errors import InputError
 from simbench.estimators.registry import Estimator, JointsResult, OrientationResult, Param
+from simbench.io.atomic import outside_output_set
 from simbench.io.calibration_json import read_calibration_json
 from simbench.io.imu import ImuRecording
 from simbench.io.imu_csv import write_imu_csv
@@ -123,7 +124,8 @@ def command_estimator(spec: str, kind: str | None = None) -> Estimator:
         ) -> JointsResult | dict[str, Any]:
             with tempfile.TemporaryDirectory(prefix="simbench-cmd-") as tmp:
                 paths = {k: Path(tmp) / v for k, v in allowed.items()}
-                write_pose_csv(paths["poses"], poses, units="m")
+                with outside_output_set():  # the program's inputs, read before the command ends
+                    write_pose_csv(paths["poses"], poses, units="m")
                 if "hierarchy" in used:
                     paths["hierarchy"].write_text(json.dumps(dict(hierarchy or {}), indent=2) + "\n")
                 _run(spec, argv, paths, tmp, time_limit_s)
@@ -138,7 +140,8 @@ def command_estimator(spec: str, kind: str | None = None) -> Estimator:
         def run_orientation(imu: ImuRecording, *, time_limit_s: float = TIME_LIMIT_S) -> OrientationResult:
             with tempfile.TemporaryDirectory(prefix="simbench-cmd-") as tmp:
                 paths = {k: Path(tmp) / v for k, v in allowed.items()}
-                write_imu_csv(paths["imu"], imu.names, imu.time_s, imu.acc, imu.gyro, imu.mag)
+                with outside_output_set():  # the program's input, read before the command ends
+                    write_imu_csv(paths["imu"], imu.names, imu.time_s, imu.acc, imu.gyro, imu.mag)
                 _run(spec, argv, paths, tmp, time_limit_s)
                 try:
                     q = read_orientation_csv(paths["out"], imu.names, imu.time_s)

@@ -117,6 +117,18 @@ def output_set() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def outside_output_set() -> Iterator[None]:
+    """Files written inside the ``with`` block replace their destinations at once, whatever
+    :func:`output_set` is active: a command's working files (an estimator program's inputs in a
+    temporary folder), which other code reads before the command ends, are none of its outputs."""
+    token = _PENDING.set(None)
+    try:
+        yield
+    finally:
+        _PENDING.reset(token)
+
+
+@contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str], *, in_set: bool = True) -> Iterator[Path]:
     """A temporary path beside ``path`` that replaces it when the ``with`` block succeeds (or,
     inside an :func:`output_set`, when the set's block does).
