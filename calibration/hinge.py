@@ -38,6 +38,35 @@ fit with exactly one dropped direction is single-axis.
 Both numerator and denominator are lengths, so ``t``, the interval and the residual scale
 together and the verdict is the same in m, mm or inches.
 
+**Effect size: can the wobble place the centre along the axis at all?** A significance test
+alone flips with the recording's length and noise: a hinge wobbling 2 degrees about a centre
+that the sensors do not straddle is called a ball joint once enough clean frames accumulate,
+and not in a shorter or noisier recording of the same rig. The verdict therefore also asks
+whether the off-axis motion is large enough to place the centre along the weakest direction
+against the residual's *systematic* part (skin, play and tracker distortion that move with the
+joint, which more frames do not average away). An error vector ``e`` of rms ``r_sys`` per frame
+moves the coefficient along ``v_j`` by ``(u_j . e) / s_j``, at most ``r_sys sqrt(n) / s_j``
+(Cauchy-Schwarz, ``|u_j| = 1``), i.e. the joint by at most
+
+    B_j = r_sys sqrt(n) / (sqrt(2) s_j) = r_sys / phi_j,   phi_j = sqrt(2) s_j / sqrt(n),
+
+``phi_j`` the rms relative rotation (rad) that direction sees (for a hinge's axis: the rms
+off-axis wobble). This is the rule of the functional-joint-centre literature, the centre's error
+grows as noise over range of motion (Ehrig et al. 2006, J Biomech 39:2798; Camomilla et al.
+2006, J Biomech 39:1096), with the noise measured: ``r_sys^2`` is the ball model's mean square
+residual less its white noise, read off the residual's third differences
+(:mod:`calibration.pair_noise`); white noise averages out and is the test's business. The
+weakest direction is undetermined whatever the test says when ``B_6`` exceeds
+:data:`UNCERTAIN_FRACTION` of the sensors' rms distance (the limit the motion warnings of
+:mod:`calibration.diagnostics` put on a centre's error): the centre could then lie anywhere over
+a fifth of the pair's extent along the axis. ``B_6`` does not depend on the recording's length
+(``s_j^2`` grows as ``n``) and is a ratio of lengths (unit-free). Only the weakest direction is
+judged so (the single-axis verdict); stronger directions keep the test alone, and the motion
+warnings report their bound. On messy simulated hinges with 2 degrees rms wobble ``B_6`` is
+0.6-0.9 of the distance, on ball joints moved about two or three axes 0.04-0.08
+(studies/hinge_verdict.py). Without the third differences (pair statistics made without them)
+the rule is not applied.
+
 **Hard floor.** Directions with ``s_j < floor * s_max`` are undetermined whatever the test says
 (:func:`calibration.joint.determined_directions`): below :data:`calibration.joint.SINGLE_AXIS_RATIO`
 (1e-4: about 0.2 mrad, 0.01 degree, rms off the axis, finer than any tracker resolves) the test
@@ -59,6 +88,11 @@ from calibration.quantiles import t_ppf
 #: recording longer than this many frames is cut into between ``N_BLOCKS / 2 + 1`` and
 #: ``N_BLOCKS`` blocks.
 N_BLOCKS = 32
+
+#: A direction is undetermined when the bound on its centre's bias exceeds this fraction of the
+#: sensors' rms distance (module docstring; the motion warnings' limit,
+#: :mod:`calibration.diagnostics`).
+UNCERTAIN_FRACTION = 0.2
 
 #: Two-sided level of the test: the chance that a true hinge (noise only along its axis) is
 #: called a ball joint, when the residual's correlation is shorter than a block.
@@ -185,8 +219,52 @@ def testable_directions(singular_values: np.ndarray, n_frames: np.ndarray) -> np
     return np.square(s) < np.asarray(n_frames, dtype=float)[..., None]
 
 
+def systematic_rms(rms_residual: np.ndarray, white_variance: np.ndarray) -> np.ndarray:
+    """``sqrt(max(r^2 - nu, 0))``: the part of an rms residual ``r`` that is not white noise of
+    variance ``nu`` (:mod:`calibration.pair_noise`), same length unit; ``r`` where ``nu`` is NaN."""
+    r2 = np.square(np.asarray(rms_residual, dtype=float))
+    nu = np.nan_to_num(np.asarray(white_variance, dtype=float), nan=0.0)
+    return np.sqrt(np.clip(r2 - nu, 0.0, None))
+
+
+def bias_bounds(rms_systematic: np.ndarray, singular_values: np.ndarray, n_frames: np.ndarray) -> np.ndarray:
+    """``(..., 6)`` ``B_j = r_sys sqrt(n) / (sqrt(2) s_j)``: the most a systematic error of rms
+    ``r_sys`` per frame moves the joint centre along each direction ``v_j`` (module docstring),
+    in ``r_sys``'s unit; ``inf`` where ``s_j = 0`` and ``r_sys > 0``, 0 where ``r_sys = 0``.
+
+    Args:
+        rms_systematic: ``(...,)`` from :func:`systematic_rms`.
+        singular_values: ``(..., 6)`` ``s_j`` of ``A``, descending.
+        n_frames: ``(...,)`` frames of the fit.
+    """
+    s = np.asarray(singular_values, dtype=float)
+    r = np.asarray(rms_systematic, dtype=float)[..., None]
+    n = np.asarray(n_frames, dtype=float)[..., None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = r * np.sqrt(n) / (np.sqrt(2.0) * s)
+    return np.where(r == 0.0, 0.0, out)
+
+
+def biased_directions(
+    rms_systematic: np.ndarray, singular_values: np.ndarray, n_frames: np.ndarray, separation: np.ndarray
+) -> np.ndarray:
+    """``(..., 6)`` bool: True for the weakest direction when its bias bound (:func:`bias_bounds`)
+    exceeds :data:`UNCERTAIN_FRACTION` of the sensors' rms distance ``separation`` (same unit);
+    the other directions are False (module docstring: only the single-axis verdict rests on it)."""
+    bound = bias_bounds(rms_systematic, singular_values, n_frames)
+    out = np.zeros(bound.shape, dtype=bool)
+    sep = np.asarray(separation, dtype=float)
+    out[..., -1] = bound[..., -1] > UNCERTAIN_FRACTION * sep  # NaN: False
+    return out
+
+
 def hinge_verdict(
-    floor_keep: np.ndarray, t: np.ndarray, t_crit: np.ndarray, testable: np.ndarray, precise: np.ndarray
+    floor_keep: np.ndarray,
+    t: np.ndarray,
+    t_crit: np.ndarray,
+    testable: np.ndarray,
+    precise: np.ndarray,
+    biased: np.ndarray | None = None,
 ) -> np.ndarray:
     """Directions the data determine: the floor's, minus the weakest ones whose test fails.
 
@@ -196,12 +274,18 @@ def hinge_verdict(
         t_crit: ``(...,)`` critical values from :func:`critical_t`.
         testable: ``(..., 6)`` bool, from :func:`testable_directions`.
         precise: ``(..., 6)`` bool, from :func:`precise_directions`.
+        biased: ``(..., 6)`` bool, from :func:`biased_directions` (``None``: none): undetermined
+            whatever the test says (the effect size of the module docstring).
 
     Returns:
         ``(..., 6)`` bool: directions dropped from the weakest kept one upward while they are
-        testable, not precise and their test is not significant (stopping at the first kept).
+        testable and either biased, or not precise and their test is not significant
+        (stopping at the first kept).
     """
-    insignificant = floor_keep & testable & ~precise & (t < t_crit[..., None])  # NaN: kept
+    failed = ~precise & (t < t_crit[..., None])  # NaN: kept
+    if biased is not None:
+        failed = failed | biased
+    insignificant = floor_keep & testable & failed
     # a kept direction survives when it, or a weaker kept direction, is significant
     significant = floor_keep & ~insignificant
     weaker_or_self = np.flip(np.cumsum(np.flip(significant, axis=-1), axis=-1), axis=-1) > 0

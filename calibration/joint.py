@@ -40,14 +40,17 @@ import numpy as np
 from calibration.eiv import check_noise, corrected_solution
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hinge import (
+    biased_directions,
     block_of_frame,
     critical_t,
     hinge_verdict,
     precise_directions,
     score_t,
     score_variance,
+    systematic_rms,
     testable_directions,
 )
+from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 
 #: Hard floor on ``s / s_max`` below which a direction is undetermined whatever the test says:
 #: 1e-4 is about 0.2 mrad (0.01 degree) rms off the axis, finer than any tracker resolves, so
@@ -299,7 +302,7 @@ def fit_joint(
     b = (p_w_c[ok] - p_w_p[ok]).reshape(3 * n_used)  # O'Brien eq. 11
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     floor_keep = determined_directions(s, single_axis_ratio)
-    keep, t = _tested_directions(A, b, U, s, Vt, floor_keep, block_of_frame(n_total)[ok])
+    keep, t = _tested_directions(A, b, U, s, Vt, floor_keep, block_of_frame(n_total)[ok], np.flatnonzero(ok))
     spectrum = read_spectrum(s, Vt.T, single_axis_ratio, keep)
     x = _min_norm(U, s, Vt, b, keep)
     if max(noise) > 0.0:
@@ -337,11 +340,13 @@ def _tested_directions(
     Vt: np.ndarray,
     floor_keep: np.ndarray,
     block: np.ndarray,
+    frame: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(6,)`` bool, the directions the data determine (:func:`calibration.hinge.hinge_verdict`),
     and ``(6,)`` the ``|t|`` of every direction's test.
 
-    ``A`` is ``(3 n, 6)``, ``b`` ``(3 n,)`` and ``block`` ``(n,)`` the block of each used frame.
+    ``A`` is ``(3 n, 6)``, ``b`` ``(3 n,)``, ``block`` ``(n,)`` the block of each used frame and
+    ``frame`` ``(n,)`` its index in the recording (third differences over four consecutive frames).
     """
     r = (A @ _min_norm(U, s, Vt, b, floor_keep) - b).reshape(-1, 3)  # the ball model's residual
     per_frame = np.einsum("fij,fi->fj", (A @ Vt.T).reshape(-1, 3, 6), r)  # (n, 6) scores
@@ -356,4 +361,20 @@ def _tested_directions(
     precise = precise_directions(var, s * s, t_crit, rms)
     testable = testable_directions(s, block.size)
     t = score_t(proj, var)
-    return hinge_verdict(floor_keep, t, t_crit, testable, precise), t
+    separation = np.sqrt(np.mean(np.sum(b.reshape(-1, 3) ** 2, axis=1)))
+    r_sys = systematic_rms(rms, residual_white_variance(r, frame))
+    biased = biased_directions(r_sys, s, block.size, separation)
+    return hinge_verdict(floor_keep, t, t_crit, testable, precise, biased), t
+
+
+def residual_white_variance(residual: np.ndarray, frame: np.ndarray) -> float:
+    """The white-noise variance of a joint's ``(n, 3)`` residual vectors at frames ``frame``
+    ``(n,)`` (increasing): the mean squared norm of their third differences over four
+    consecutive frames over 20 (:mod:`calibration.pair_noise`); 0 with no such four frames."""
+    if frame.size < 4:
+        return 0.0
+    run = frame[3:] - frame[:-3] == 3
+    if not run.any():
+        return 0.0
+    d3 = residual[3:] - 3.0 * residual[2:-1] + 3.0 * residual[1:-2] - residual[:-3]
+    return float(np.sum(d3[run] ** 2) / np.count_nonzero(run) / THIRD_DIFFERENCE_GAIN)
