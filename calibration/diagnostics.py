@@ -33,7 +33,12 @@ size that moves with the joint can shift the centre, in metres. A joint whose ``
 :data:`UNCERTAIN_FRACTION` of the sensors' distance is reported too (a ratio of lengths, and
 independent of the recording's length: more frames of the same small motion do not help). The
 advice fits the verdict: a joint judged single-axis is asked to flex more about its axis, never
-to turn across it.
+to turn across it. A joint whose bound is large although its motion meets the literature's range
+(:func:`well_moved`: the least exercised direction turns as much as a sinusoid of 20 degrees
+peak to peak) is not short of
+motion: its residual is too large for any joint of a body (a pair that is no joint, such as an
+upper arm and a hand with the forearm between them missing, 128 mm rms on a real arm; or a marker
+cluster joined across a joint), and it is reported as such instead.
 
 **Residual far above the others.** A tree joint between two sensors that are not neighbours
 (a hierarchy given wrong, or a sensor whose true neighbour is missing) leaves a residual many
@@ -373,6 +378,7 @@ def motion_warnings(
     chunk_frames: int = CHUNK_FRAMES,
     block_sums: np.ndarray | None = None,
     white_variance: np.ndarray | None = None,
+    reported: frozenset[int] = frozenset(),
 ) -> list[str]:
     """Warnings for joints whose centre the motion hardly determines (module docstring): a
     jackknife standard error or a bias bound above :data:`UNCERTAIN_FRACTION` of the distance.
@@ -391,6 +397,8 @@ def motion_warnings(
             pass over the data.
         white_variance: ``(J,)`` white-noise variance of each joint's residual, m^2, for the bias
             bound (:func:`motion_bias_bounds`); ``None``: the whole residual counts as systematic.
+        reported: joints (indices into ``pairs``) whose residual :func:`residual_warnings` reports
+            already: a well moved one is not reported twice as a pair that is no joint.
     """
     par = np.array([p for p, _ in pairs], dtype=np.int64)
     chi = np.array([c for _, c in pairs], dtype=np.int64)
@@ -412,6 +420,11 @@ def motion_warnings(
     out = []
     for k, rng in zip(flagged, ranges, strict=True):
         fit, sep = fits[k], float(separation[k])
+        if unc[k] <= limit[k] and well_moved(phi[k]):
+            if k in reported:
+                continue
+            out.append(_residual_too_large(names[par[k]], names[chi[k]], fit, rng, float(bound[k]), sep))
+            continue
         how = (
             f"the data determine only {fit.rank} of its 6 directions (condition "
             f"{fit_condition(fit.singular_values, 6):.3g})"
@@ -429,6 +442,27 @@ def motion_warnings(
             f"{motion_advice(fit, bool(bound[k] > limit[k]))}"
         )
     return out
+
+
+def well_moved(phi_rad: float) -> bool:
+    """The literature's range of motion (module docstring) is met along the direction a bias bound
+    is taken along: its rms rotation ``phi_rad`` (:func:`motion_bias_bounds`) is at least that of a
+    sinusoid spanning :data:`LITERATURE_RANGE_DEG` peak to peak (``range / (2 sqrt 2)``, 7.1
+    degrees). For a ball joint that direction is the least exercised, so both planes are met."""
+    return bool(np.isfinite(phi_rad) and phi_rad >= np.deg2rad(LITERATURE_RANGE_DEG) / (2.0 * np.sqrt(2.0)))
+
+
+def _residual_too_large(parent: str, child: str, fit: Any, rng: np.ndarray, bound: float, sep: float) -> str:
+    """The warning for a joint whose bias bound is large although it moved well: its residual,
+    not its motion, is what cannot place the centre (module docstring)."""
+    return (
+        f"joint {parent}-{child}: residual {fit.rms_residual * 1e3:.3g} mm rms is too large for its "
+        f"motion to place a centre: bias bound {bound * 1e3:.3g} mm ({100 * bound / sep:.0f} % of the "
+        f"{sep * 1e3:.3g} mm between the sensors) although it turned through "
+        f"{', '.join(f'{x:.1f}' for x in rng)} deg along its principal axes. {parent} and {child} are "
+        "probably not neighbours (a segment between them missing: check the hierarchy), or one of "
+        "them is not one rigid body (a marker cluster joined across a joint: check the clusters)"
+    )
 
 
 def motion_advice(fit: Any, across_too: bool = False) -> str:
@@ -454,6 +488,19 @@ def motion_advice(fit: Any, across_too: bool = False) -> str:
     )
 
 
+def _outliers(rms_residual: np.ndarray, separation: np.ndarray) -> list[tuple[int, float, float]]:
+    """:func:`residual_outliers` at the precision floor of the sensors' median distance."""
+    floor = NOISE_FREE_FRACTION * float(np.nanmedian(separation)) if np.size(separation) else 0.0
+    return residual_outliers(rms_residual, floor if np.isfinite(floor) else 0.0)
+
+
+def residual_flagged(rms_residual: np.ndarray, separation: np.ndarray) -> frozenset[int]:
+    """The joints :func:`residual_warnings` reports (indices)."""
+    sep, rms = np.asarray(separation, dtype=float), np.asarray(rms_residual, dtype=float)
+    unexplained = np.flatnonzero((sep > 0) & (rms > UNEXPLAINED_FRACTION * sep))
+    return frozenset(k for k, _, _ in _outliers(rms, sep)) | frozenset(int(k) for k in unexplained)
+
+
 def residual_warnings(
     names: tuple[str, ...], pairs: list[tuple[int, int]], rms_residual: np.ndarray, separation: np.ndarray
 ) -> list[str]:
@@ -467,8 +514,7 @@ def residual_warnings(
         separation: ``(J,)`` the rms distance between each joint's sensors, metres.
     """
     out = []
-    floor = NOISE_FREE_FRACTION * float(np.nanmedian(separation)) if np.size(separation) else 0.0
-    for k, z, ratio in residual_outliers(rms_residual, floor if np.isfinite(floor) else 0.0):
+    for k, z, ratio in _outliers(rms_residual, separation):
         p, c = pairs[k]
         test = "the largest other joint's"
         if not np.isnan(z):

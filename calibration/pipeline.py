@@ -62,6 +62,7 @@ from calibration.diagnostics import (
     jackknife_block_sums,
     motion_bias_bounds,
     motion_warnings,
+    residual_flagged,
     residual_warnings,
 )
 from calibration.eiv import orientation_noise_variance
@@ -820,6 +821,7 @@ def _diagnostic_warnings(  # positional: one private caller
         chunk_frames=chunk_frames,
         block_sums=block_sums,
         white_variance=white,
+        reported=residual_flagged(np.array([f.rms_residual for f in fits]), separation),
     )
     rms = np.array([f.rms_residual for f in fits])
     return warnings + residual_warnings(names, pairs, rms, separation)

@@ -190,3 +190,39 @@ def test_real_hip_trial_is_well_moved():
     bound, _ = motion_bias_bounds([hip.fit], None)  # the whole residual: an upper bound
     assert bound[0] < 0.15 * 0.352  # measured 0.096 of the 352 mm between the clusters
     assert not hip.fit.single_axis
+
+
+def _chain_without_its_middle(seed, n_frames=3000, amplitude_deg=40.0):
+    """An upper arm, a forearm (0.25 m, left out) and a hand, both joints turning by up to
+    ``amplitude_deg`` about three axes: the two sensors left share no joint.
+    Returns ``(R_w_s (F, 2, 3, 3), p_w_s (F, 2, 3))`` of the upper arm and the hand, metres."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_frames) / 100.0
+
+    def turning():
+        freq, phase = rng.uniform(0.2, 0.6, 3), rng.uniform(0, 2 * np.pi, 3)
+        return rotvec_to_matrix(np.deg2rad(amplitude_deg) * np.sin(2 * np.pi * freq * t[:, None] + phase))
+
+    R_p = rotvec_to_matrix(
+        np.stack([0.3 * np.sin(0.1 * t), 0.2 * np.cos(0.13 * t), 0.5 * np.sin(0.07 * t)], 1)
+    )
+    R_m = R_p @ turning()
+    R_c = R_m @ turning()
+    p_p = np.stack([np.sin(0.2 * t), np.cos(0.17 * t), 0.9 + 0.1 * np.sin(0.3 * t)], axis=1)
+    elbow = p_p + R_p @ np.array([0.0, 0.0, -0.2])
+    wrist = elbow + R_m @ np.array([0.0, 0.0, -0.25])
+    p_c = wrist + R_c @ np.array([0.0, 0.01, -0.06]) + rng.normal(0, 5e-4, (n_frames, 3))
+    return np.stack([R_p, R_c], axis=1), np.stack([p_p, p_c], axis=1)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pair_that_is_no_joint_is_reported_as_such(seed):
+    # upper arm to hand with the forearm missing: a residual of about a decimetre although both
+    # turned through tens of degrees -- reported as a pair that is no joint, not as too little motion
+    R, p = _chain_without_its_middle(seed)
+    cal = calibrate(R, p, ["upper_arm", "hand"], parent_of={"hand": "upper_arm"})
+    assert cal.joints[0].fit.rms_residual > 0.05
+    found = [w for w in cal.warnings if "too large for its motion" in w]
+    assert len(found) == 1 and found[0].startswith("joint upper_arm-hand:")
+    assert "not neighbours" in found[0]
+    assert not [w for w in cal.warnings if UNDETERMINED in w]  # its motion is not what is missing
