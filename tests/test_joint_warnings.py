@@ -15,7 +15,10 @@ from calibration.joint import residual_white_variance
 from calibration.pairs import pair_statistics, solve_pairs
 from calibration.rotations import rotvec_to_matrix
 from calibration.uncertainty import to_json
+from simbench.cli.table import format_table
 from simbench.io.c3d import c3d_poses, read_cluster_spec
+from simbench.io.calibration_json import calibration_to_dict
+from simbench.io.poses import PoseRecording
 from simbench.sim.synthetic import messy_joint
 
 HERE = Path(__file__).resolve().parent
@@ -226,3 +229,19 @@ def test_a_pair_that_is_no_joint_is_reported_as_such(seed):
     assert len(found) == 1 and found[0].startswith("joint upper_arm-hand:")
     assert "not neighbours" in found[0]
     assert not [w for w in cal.warnings if UNDETERMINED in w]  # its motion is not what is missing
+
+
+def test_the_table_shows_the_bias_bound_beside_the_regions():
+    R, p, _ = _two_segments(3.0, 0)
+    rec = PoseRecording(
+        ("pelvis", "thigh"), np.arange(R.shape[0]) / 100.0, R, p, np.ones((R.shape[0], 2), bool)
+    )
+    cal = calibrate(R, p, rec.names, parent_of={"thigh": "pelvis"}, intervals=True)
+    table = format_table(rec, cal, [])
+    assert "bias ≤" in table
+    bound_cm = f"{cal.joints[0].uncertainty.bias_bound_m * 100:.2f}"
+    row = next(line for line in table.splitlines() if "pelvis -> thigh" in line and "parent" in line)
+    assert row.split()[-1] == bound_cm
+    assert calibration_to_dict(cal)["joints"][0]["uncertainty"]["bias_bound_m"] == pytest.approx(
+        cal.joints[0].uncertainty.bias_bound_m
+    )
