@@ -69,8 +69,8 @@ from typing import Any
 
 import numpy as np
 
+from calibration.hinge import LITERATURE_RANGE_DEG, WELL_MOVED_RMS_RAD, bias_bounds, systematic_rms
 from calibration.hinge import UNCERTAIN_FRACTION as HINGE_FRACTION
-from calibration.hinge import bias_bounds, systematic_rms
 from calibration.joint import LOCATED_RANK
 from calibration.pairs import PairStatistics
 from calibration.poses import CHUNK_FRAMES, iter_chunks
@@ -80,10 +80,6 @@ from calibration.rotations import matrix_to_rotvec
 #: of the sensors' distance (:data:`calibration.hinge.UNCERTAIN_FRACTION`, re-exported).
 UNCERTAIN_FRACTION = HINGE_FRACTION
 
-#: The range of motion the functional-joint-centre literature asks of each of at least two
-#: planes, degrees (Ehrig et al. 2006; Camomilla et al. 2006: "tens of degrees"); quoted in the
-#: advice, the decision rests on the bias bound.
-LITERATURE_RANGE_DEG = 20.0
 
 #: Modified z-score (Iglewicz and Hoaglin 1993) above which a joint's log residual is an outlier.
 OUTLIER_Z = 3.5
@@ -359,7 +355,7 @@ def motion_bias_bounds(fits: list[Any], white_variance: np.ndarray | None) -> tu
     for k, fit in enumerate(fits):
         if fit.rank < LOCATED_RANK:
             continue
-        r_sys = systematic_rms(fit.rms_residual, white[k])
+        r_sys = systematic_rms(fit.rms_residual, white[k], fit.n_frames)
         j = fit.rank - 1
         bound[k] = float(bias_bounds(r_sys, fit.singular_values, fit.n_frames)[j])
         phi[k] = float(np.sqrt(2.0) * fit.singular_values[j] / np.sqrt(max(fit.n_frames, 1)))
@@ -449,7 +445,7 @@ def well_moved(phi_rad: float) -> bool:
     is taken along: its rms rotation ``phi_rad`` (:func:`motion_bias_bounds`) is at least that of a
     sinusoid spanning :data:`LITERATURE_RANGE_DEG` peak to peak (``range / (2 sqrt 2)``, 7.1
     degrees). For a ball joint that direction is the least exercised, so both planes are met."""
-    return bool(np.isfinite(phi_rad) and phi_rad >= np.deg2rad(LITERATURE_RANGE_DEG) / (2.0 * np.sqrt(2.0)))
+    return bool(np.isfinite(phi_rad) and phi_rad >= WELL_MOVED_RMS_RAD)
 
 
 def _residual_too_large(parent: str, child: str, fit: Any, rng: np.ndarray, bound: float, sep: float) -> str:

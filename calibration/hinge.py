@@ -40,32 +40,43 @@ together and the verdict is the same in m, mm or inches.
 
 **Effect size: can the wobble place the centre along the axis at all?** A significance test
 alone flips with the recording's length and noise: a hinge wobbling 2 degrees about a centre
-that the sensors do not straddle is called a ball joint once enough clean frames accumulate,
-and not in a shorter or noisier recording of the same rig. The verdict therefore also asks
-whether the off-axis motion is large enough to place the centre along the weakest direction
-against the residual's *systematic* part (skin, play and tracker distortion that move with the
-joint, which more frames do not average away). An error vector ``e`` of rms ``r_sys`` per frame
-moves the coefficient along ``v_j`` by ``(u_j . e) / s_j``, at most ``r_sys sqrt(n) / s_j``
-(Cauchy-Schwarz, ``|u_j| = 1``), i.e. the joint by at most
+that the sensors do not straddle is called a ball joint once enough clean frames accumulate, and
+not in a shorter or noisier recording of the same rig. The verdict therefore also asks whether
+the off-axis motion is large enough to place the centre along the weakest direction against the
+residual's *systematic* part (skin, play and tracker distortion that move with the joint, which
+more frames do not average away). An error vector ``e`` of rms ``r_sys`` per frame moves the
+coefficient along ``v_j`` by ``(u_j . e) / s_j``, at most ``r_sys sqrt(n) / s_j`` (Cauchy-
+Schwarz, ``|u_j| = 1``), i.e. the joint by at most
 
     B_j = r_sys sqrt(n) / (sqrt(2) s_j) = r_sys / phi_j,   phi_j = sqrt(2) s_j / sqrt(n),
 
-``phi_j`` the rms relative rotation (rad) that direction sees (for a hinge's axis: the rms
-off-axis wobble). This is the rule of the functional-joint-centre literature, the centre's error
+``phi_j`` the rms relative rotation (rad) that direction sees (for a hinge's axis: the rms off-
+axis wobble). This is the rule of the functional-joint-centre literature, the centre's error
 grows as noise over range of motion (Ehrig et al. 2006, J Biomech 39:2798; Camomilla et al.
 2006, J Biomech 39:1096), with the noise measured: ``r_sys^2`` is the ball model's mean square
 residual less its white noise, read off the residual's third differences
-(:mod:`calibration.pair_noise`); white noise averages out and is the test's business. The
+(:mod:`calibration.pair_noise`) and taken at its upper 97.5 % confidence limit
+(:func:`systematic_rms`); white noise averages out and is the test's business. The
 weakest direction is undetermined whatever the test says when ``B_6`` exceeds
 :data:`UNCERTAIN_FRACTION` of the sensors' rms distance (the limit the motion warnings of
 :mod:`calibration.diagnostics` put on a centre's error): the centre could then lie anywhere over
-a fifth of the pair's extent along the axis. ``B_6`` does not depend on the recording's length
-(``s_j^2`` grows as ``n``) and is a ratio of lengths (unit-free). Only the weakest direction is
-judged so (the single-axis verdict); stronger directions keep the test alone, and the motion
-warnings report their bound. On messy simulated hinges with 2 degrees rms wobble ``B_6`` is
-0.6-0.9 of the distance, on ball joints moved about two or three axes 0.04-0.08
-(studies/hinge_verdict.py). Without the third differences (pair statistics made without them)
-the rule is not applied.
+a fifth of the pair's extent along the axis. A shift along the weakest direction larger than
+``B_6`` (``|u_6 . b| > r_sys sqrt(n)``: imposing the hinge would more than double the residual's
+systematic sum of squares) is no artefact and keeps the direction: a ball joint that turned
+little about one axis but whose centre lies well off the minimum-norm point is not made a hinge
+with a displaced centre. The question is one of a hinge's axis, so it is asked only when the
+next direction is placed (``B_5`` within the limit): a joint that barely moved in every
+direction (a hip in a knee trial) is left to the test, and the motion warnings report it as a
+ball joint to be moved in two or more directions. Nor is a direction that turned as much as the
+literature asks
+(:data:`WELL_MOVED_RMS_RAD`, the rms of 20 degrees peak to peak): its bound is large for its
+residual -- a slipped sensor, a pair that is no joint -- not for its motion. Both ``B_6`` and
+that shift are independent of the recording's length (``s_j^2`` and ``u_6 . b`` grow as ``n``
+and ``sqrt(n)``) and are lengths (unit-free). Only the weakest direction is judged so (the
+single-axis verdict); stronger directions keep the test alone, and the motion warnings report
+their bound. On messy simulated hinges with 2 degrees rms wobble ``B_6`` is 0.6-0.9 of the
+distance, on ball joints moved about two or three axes 0.04-0.08 (studies/hinge_verdict.py).
+Without the third differences (pair statistics made without them) the rule is not applied.
 
 **Hard floor.** Directions with ``s_j < floor * s_max`` are undetermined whatever the test says
 (:func:`calibration.joint.determined_directions`): below :data:`calibration.joint.SINGLE_AXIS_RATIO`
@@ -96,6 +107,14 @@ N_BLOCKS = 32
 #: sensors' rms distance (module docstring; the motion warnings' limit,
 #: :mod:`calibration.diagnostics`).
 UNCERTAIN_FRACTION = 0.2
+
+#: The range of motion the functional-joint-centre literature asks of a joint's planes, degrees
+#: (Ehrig et al. 2006; Camomilla et al. 2006: "tens of degrees").
+LITERATURE_RANGE_DEG = 20.0
+
+#: The rms rotation of a sinusoid spanning :data:`LITERATURE_RANGE_DEG` peak to peak, rad (7.1
+#: degrees): a direction that turned this much is not short of motion.
+WELL_MOVED_RMS_RAD = float(np.deg2rad(LITERATURE_RANGE_DEG) / (2.0 * np.sqrt(2.0)))
 
 #: Two-sided level of the test: the chance that a true hinge (noise only along its axis) is
 #: called a ball joint, when the residual's correlation is shorter than a block.
@@ -222,12 +241,29 @@ def testable_directions(singular_values: np.ndarray, n_frames: np.ndarray) -> np
     return np.square(s) < np.asarray(n_frames, dtype=float)[..., None]
 
 
-def systematic_rms(rms_residual: np.ndarray, white_variance: np.ndarray) -> np.ndarray:
-    """``sqrt(max(r^2 - nu, 0))``: the part of an rms residual ``r`` that is not white noise of
-    variance ``nu`` (:mod:`calibration.pair_noise`), same length unit; ``r`` where ``nu`` is NaN."""
+#: Relative variance of the white-noise estimate from third differences, times the frames:
+#: ``var(nu_hat) / nu^2 = WHITE_ESTIMATE_VARIANCE / n`` for Gaussian white noise (each component's
+#: squared third difference has variance ``2 (20 sigma^2)^2`` and correlations ``rho_k^2`` with
+#: ``rho = -15/20, 6/20, -1/20`` at lags 1-3; three components: ``2 (1 + 2 sum rho_k^2) / 3``).
+WHITE_ESTIMATE_VARIANCE = 2.0 * (1.0 + 2.0 * (0.75**2 + 0.3**2 + 0.05**2)) / 3.0
+
+#: One-sided normal quantile of the white noise's upper confidence limit (97.5 %).
+WHITE_UPPER_Z = 1.959963984540054
+
+
+def systematic_rms(rms_residual: np.ndarray, white_variance: np.ndarray, n_frames: np.ndarray) -> np.ndarray:
+    """``sqrt(max(r^2 - nu_up, 0))``: the part of an rms residual ``r`` that is not white noise.
+
+    ``nu`` (:mod:`calibration.pair_noise`, from ``n_frames`` frames) is taken at its upper 97.5 %
+    confidence limit, ``nu (1 + 1.96 sqrt(WHITE_ESTIMATE_VARIANCE / n))``: where white noise
+    makes nearly all of the residual, the difference of two close numbers would otherwise call
+    its estimation error systematic. Same length unit as ``r``; ``r`` where ``nu`` is NaN.
+    """
     r2 = np.square(np.asarray(rms_residual, dtype=float))
     nu = np.nan_to_num(np.asarray(white_variance, dtype=float), nan=0.0)
-    return np.sqrt(np.clip(r2 - nu, 0.0, None))
+    n = np.maximum(np.asarray(n_frames, dtype=float), 1.0)
+    upper = nu * (1.0 + WHITE_UPPER_Z * np.sqrt(WHITE_ESTIMATE_VARIANCE / n))
+    return np.sqrt(np.clip(r2 - upper, 0.0, None))
 
 
 def bias_bounds(rms_systematic: np.ndarray, singular_values: np.ndarray, n_frames: np.ndarray) -> np.ndarray:
@@ -249,15 +285,44 @@ def bias_bounds(rms_systematic: np.ndarray, singular_values: np.ndarray, n_frame
 
 
 def biased_directions(
-    rms_systematic: np.ndarray, singular_values: np.ndarray, n_frames: np.ndarray, separation: np.ndarray
+    rms_systematic: np.ndarray,
+    singular_values: np.ndarray,
+    n_frames: np.ndarray,
+    separation: np.ndarray,
+    proj: np.ndarray,
 ) -> np.ndarray:
-    """``(..., 6)`` bool: True for the weakest direction when its bias bound (:func:`bias_bounds`)
-    exceeds :data:`UNCERTAIN_FRACTION` of the sensors' rms distance ``separation`` (same unit);
-    the other directions are False (module docstring: only the single-axis verdict rests on it)."""
+    """``(..., 6)`` bool: True for the weakest direction when the data cannot place the centre
+    along it for the systematic noise (module docstring): its bias bound (:func:`bias_bounds`)
+    exceeds :data:`UNCERTAIN_FRACTION` of the sensors' rms distance ``separation`` (same unit),
+    and the shift the data show along it, ``|v_j . A^T b| / (sqrt(2) s_j^2)``, is within that bound
+    (``|u_j . b| <= r_sys sqrt(n)``: the systematic error alone could have made it). The other
+    directions are False (only the single-axis verdict rests on it). Only an axis is judged so:
+    the next direction's bound must be within the limit (the centre placed across the weakest
+    direction); a joint that barely moved in every direction is left to the test and the motion
+    warnings. A weakest direction that
+    turned :data:`WELL_MOVED_RMS_RAD` or more is not short of motion: its bound is large for its
+    residual (a slip, a pair that is no joint), which the motion warnings report, and the test
+    alone decides.
+
+    Args:
+        rms_systematic: ``(...,)`` from :func:`systematic_rms`.
+        singular_values: ``(..., 6)`` ``s_j``, descending.
+        n_frames: ``(...,)`` frames of the fit.
+        separation: ``(...,)`` the sensors' rms distance.
+        proj: ``(..., 6)`` ``v_j . A^T b = s_j (u_j . b)``.
+    """
     bound = bias_bounds(rms_systematic, singular_values, n_frames)
+    s = np.asarray(singular_values, dtype=float)
+    r = np.asarray(rms_systematic, dtype=float)
+    n = np.asarray(n_frames, dtype=float)
     out = np.zeros(bound.shape, dtype=bool)
     sep = np.asarray(separation, dtype=float)
-    out[..., -1] = bound[..., -1] > UNCERTAIN_FRACTION * sep  # NaN: False
+    within = np.abs(np.asarray(proj, dtype=float)[..., -1]) <= s[..., -1] * r * np.sqrt(n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        short = np.sqrt(2.0) * s[..., -1] / np.sqrt(n) < WELL_MOVED_RMS_RAD
+    limit = UNCERTAIN_FRACTION * sep
+    axis = bound[..., -2] <= limit  # placed across the weakest direction: it is an axis
+    out[..., -1] = (bound[..., -1] > limit) & axis & within & short  # NaN: False
     return out
 
 

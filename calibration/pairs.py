@@ -276,7 +276,7 @@ def solve_pairs(
         white = stats.third_differences.noise_variance(parent, child, x_ball[:, :3], x_ball[:, 3:])
         with np.errstate(invalid="ignore", divide="ignore"):
             separation = np.sqrt(stats.sq_dist[parent, child] / counts)
-        biased = biased_directions(systematic_rms(ball_rms, white), s, counts, separation)
+        biased = biased_directions(systematic_rms(ball_rms, white, counts), s, counts, separation, proj)
     keep = hinge_verdict(floor_keep, t, t_crit, testable_directions(s, counts), precise, biased)
     x = _min_norm(eigvec, eigval, proj, keep)
     sq_res = _sq_residual(stats, parent, child, eigval, proj, keep)

@@ -242,7 +242,7 @@ class _Pair:
             if b - a >= self.window:
                 sl = [x[a:b] for x in self.poses]
                 try:
-                    fit = fit_joint(*sl, valid=self.ok[a:b])
+                    fit = fit_joint(*sl, valid=self.ok[a:b], effect_size=False)
                 except CalibrationError:
                     pass
                 else:

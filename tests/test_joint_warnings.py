@@ -10,7 +10,7 @@ import pytest
 
 from calibration import calibrate, fit_joint
 from calibration.diagnostics import UNCERTAIN_FRACTION, motion_bias_bounds
-from calibration.hinge import bias_bounds, biased_directions, systematic_rms
+from calibration.hinge import WHITE_ESTIMATE_VARIANCE, bias_bounds, biased_directions, systematic_rms
 from calibration.joint import residual_white_variance
 from calibration.pairs import pair_statistics, solve_pairs
 from calibration.rotations import rotvec_to_matrix
@@ -30,16 +30,27 @@ UNDETERMINED = "hardly determines its centre"
 
 def test_bias_bound_is_residual_over_rms_rotation():
     # B_j = r sqrt(n) / (sqrt(2) s_j) = r / phi_j with phi_j = sqrt(2) s_j / sqrt(n)
-    s = np.array([2.0, 1.9, 1.5, 0.5, 0.2, 0.05]) * np.sqrt(1000.0)
+    s = np.array([2.0, 1.9, 1.5, 0.5, 0.2, 0.01]) * np.sqrt(1000.0)
     got = bias_bounds(0.004, s, 1000)
     phi = np.sqrt(2.0) * s / np.sqrt(1000.0)
     np.testing.assert_allclose(got, 0.004 / phi, rtol=1e-12)
     assert bias_bounds(0.0, s, 1000).tolist() == [0.0] * 6  # no systematic error, no bias
-    # only the weakest direction enters the verdict
-    flags = biased_directions(0.004, s, 1000, separation=0.25)
-    assert flags.tolist() == [False] * 5 + [bool(0.004 / phi[5] > UNCERTAIN_FRACTION * 0.25)]
-    assert systematic_rms(0.005, 0.003**2) == pytest.approx(0.004, rel=1e-12)
-    assert systematic_rms(0.002, 0.003**2) == 0.0
+    # only the weakest direction enters the verdict, and only while the shift the data show along
+    # it (|u_6 . b| = |proj_6| / s_6) is within what the systematic error could make
+    small, large = (np.r_[np.zeros(5), f * s[5] * 0.004 * np.sqrt(1000.0)] for f in (0.9, 1.1))
+    assert 0.004 / phi[5] > UNCERTAIN_FRACTION * 0.25
+    assert biased_directions(0.004, s, 1000, 0.25, small).tolist() == [False] * 5 + [True]
+    assert biased_directions(0.004, s, 1000, 0.25, large).tolist() == [False] * 6
+    assert not biased_directions(0.004, s, 1000, 2.0, small).any()  # the bound within the limit
+    # no axis: the next direction's bound beyond the limit too (a joint that barely moved)
+    assert 0.004 / phi[4] > UNCERTAIN_FRACTION * 0.05
+    assert not biased_directions(0.004, s, 1000, 0.05, small).any()
+    # the white noise at its upper 97.5 % limit: 1.96 sqrt(1.54 / n) above its estimate
+    n = 10000
+    up = 0.003**2 * (1 + 1.959963984540054 * np.sqrt(1.54 / n))
+    assert systematic_rms(0.005, 0.003**2, n) == pytest.approx(np.sqrt(0.005**2 - up), rel=1e-3)
+    assert systematic_rms(0.002, 0.003**2, n) == 0.0
+    assert systematic_rms(0.003, 0.003**2, n) == 0.0  # all white: nothing systematic
 
 
 def test_white_variance_of_a_white_residual():
@@ -245,3 +256,13 @@ def test_the_table_shows_the_bias_bound_beside_the_regions():
     assert calibration_to_dict(cal)["joints"][0]["uncertainty"]["bias_bound_m"] == pytest.approx(
         cal.joints[0].uncertainty.bias_bound_m
     )
+
+
+def test_white_estimate_spread_matches_its_stated_variance():
+    # WHITE_ESTIMATE_VARIANCE / n is the relative variance of the third-difference estimate; 400
+    # draws give its standard deviation to about 3.5 % (1 / sqrt(2 * 400)), so 15 % is 4 of those
+    rng = np.random.default_rng(11)
+    n = 500
+    est = [residual_white_variance(rng.normal(0, 1.0, (n, 3)), np.arange(n)) / 3.0 for _ in range(400)]
+    assert np.std(est) == pytest.approx(np.sqrt(WHITE_ESTIMATE_VARIANCE / n), rel=0.15)
+    assert np.mean(est) == pytest.approx(1.0, abs=4 * np.sqrt(WHITE_ESTIMATE_VARIANCE / n / 400))
