@@ -475,7 +475,7 @@ def motion_advice(fit: Any, across_too: bool = False) -> str:
             out += (
                 f", and it turned too little about the axis to place the axis itself: record it "
                 f"through tens of degrees (at least {LITERATURE_RANGE_DEG:.0f}) about its axis (a ball "
-                "joint that barely moved, such as a hip in a knee trial, across the axis as well)"
+                "joint that barely moved, across the axis as well)"
             )
         return out
     return (
