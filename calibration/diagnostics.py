@@ -19,6 +19,27 @@ between blocks and is never reported, however small its motion. A fit that kept 
 directions (the single-axis test of :mod:`calibration.joint` found the rotation too small for
 more) has no located centre and is always reported, with the same figures.
 
+The jackknife measures the centre's *variance*; errors that follow the joint angle (skin that
+slides as the joint turns) bias it instead, and no spread between blocks shows them. The
+functional-joint-centre literature gives the rule: the centre's error grows as the noise over the
+range of motion, and a ball joint needs tens of degrees in at least two planes (Ehrig et al.
+2006, J Biomech 39:2798, errors rising steeply below about 20 degrees; Camomilla et al. 2006,
+J Biomech 39:1096; Begon et al. 2007, Gait Posture 25:353). It is applied with the data's own
+noise (:func:`motion_bias_bounds`): the bound ``B = r_sys / phi`` of
+:mod:`calibration.hinge` (``r_sys`` the residual less its white noise, read off its third
+differences; ``phi`` the rms relative rotation, rad, of the least exercised direction the fit
+keeps -- for a single-axis joint the one across its axis) is the most an error of the residual's
+size that moves with the joint can shift the centre, in metres. A joint whose ``B`` exceeds
+:data:`UNCERTAIN_FRACTION` of the sensors' distance is reported too (a ratio of lengths, and
+independent of the recording's length: more frames of the same small motion do not help). The
+advice fits the verdict: a joint judged single-axis is asked to flex more about its axis, never
+to turn across it. A joint whose bound is large although its motion meets the literature's range
+(:func:`well_moved`: the least exercised direction turns as much as a sinusoid of 20 degrees
+peak to peak) is not short of
+motion: its residual is too large for any joint of a body (a pair that is no joint, such as an
+upper arm and a hand with the forearm between them missing, 128 mm rms on a real arm; or a marker
+cluster joined across a joint), and it is reported as such instead.
+
 **Residual far above the others.** A tree joint between two sensors that are not neighbours
 (a hierarchy given wrong, or a sensor whose true neighbour is missing) leaves a residual many
 times that of the real joints, whose residuals share the recording's noise. On the logarithm of
@@ -48,13 +69,17 @@ from typing import Any
 
 import numpy as np
 
+from calibration.hinge import LITERATURE_RANGE_DEG, WELL_MOVED_RMS_RAD, bias_bounds, systematic_rms
+from calibration.hinge import UNCERTAIN_FRACTION as HINGE_FRACTION
 from calibration.joint import LOCATED_RANK
 from calibration.pairs import PairStatistics
 from calibration.poses import CHUNK_FRAMES, iter_chunks
 from calibration.rotations import matrix_to_rotvec
 
-#: Report a joint whose centre's standard error exceeds this fraction of the sensors' distance.
-UNCERTAIN_FRACTION = 0.2
+#: Report a joint whose centre's standard error, or the bound on its bias, exceeds this fraction
+#: of the sensors' distance (:data:`calibration.hinge.UNCERTAIN_FRACTION`, re-exported).
+UNCERTAIN_FRACTION = HINGE_FRACTION
+
 
 #: Modified z-score (Iglewicz and Hoaglin 1993) above which a joint's log residual is an outlier.
 OUTLIER_Z = 3.5
@@ -310,6 +335,33 @@ def residual_outliers(rms_residual: np.ndarray, floor: float = 0.0) -> list[tupl
     return out
 
 
+def motion_bias_bounds(fits: list[Any], white_variance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Each joint's bias bound along its least exercised located direction (module docstring).
+
+    Args:
+        fits: :class:`calibration.joint.JointFit` of the joints.
+        white_variance: ``(J,)`` the white-noise variance of each joint's residual
+            (:mod:`calibration.pair_noise`), m^2; ``None``: unknown, the whole residual counts.
+
+    Returns:
+        ``(bound, phi)``: ``(J,)`` ``B = r_sys / phi`` in metres, and ``(J,)`` ``phi`` the rms
+        relative rotation (rad) of the direction it is taken along: the weakest kept one
+        (:func:`calibration.hinge.bias_bounds`), the fifth for a single-axis joint (across the
+        axis, whose own direction is not located), NaN for a joint with fewer than 5 directions.
+    """
+    n_j = len(fits)
+    white = np.zeros(n_j) if white_variance is None else np.asarray(white_variance, dtype=float)
+    bound, phi = np.full(n_j, np.nan), np.full(n_j, np.nan)
+    for k, fit in enumerate(fits):
+        if fit.rank < LOCATED_RANK:
+            continue
+        r_sys = systematic_rms(fit.rms_residual, white[k], fit.n_frames)
+        j = fit.rank - 1
+        bound[k] = float(bias_bounds(r_sys, fit.singular_values, fit.n_frames)[j])
+        phi[k] = float(np.sqrt(2.0) * fit.singular_values[j] / np.sqrt(max(fit.n_frames, 1)))
+    return bound, phi
+
+
 def motion_warnings(
     R_w_s: Any,
     p_w_s: Any,
@@ -321,8 +373,11 @@ def motion_warnings(
     valid: Any = None,
     chunk_frames: int = CHUNK_FRAMES,
     block_sums: np.ndarray | None = None,
+    white_variance: np.ndarray | None = None,
+    reported: frozenset[int] = frozenset(),
 ) -> list[str]:
-    """Warnings for joints whose centre the motion hardly determines (module docstring).
+    """Warnings for joints whose centre the motion hardly determines (module docstring): a
+    jackknife standard error or a bias bound above :data:`UNCERTAIN_FRACTION` of the distance.
 
     Args:
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
@@ -336,6 +391,10 @@ def motion_warnings(
         block_sums: ``(JACKKNIFE_BLOCKS, J, 16)`` the jackknife's per-block sums of the joints
             when they are at hand (:func:`jackknife_block_sums`); else the jackknife makes its own
             pass over the data.
+        white_variance: ``(J,)`` white-noise variance of each joint's residual, m^2, for the bias
+            bound (:func:`motion_bias_bounds`); ``None``: the whole residual counts as systematic.
+        reported: joints (indices into ``pairs``) whose residual :func:`residual_warnings` reports
+            already: a well moved one is not reported twice as a pair that is no joint.
     """
     par = np.array([p for p, _ in pairs], dtype=np.int64)
     chi = np.array([c for _, c in pairs], dtype=np.int64)
@@ -348,28 +407,94 @@ def motion_warnings(
         else:
             args = (par[checked], chi[checked], rank[checked])
             unc[checked] = block_jackknife(R_w_s, p_w_s, *args, valid=valid, chunk_frames=chunk_frames)
-    flagged = [k for k in range(len(fits)) if unc[k] > UNCERTAIN_FRACTION * float(separation[k])]
+    bound, phi = motion_bias_bounds(fits, white_variance)
+    limit = UNCERTAIN_FRACTION * np.asarray(separation, dtype=float)
+    flagged = [k for k in range(len(fits)) if unc[k] > limit[k] or bound[k] > limit[k]]
     if not flagged:
         return []
     ranges = rotation_ranges(R_w_s, par[flagged], chi[flagged], valid=valid, chunk_frames=chunk_frames)
     out = []
     for k, rng in zip(flagged, ranges, strict=True):
         fit, sep = fits[k], float(separation[k])
+        if unc[k] <= limit[k] and well_moved(phi[k]):
+            if k in reported:
+                continue
+            out.append(_residual_too_large(names[par[k]], names[chi[k]], fit, rng, float(bound[k]), sep))
+            continue
         how = (
             f"the data determine only {fit.rank} of its 6 directions (condition "
             f"{fit_condition(fit.singular_values, 6):.3g})"
             if fit.rank < LOCATED_RANK
             else f"fit condition {fit_condition(fit.singular_values, fit.rank):.3g}, centre standard "
             f"error {unc[k] * 1e3:.3g} mm by block jackknife ({100 * unc[k] / sep:.0f} % of the "
-            f"{sep * 1e3:.3g} mm between the sensors)"
+            f"{sep * 1e3:.3g} mm between the sensors), bias bound {bound[k] * 1e3:.3g} mm "
+            f"({100 * bound[k] / sep:.0f} %: the residual's systematic part over the "
+            f"{np.rad2deg(phi[k]):.2g} deg rms rotation of its least exercised direction)"
         )
         out.append(
             f"joint {names[par[k]]}-{names[chi[k]]}: the motion hardly determines its centre: relative "
             f"rotation range {', '.join(f'{x:.1f}' for x in rng)} deg along its principal axes; "
-            f"{how}; residual {fit.rms_residual * 1e3:.3g} mm rms. Record this joint moving through "
-            "tens of degrees in two or more directions"
+            f"{how}; residual {fit.rms_residual * 1e3:.3g} mm rms. "
+            f"{motion_advice(fit, bool(bound[k] > limit[k]))}"
         )
     return out
+
+
+def well_moved(phi_rad: float) -> bool:
+    """The literature's range of motion (module docstring) is met along the direction a bias bound
+    is taken along: its rms rotation ``phi_rad`` (:func:`motion_bias_bounds`) is at least that of a
+    sinusoid spanning :data:`LITERATURE_RANGE_DEG` peak to peak (``range / (2 sqrt 2)``, 7.1
+    degrees). For a ball joint that direction is the least exercised, so both planes are met."""
+    return bool(np.isfinite(phi_rad) and phi_rad >= WELL_MOVED_RMS_RAD)
+
+
+def _residual_too_large(parent: str, child: str, fit: Any, rng: np.ndarray, bound: float, sep: float) -> str:
+    """The warning for a joint whose bias bound is large although it moved well: its residual,
+    not its motion, is what cannot place the centre (module docstring)."""
+    return (
+        f"joint {parent}-{child}: residual {fit.rms_residual * 1e3:.3g} mm rms is too large for its "
+        f"motion to place a centre: bias bound {bound * 1e3:.3g} mm ({100 * bound / sep:.0f} % of the "
+        f"{sep * 1e3:.3g} mm between the sensors) although it turned through "
+        f"{', '.join(f'{x:.1f}' for x in rng)} deg along its principal axes. {parent} and {child} are "
+        "probably not neighbours (a segment between them missing: check the hierarchy), or one of "
+        "them is not one rigid body (a marker cluster joined across a joint: check the clusters)"
+    )
+
+
+def motion_advice(fit: Any, across_too: bool = False) -> str:
+    """What to record for a joint the motion hardly determines, fitting its verdict: a joint
+    judged single-axis is not asked to turn in two or more directions. ``across_too``: its
+    motion about the axis is too small as well (:func:`motion_bias_bounds`), too small to tell a
+    hinge from a ball joint that barely moved."""
+    if fit.single_axis:
+        out = (
+            "It is judged single-axis: the axis is what the data give, its centre along the axis is "
+            "not measured (the point nearest both sensors is reported)"
+        )
+        if across_too:
+            out += (
+                f", and it turned too little about the axis to place the axis itself: record it "
+                f"through tens of degrees (at least {LITERATURE_RANGE_DEG:.0f}) about its axis (a ball "
+                "joint that barely moved, across the axis as well)"
+            )
+        return out
+    return (
+        f"Record this joint moving through tens of degrees (at least {LITERATURE_RANGE_DEG:.0f}, "
+        "Ehrig et al. 2006) in two or more directions"
+    )
+
+
+def _outliers(rms_residual: np.ndarray, separation: np.ndarray) -> list[tuple[int, float, float]]:
+    """:func:`residual_outliers` at the precision floor of the sensors' median distance."""
+    floor = NOISE_FREE_FRACTION * float(np.nanmedian(separation)) if np.size(separation) else 0.0
+    return residual_outliers(rms_residual, floor if np.isfinite(floor) else 0.0)
+
+
+def residual_flagged(rms_residual: np.ndarray, separation: np.ndarray) -> frozenset[int]:
+    """The joints :func:`residual_warnings` reports (indices)."""
+    sep, rms = np.asarray(separation, dtype=float), np.asarray(rms_residual, dtype=float)
+    unexplained = np.flatnonzero((sep > 0) & (rms > UNEXPLAINED_FRACTION * sep))
+    return frozenset(k for k, _, _ in _outliers(rms, sep)) | frozenset(int(k) for k in unexplained)
 
 
 def residual_warnings(
@@ -385,8 +510,7 @@ def residual_warnings(
         separation: ``(J,)`` the rms distance between each joint's sensors, metres.
     """
     out = []
-    floor = NOISE_FREE_FRACTION * float(np.nanmedian(separation)) if np.size(separation) else 0.0
-    for k, z, ratio in residual_outliers(rms_residual, floor if np.isfinite(floor) else 0.0):
+    for k, z, ratio in _outliers(rms_residual, separation):
         p, c = pairs[k]
         test = "the largest other joint's"
         if not np.isnan(z):

@@ -38,15 +38,58 @@ fit with exactly one dropped direction is single-axis.
 Both numerator and denominator are lengths, so ``t``, the interval and the residual scale
 together and the verdict is the same in m, mm or inches.
 
+**Effect size: can the wobble place the centre along the axis at all?** A significance test
+alone flips with the recording's length and noise: a hinge wobbling 2 degrees about a centre
+that the sensors do not straddle is called a ball joint once enough clean frames accumulate, and
+not in a shorter or noisier recording of the same rig. The verdict therefore also asks whether
+the off-axis motion is large enough to place the centre along the weakest direction against the
+residual's *systematic* part (skin, play and tracker distortion that move with the joint, which
+more frames do not average away). An error vector ``e`` of rms ``r_sys`` per frame moves the
+coefficient along ``v_j`` by ``(u_j . e) / s_j``, at most ``r_sys sqrt(n) / s_j`` (Cauchy-
+Schwarz, ``|u_j| = 1``), i.e. the joint by at most
+
+    B_j = r_sys sqrt(n) / (sqrt(2) s_j) = r_sys / phi_j,   phi_j = sqrt(2) s_j / sqrt(n),
+
+``phi_j`` the rms relative rotation (rad) that direction sees (for a hinge's axis: the rms off-
+axis wobble). This is the rule of the functional-joint-centre literature, the centre's error
+grows as noise over range of motion (Ehrig et al. 2006, J Biomech 39:2798; Camomilla et al.
+2006, J Biomech 39:1096), with the noise measured: ``r_sys^2`` is the ball model's mean square
+residual less its white noise, read off the residual's third differences
+(:mod:`calibration.pair_noise`) and taken at its upper 97.5 % confidence limit
+(:func:`systematic_rms`); white noise averages out and is the test's business. The
+weakest direction is undetermined whatever the test says when ``B_6`` exceeds
+:data:`UNCERTAIN_FRACTION` of the sensors' rms distance (the limit the motion warnings of
+:mod:`calibration.diagnostics` put on a centre's error): the centre could then lie anywhere over
+a fifth of the pair's extent along the axis. A shift along the weakest direction larger than
+``B_6`` (``|u_6 . b| > r_sys sqrt(n)``: imposing the hinge would more than double the residual's
+systematic sum of squares) is no artefact and keeps the direction: a ball joint that turned
+little about one axis but whose centre lies well off the minimum-norm point is not made a hinge
+with a displaced centre. The question is one of a hinge's axis, so it is asked only when the
+next direction is placed (``B_5`` within the limit): a joint that barely moved in every
+direction (a hip in a knee trial) is left to the test, and the motion warnings report it as a
+ball joint to be moved in two or more directions. Nor is a direction that turned as much as the
+literature asks
+(:data:`WELL_MOVED_RMS_RAD`, the rms of 20 degrees peak to peak): its bound is large for its
+residual -- a slipped sensor, a pair that is no joint -- not for its motion. Both ``B_6`` and
+that shift are independent of the recording's length (``s_j^2`` and ``u_6 . b`` grow as ``n``
+and ``sqrt(n)``) and are lengths (unit-free). Only the weakest direction is judged so (the
+single-axis verdict); stronger directions keep the test alone, and the motion warnings report
+their bound. On messy simulated hinges with 2 degrees rms wobble ``B_6`` is 0.6-0.9 of the
+distance, on ball joints moved about two or three axes 0.04-0.08 (studies/hinge_verdict.py).
+Without the third differences (pair statistics made without them) the rule is not applied.
+
 **Hard floor.** Directions with ``s_j < floor * s_max`` are undetermined whatever the test says
 (:func:`calibration.joint.determined_directions`): below :data:`calibration.joint.SINGLE_AXIS_RATIO`
 (1e-4: about 0.2 mrad, 0.01 degree, rms off the axis, finer than any tracker resolves) the test
 would only compare rounding errors.
 
-**What the test cannot tell.** It asks whether the data place the centre along the weakest
+**What the verdict cannot tell.** It asks whether the data place the centre along the weakest
 direction, not whether the joint is mechanically a hinge: a hinge that wobbles a few degrees
-about a fixed centre, with sensors offset along its axis, does reveal that centre given enough
-clean frames, and is then called a ball joint (studies/hinge_verdict.py measures how often).
+about a fixed centre, with sensors offset along its axis, reveals that centre to the test given
+enough clean frames; the effect size above keeps it single-axis as long as the wobble is too
+small against the systematic noise (studies/hinge_verdict.py: 20 of 20 at 60 s and at 240 s
+with a quarter of the noise). A ball joint that barely moved is called single-axis for the same
+reason: the data cannot place its centre along the weakest direction either.
 """
 
 from __future__ import annotations
@@ -59,6 +102,19 @@ from calibration.quantiles import t_ppf
 #: recording longer than this many frames is cut into between ``N_BLOCKS / 2 + 1`` and
 #: ``N_BLOCKS`` blocks.
 N_BLOCKS = 32
+
+#: A direction is undetermined when the bound on its centre's bias exceeds this fraction of the
+#: sensors' rms distance (module docstring; the motion warnings' limit,
+#: :mod:`calibration.diagnostics`).
+UNCERTAIN_FRACTION = 0.2
+
+#: The range of motion the functional-joint-centre literature asks of a joint's planes, degrees
+#: (Ehrig et al. 2006; Camomilla et al. 2006: "tens of degrees").
+LITERATURE_RANGE_DEG = 20.0
+
+#: The rms rotation of a sinusoid spanning :data:`LITERATURE_RANGE_DEG` peak to peak, rad (7.1
+#: degrees): a direction that turned this much is not short of motion.
+WELL_MOVED_RMS_RAD = float(np.deg2rad(LITERATURE_RANGE_DEG) / (2.0 * np.sqrt(2.0)))
 
 #: Two-sided level of the test: the chance that a true hinge (noise only along its axis) is
 #: called a ball joint, when the residual's correlation is shorter than a block.
@@ -185,8 +241,98 @@ def testable_directions(singular_values: np.ndarray, n_frames: np.ndarray) -> np
     return np.square(s) < np.asarray(n_frames, dtype=float)[..., None]
 
 
+#: Relative variance of the white-noise estimate from third differences, times the frames:
+#: ``var(nu_hat) / nu^2 = WHITE_ESTIMATE_VARIANCE / n`` for Gaussian white noise (each component's
+#: squared third difference has variance ``2 (20 sigma^2)^2`` and correlations ``rho_k^2`` with
+#: ``rho = -15/20, 6/20, -1/20`` at lags 1-3; three components: ``2 (1 + 2 sum rho_k^2) / 3``).
+WHITE_ESTIMATE_VARIANCE = 2.0 * (1.0 + 2.0 * (0.75**2 + 0.3**2 + 0.05**2)) / 3.0
+
+#: One-sided normal quantile of the white noise's upper confidence limit (97.5 %).
+WHITE_UPPER_Z = 1.959963984540054
+
+
+def systematic_rms(rms_residual: np.ndarray, white_variance: np.ndarray, n_frames: np.ndarray) -> np.ndarray:
+    """``sqrt(max(r^2 - nu_up, 0))``: the part of an rms residual ``r`` that is not white noise.
+
+    ``nu`` (:mod:`calibration.pair_noise`, from ``n_frames`` frames) is taken at its upper 97.5 %
+    confidence limit, ``nu (1 + 1.96 sqrt(WHITE_ESTIMATE_VARIANCE / n))``: where white noise
+    makes nearly all of the residual, the difference of two close numbers would otherwise call
+    its estimation error systematic. Same length unit as ``r``; ``r`` where ``nu`` is NaN.
+    """
+    r2 = np.square(np.asarray(rms_residual, dtype=float))
+    nu = np.nan_to_num(np.asarray(white_variance, dtype=float), nan=0.0)
+    n = np.maximum(np.asarray(n_frames, dtype=float), 1.0)
+    upper = nu * (1.0 + WHITE_UPPER_Z * np.sqrt(WHITE_ESTIMATE_VARIANCE / n))
+    return np.sqrt(np.clip(r2 - upper, 0.0, None))
+
+
+def bias_bounds(rms_systematic: np.ndarray, singular_values: np.ndarray, n_frames: np.ndarray) -> np.ndarray:
+    """``(..., 6)`` ``B_j = r_sys sqrt(n) / (sqrt(2) s_j)``: the most a systematic error of rms
+    ``r_sys`` per frame moves the joint centre along each direction ``v_j`` (module docstring),
+    in ``r_sys``'s unit; ``inf`` where ``s_j = 0`` and ``r_sys > 0``, 0 where ``r_sys = 0``.
+
+    Args:
+        rms_systematic: ``(...,)`` from :func:`systematic_rms`.
+        singular_values: ``(..., 6)`` ``s_j`` of ``A``, descending.
+        n_frames: ``(...,)`` frames of the fit.
+    """
+    s = np.asarray(singular_values, dtype=float)
+    r = np.asarray(rms_systematic, dtype=float)[..., None]
+    n = np.asarray(n_frames, dtype=float)[..., None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = r * np.sqrt(n) / (np.sqrt(2.0) * s)
+    return np.where(r == 0.0, 0.0, out)
+
+
+def biased_directions(
+    rms_systematic: np.ndarray,
+    singular_values: np.ndarray,
+    n_frames: np.ndarray,
+    separation: np.ndarray,
+    proj: np.ndarray,
+) -> np.ndarray:
+    """``(..., 6)`` bool: True for the weakest direction when the data cannot place the centre
+    along it for the systematic noise (module docstring): its bias bound (:func:`bias_bounds`)
+    exceeds :data:`UNCERTAIN_FRACTION` of the sensors' rms distance ``separation`` (same unit),
+    and the shift the data show along it, ``|v_j . A^T b| / (sqrt(2) s_j^2)``, is within that bound
+    (``|u_j . b| <= r_sys sqrt(n)``: the systematic error alone could have made it). The other
+    directions are False (only the single-axis verdict rests on it). Only an axis is judged so:
+    the next direction's bound must be within the limit (the centre placed across the weakest
+    direction); a joint that barely moved in every direction is left to the test and the motion
+    warnings. A weakest direction that
+    turned :data:`WELL_MOVED_RMS_RAD` or more is not short of motion: its bound is large for its
+    residual (a slip, a pair that is no joint), which the motion warnings report, and the test
+    alone decides.
+
+    Args:
+        rms_systematic: ``(...,)`` from :func:`systematic_rms`.
+        singular_values: ``(..., 6)`` ``s_j``, descending.
+        n_frames: ``(...,)`` frames of the fit.
+        separation: ``(...,)`` the sensors' rms distance.
+        proj: ``(..., 6)`` ``v_j . A^T b = s_j (u_j . b)``.
+    """
+    bound = bias_bounds(rms_systematic, singular_values, n_frames)
+    s = np.asarray(singular_values, dtype=float)
+    r = np.asarray(rms_systematic, dtype=float)
+    n = np.asarray(n_frames, dtype=float)
+    out = np.zeros(bound.shape, dtype=bool)
+    sep = np.asarray(separation, dtype=float)
+    within = np.abs(np.asarray(proj, dtype=float)[..., -1]) <= s[..., -1] * r * np.sqrt(n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        short = np.sqrt(2.0) * s[..., -1] / np.sqrt(n) < WELL_MOVED_RMS_RAD
+    limit = UNCERTAIN_FRACTION * sep
+    axis = bound[..., -2] <= limit  # placed across the weakest direction: it is an axis
+    out[..., -1] = (bound[..., -1] > limit) & axis & within & short  # NaN: False
+    return out
+
+
 def hinge_verdict(
-    floor_keep: np.ndarray, t: np.ndarray, t_crit: np.ndarray, testable: np.ndarray, precise: np.ndarray
+    floor_keep: np.ndarray,
+    t: np.ndarray,
+    t_crit: np.ndarray,
+    testable: np.ndarray,
+    precise: np.ndarray,
+    biased: np.ndarray | None = None,
 ) -> np.ndarray:
     """Directions the data determine: the floor's, minus the weakest ones whose test fails.
 
@@ -196,12 +342,18 @@ def hinge_verdict(
         t_crit: ``(...,)`` critical values from :func:`critical_t`.
         testable: ``(..., 6)`` bool, from :func:`testable_directions`.
         precise: ``(..., 6)`` bool, from :func:`precise_directions`.
+        biased: ``(..., 6)`` bool, from :func:`biased_directions` (``None``: none): undetermined
+            whatever the test says (the effect size of the module docstring).
 
     Returns:
         ``(..., 6)`` bool: directions dropped from the weakest kept one upward while they are
-        testable, not precise and their test is not significant (stopping at the first kept).
+        testable and either biased, or not precise and their test is not significant
+        (stopping at the first kept).
     """
-    insignificant = floor_keep & testable & ~precise & (t < t_crit[..., None])  # NaN: kept
+    failed = ~precise & (t < t_crit[..., None])  # NaN: kept
+    if biased is not None:
+        failed = failed | biased
+    insignificant = floor_keep & testable & failed
     # a kept direction survives when it, or a weaker kept direction, is significant
     significant = floor_keep & ~insignificant
     weaker_or_self = np.flip(np.cumsum(np.flip(significant, axis=-1), axis=-1), axis=-1) > 0

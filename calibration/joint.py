@@ -40,14 +40,17 @@ import numpy as np
 from calibration.eiv import check_noise, corrected_solution
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hinge import (
+    biased_directions,
     block_of_frame,
     critical_t,
     hinge_verdict,
     precise_directions,
     score_t,
     score_variance,
+    systematic_rms,
     testable_directions,
 )
+from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 
 #: Hard floor on ``s / s_max`` below which a direction is undetermined whatever the test says:
 #: 1e-4 is about 0.2 mrad (0.01 degree) rms off the axis, finer than any tracker resolves, so
@@ -252,6 +255,7 @@ def fit_joint(
     valid: np.ndarray | None = None,
     single_axis_ratio: float = SINGLE_AXIS_RATIO,
     orientation_noise_rad2: tuple[float, float] | None = None,
+    effect_size: bool = True,
 ) -> JointFit:
     """Fit the rotary joint between two sensors by SVD of O'Brien eq. 13.
 
@@ -271,6 +275,10 @@ def fit_joint(
             :func:`calibration.eiv.orientation_noise_variance`): the centre is then corrected for
             the bias that noise on the rotations puts into least squares (:mod:`calibration.eiv`).
             The determined directions (the single-axis verdict) are those of the plain fit.
+        effect_size: the single-axis verdict also rests on the bias bound along the weakest
+            direction (:mod:`calibration.hinge`); False: on the test alone, for a fit that only
+            models the residual (the slip detector's refits of short pieces, whose small motion
+            the bound would judge, while the verdict is the whole recording's).
 
     Returns:
         The fitted joint, residuals and diagnostics.
@@ -299,7 +307,8 @@ def fit_joint(
     b = (p_w_c[ok] - p_w_p[ok]).reshape(3 * n_used)  # O'Brien eq. 11
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     floor_keep = determined_directions(s, single_axis_ratio)
-    keep, t = _tested_directions(A, b, U, s, Vt, floor_keep, block_of_frame(n_total)[ok])
+    frames = np.flatnonzero(ok) if effect_size else None
+    keep, t = _tested_directions(A, b, U, s, Vt, floor_keep, block_of_frame(n_total)[ok], frames)
     spectrum = read_spectrum(s, Vt.T, single_axis_ratio, keep)
     x = _min_norm(U, s, Vt, b, keep)
     if max(noise) > 0.0:
@@ -337,11 +346,14 @@ def _tested_directions(
     Vt: np.ndarray,
     floor_keep: np.ndarray,
     block: np.ndarray,
+    frame: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(6,)`` bool, the directions the data determine (:func:`calibration.hinge.hinge_verdict`),
     and ``(6,)`` the ``|t|`` of every direction's test.
 
-    ``A`` is ``(3 n, 6)``, ``b`` ``(3 n,)`` and ``block`` ``(n,)`` the block of each used frame.
+    ``A`` is ``(3 n, 6)``, ``b`` ``(3 n,)``, ``block`` ``(n,)`` the block of each used frame and
+    ``frame`` ``(n,)`` its index in the recording (third differences over four consecutive frames),
+    ``None`` to leave the effect size out.
     """
     r = (A @ _min_norm(U, s, Vt, b, floor_keep) - b).reshape(-1, 3)  # the ball model's residual
     per_frame = np.einsum("fij,fi->fj", (A @ Vt.T).reshape(-1, 3, 6), r)  # (n, 6) scores
@@ -356,4 +368,22 @@ def _tested_directions(
     precise = precise_directions(var, s * s, t_crit, rms)
     testable = testable_directions(s, block.size)
     t = score_t(proj, var)
-    return hinge_verdict(floor_keep, t, t_crit, testable, precise), t
+    biased = None
+    if frame is not None:
+        separation = np.sqrt(np.mean(np.sum(b.reshape(-1, 3) ** 2, axis=1)))
+        r_sys = systematic_rms(rms, residual_white_variance(r, frame), block.size)
+        biased = biased_directions(r_sys, s, block.size, separation, proj)
+    return hinge_verdict(floor_keep, t, t_crit, testable, precise, biased), t
+
+
+def residual_white_variance(residual: np.ndarray, frame: np.ndarray) -> float:
+    """The white-noise variance of a joint's ``(n, 3)`` residual vectors at frames ``frame``
+    ``(n,)`` (increasing): the mean squared norm of their third differences over four
+    consecutive frames over 20 (:mod:`calibration.pair_noise`); 0 with no such four frames."""
+    if frame.size < 4:
+        return 0.0
+    run = frame[3:] - frame[:-3] == 3
+    if not run.any():
+        return 0.0
+    d3 = residual[3:] - 3.0 * residual[2:-1] + 3.0 * residual[1:-2] - residual[:-3]
+    return float(np.sum(d3[run] ** 2) / np.count_nonzero(run) / THIRD_DIFFERENCE_GAIN)

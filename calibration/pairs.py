@@ -32,12 +32,14 @@ from typing import Any
 import numpy as np
 
 from calibration.hinge import (
+    biased_directions,
     block_edges,
     critical_t,
     hinge_verdict,
     precise_directions,
     score_t,
     score_variance,
+    systematic_rms,
     testable_directions,
 )
 from calibration.joint import MIN_FRAMES, SINGLE_AXIS_RATIO, Spectrum, determined_directions, read_spectrum
@@ -98,7 +100,7 @@ def pair_statistics(
     valid: Any = None,
     chunk_frames: int = CHUNK_FRAMES,
     jackknife_blocks: int = 0,
-    third_differences: bool = False,
+    third_differences: bool = True,
 ) -> PairStatistics:
     """Accumulate the normal equations of every sensor pair in one pass over the data.
 
@@ -116,8 +118,9 @@ def pair_statistics(
         chunk_frames: frames per chunk (memory is ``O(chunk_frames * sensors)``).
         jackknife_blocks: also keep the sums over this many blocks of :func:`jackknife_edges`
             (0: not).
-        third_differences: also sum the third-differenced poses (the misfit hierarchy's noise),
-            in the same pass.
+        third_differences: also sum the third-differenced poses (the residuals' white noise: the
+            misfit hierarchy's, and the single-axis verdict's effect size of
+            :mod:`calibration.hinge`, which without them is not applied), in the same pass.
 
     Returns:
         The statistics of all pairs.
@@ -267,7 +270,14 @@ def solve_pairs(
             np.clip(_sq_residual(stats, parent, child, eigval, proj, floor_keep), 0, None) / counts
         )
     precise = precise_directions(var, eigval, t_crit, ball_rms)
-    keep = hinge_verdict(floor_keep, t, t_crit, testable_directions(s, counts), precise)
+    biased = None
+    if stats.third_differences is not None:  # the effect size of calibration.hinge needs the noise
+        x_ball = _min_norm(eigvec, eigval, proj, floor_keep)
+        white = stats.third_differences.noise_variance(parent, child, x_ball[:, :3], x_ball[:, 3:])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            separation = np.sqrt(stats.sq_dist[parent, child] / counts)
+        biased = biased_directions(systematic_rms(ball_rms, white, counts), s, counts, separation, proj)
+    keep = hinge_verdict(floor_keep, t, t_crit, testable_directions(s, counts), precise, biased)
     x = _min_norm(eigvec, eigval, proj, keep)
     sq_res = _sq_residual(stats, parent, child, eigval, proj, keep)
     usable = counts >= MIN_FRAMES

@@ -60,7 +60,9 @@ import numpy as np
 from calibration.diagnostics import (
     JACKKNIFE_BLOCKS,
     jackknife_block_sums,
+    motion_bias_bounds,
     motion_warnings,
+    residual_flagged,
     residual_warnings,
 )
 from calibration.eiv import orientation_noise_variance
@@ -310,9 +312,10 @@ def calibrate(
             valid = base & ~noisy.mask
         else:
             noisy = None
-    noise_needed = parent_of is None and robust is None and hierarchy_method == "misfit"
+    # the third differences always: the single-axis verdict's effect size (calibration.hinge)
+    # and the motion warnings' bias bound need the residuals' white noise, the misfit tree too
     stats, missing = _pair_statistics(
-        R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=noise_needed
+        R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=True
     )
     if noisy is not None:  # a pose left out for its noise is not missing
         missing = missing - noisy.mask.sum(axis=0)
@@ -381,7 +384,18 @@ def calibrate(
     warnings = fit_warnings(joints, names, missing, loops, n_frames, noisy=noisy is not None) + refit_warnings
     if noisy is not None:
         warnings += noisy.warnings(names)
-    warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames)
+    par = np.array([p for p, _ in pairs], dtype=np.int64)
+    chi = np.array([c for _, c in pairs], dtype=np.int64)
+    white = joint_white_variance(stats, par, chi, joints)
+    warnings += _diagnostic_warnings(R_w_s, p_w_s, valid, stats, names, pairs, joints, chunk_frames, white)
+    if intervals:  # the bias bound beside the variance-based regions
+        bound, _ = motion_bias_bounds([j.fit for j in joints], white)
+        joints = [
+            j
+            if j.uncertainty is None
+            else dataclasses.replace(j, uncertainty=dataclasses.replace(j.uncertainty, bias_bound_m=float(b)))
+            for j, b in zip(joints, bound, strict=True)
+        ]
     lp, lc = sol.joint_in_parent, sol.joint_in_child  # (J, 3) in the order of the tree's joints
     if refit:
         lp = np.array([j.fit.joint_in_parent for j in joints]).reshape(-1, 3)
@@ -762,6 +776,19 @@ def fit_warnings(
     return warnings
 
 
+def joint_white_variance(
+    stats: PairStatistics, parent: np.ndarray, child: np.ndarray, joints: Sequence[Joint]
+) -> np.ndarray | None:
+    """``(J,)`` the white-noise variance of each joint's residual at its fitted centre, m^2, from
+    the statistics' third differences (:mod:`calibration.pair_noise`); ``None`` without them."""
+    if stats.third_differences is None or not len(joints):
+        return None
+    fits = [j.fit for j in joints]
+    lp = np.array([f.joint_in_parent for f in fits]).reshape(-1, 3)
+    lc = np.array([f.joint_in_child for f in fits]).reshape(-1, 3)
+    return stats.third_differences.noise_variance(parent, child, lp, lc)
+
+
 def _diagnostic_warnings(  # positional: one private caller
     R_w_s: Any,
     p_w_s: Any,
@@ -771,9 +798,11 @@ def _diagnostic_warnings(  # positional: one private caller
     pairs: Sequence[tuple[int, int]],
     joints: Sequence[Joint],
     chunk_frames: int,
+    white: np.ndarray | None,
 ) -> list[str]:
     """Joints the motion hardly determines, and residuals far above the others'
-    (:mod:`calibration.diagnostics`); the sensors' rms distance comes from the statistics."""
+    (:mod:`calibration.diagnostics`); the sensors' rms distance comes from the statistics,
+    ``white`` ``(J,)`` is each joint's residual white-noise variance (m^2) or ``None``."""
     pairs = [(int(p), int(c)) for p, c in pairs]
     count = np.array([stats.count[p, c] for p, c in pairs], dtype=float)
     sq = np.array([stats.sq_dist[p, c] for p, c in pairs], dtype=float)
@@ -791,6 +820,8 @@ def _diagnostic_warnings(  # positional: one private caller
         valid=valid,
         chunk_frames=chunk_frames,
         block_sums=block_sums,
+        white_variance=white,
+        reported=residual_flagged(np.array([f.rms_residual for f in fits]), separation),
     )
     rms = np.array([f.rms_residual for f in fits])
     return warnings + residual_warnings(names, pairs, rms, separation)

@@ -264,10 +264,14 @@ def _refit(
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """``(joint_in_parent, joint_in_child)`` of the joint refitted on these frames, or ``None``
     with fewer than :data:`~calibration.joint.MIN_FRAMES` usable: :func:`calibration.joint.fit_joint`'s
-    answer (single-axis verdict included) from the normal equations of the all-pairs path
-    (:func:`calibration.pairs.solve_pairs`), several times faster on long pieces."""
-    stats = pair_statistics(
-        np.stack([R_w_p, R_w_c], axis=1), np.stack([p_w_p, p_w_c], axis=1), valid=np.stack([ok, ok], axis=1)
+    answer with ``effect_size=False`` (the single-axis verdict's test, not its effect size) from the
+    normal equations of the all-pairs path (:func:`calibration.pairs.solve_pairs`), several times
+    faster on long pieces."""
+    stats = pair_statistics(  # without the third differences: the verdict's test alone, as a short refit
+        np.stack([R_w_p, R_w_c], axis=1),
+        np.stack([p_w_p, p_w_c], axis=1),
+        valid=np.stack([ok, ok], axis=1),
+        third_differences=False,
     )
     sol = solve_pairs(stats, np.array([0]), np.array([1]))
     if sol.n_frames[0] < MIN_FRAMES:

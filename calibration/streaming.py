@@ -86,6 +86,7 @@ axis (its centre along that axis stays unmeasured, as in the batch fit).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -432,7 +433,8 @@ class StreamingCalibrator:
         self._drain()
         n = len(self.names)
         blocks = [b.result() for b in self._blocks] or [PairSums(n).result()]
-        return statistics_of_blocks(blocks, self.n_frames)
+        # with the third differences, as the batch keeps them (the single-axis verdict's effect size)
+        return dataclasses.replace(statistics_of_blocks(blocks, self.n_frames), third_differences=self._d3)
 
     def calibration(self) -> Calibration:
         """The calibration of every frame pushed, as :func:`calibration.pipeline.calibrate` gives it

@@ -255,6 +255,10 @@ class JointUncertainty:
             bounds each frame's region (:func:`working_model_null`); ``None`` where Hotelling's
             ``T^2`` is used instead (``"iid"``, ``"block-bootstrap"``, and batch means whose
             blocks had to be shorter than the rule asks).
+        bias_bound_m: the most an error of the residual's systematic size that moves with the
+            joint can shift the centre, metres (:func:`calibration.diagnostics.motion_bias_bounds`:
+            noise over range of motion), which the variance-based regions do not hold; NaN where
+            not computed (``calibrate`` sets it).
     """
 
     joint_in_parent: np.ndarray
@@ -278,6 +282,7 @@ class JointUncertainty:
     orientation_noise_rad2: tuple[float, float] = (0.0, 0.0)
     null_in_parent: np.ndarray | None = None
     null_in_child: np.ndarray | None = None
+    bias_bound_m: float = float("nan")
 
     @property
     def rank(self) -> int:
@@ -839,6 +844,7 @@ def to_json(unc: JointUncertainty) -> dict:
             "threshold": _json_float(region.threshold),
             "quantile": "hotelling" if null is None else "working-model",
         }
+    out["bias_bound_m"] = _json_float(unc.bias_bound_m)
     out["warnings"] = list(unc.warnings)
     return out
 

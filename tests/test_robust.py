@@ -343,12 +343,14 @@ def test_hinge_stays_on_axis_with_corruption():
             assert abs(x @ v_fit) < 1e-12
             # and the point is where the clean fit puts it, within its noise (clean error ~0.1 mm)
             assert np.linalg.norm(x - x_star) <= max(3.0 * np.linalg.norm(x_of(clean) - x_star), 3e-4)
-    # rotation errors made least squares call some of these hinges ball joints (measured: 1 of 8)
+    # rotation errors made least squares call 1 of these 8 hinges a ball joint on the test alone;
+    # the effect size of the verdict (issue 42: the bias bound along the axis, calibration.hinge)
+    # keeps all 8 single-axis (measured)
     print(
         f"\nhinge: least squares called {fooled} of 8 corrupted hinges ball joints, robust 0 of 8; "
         f"robust axis tilt up to {max(tilts):.3f} deg"
     )
-    assert fooled >= 1
+    assert fooled == 0
 
 
 def test_support_drops_directions_resting_on_a_few_frames():

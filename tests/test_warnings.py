@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 
 from calibration import calibrate
-from calibration.diagnostics import block_jackknife, residual_outliers, rotation_ranges
+from calibration.diagnostics import UNCERTAIN_FRACTION, block_jackknife, residual_outliers, rotation_ranges
 from calibration.rotations import rotvec_to_matrix
 from simbench.cli.table import format_table
 from simbench.errors import InputError
 from simbench.io.calibration_json import calibration_to_dict
 from simbench.io.poses import PoseRecording, write_pose_csv
 from simbench.report.dataset import dataset_report
+from simbench.score import score
 
 UNDETERMINED = "hardly determines its centre"
 NOT_NEIGHBOURS = "probably not neighbours"
@@ -146,9 +147,7 @@ def test_non_neighbours_forced_by_a_given_hierarchy_are_reported(linkage_noisy):
     assert len(found) == 1 and found[0].startswith("joint chest-forearm_l:")
 
 
-@pytest.mark.parametrize(
-    ("model", "sensors"), [("humanoid", "skin-paper-human"), ("linkage", "ascension-flock")]
-)
+@pytest.mark.parametrize(("model", "sensors"), [("linkage", "ascension-flock"), ("linkage", "skin-markers")])
 def test_simulated_exercise_sessions_raise_no_warning(model, sensors):
     sb = pytest.importorskip("simbench")
     ds = sb.simulate(model=model, motion="exercise", sensors=sensors, duration_s=20, seed=1)
@@ -156,6 +155,25 @@ def test_simulated_exercise_sessions_raise_no_warning(model, sensors):
     for parent_of in (ds.truth.parent_of, None):
         cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=parent_of)
         assert not [w for w in cal.warnings if UNDETERMINED in w or NOT_NEIGHBOURS in w], cal.warnings
+
+
+def test_humanoid_joints_that_barely_move_under_skin_are_reported_not_silent():
+    # the humanoid's exercise turns wrists, ankles and a shoulder 10-20 degrees with under 10 in
+    # a second plane; under the skin preset their centres are off by 2-6 cm (issue 42: the bias
+    # bound). Every joint off by more than the warnings' limit is reported; none is a non-joint.
+    sb = pytest.importorskip("simbench")
+    ds = sb.simulate(model="humanoid", motion="exercise", sensors="skin-paper-human", duration_s=20, seed=1)
+    rec = ds.poses()
+    cal = calibrate(rec.R_w_s, rec.p_w_s, rec.names, valid=rec.valid, parent_of=ds.truth.parent_of)
+    assert not [w for w in cal.warnings if NOT_NEIGHBOURS in w]
+    reported = {w.split(":")[0].split()[1] for w in cal.warnings if UNDETERMINED in w}
+    index = {n: k for k, n in enumerate(rec.names)}
+    for j in score(cal, ds).joints:
+        a, b = (index[x] for x in j.name.split("-"))
+        sep = float(np.sqrt(np.nanmean(np.sum((rec.p_w_s[:, b] - rec.p_w_s[:, a]) ** 2, axis=1))))
+        if max(j.centre_error_in_parent_m, j.centre_error_in_child_m) > UNCERTAIN_FRACTION * sep:
+            assert j.name in reported, (j.name, reported)
+    assert 1 <= len(reported) <= 8  # measured 6 of 15
 
 
 def test_warnings_reach_the_table_the_json_and_the_report(tmp_path):

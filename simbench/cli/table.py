@@ -149,12 +149,24 @@ def _interval_lines(cal: Calibration) -> list[str]:
             region = unc.region(part)
             half = 0.5 * (region.intervals_m[:, 1] - region.intervals_m[:, 0])
             label = j.parent + " -> " + j.child if k == 0 else ""
+            bias = _cm(float(unc.bias_bound_m)) if k == 0 and np.isfinite(unc.bias_bound_m) else ""
             rows.append(
-                [label, part, _cm(float(region.semi_axes_m[0])), *[_cm(h) for h in half], f"{region.dof:.1f}"]
+                [
+                    label,
+                    part,
+                    _cm(float(region.semi_axes_m[0])),
+                    *[_cm(h) for h in half],
+                    f"{region.dof:.1f}",
+                    bias,
+                ]
             )
-    head = ["joint centre 95% (cm)", "frame", "± max", "± x", "± y", "± z", "dof"]
-    lines = ["", *text_table(head, rows, "llrrrrr")]
+    head = ["joint centre 95% (cm)", "frame", "± max", "± x", "± y", "± z", "dof", "bias ≤"]
+    lines = ["", *text_table(head, rows, "llrrrrrr")]
     lines.append("    (± max: the 95% ellipsoid's largest semi-axis; ± x/y/z: 95% intervals per axis)")
+    lines.append(
+        "    (bias ≤: the most an error of the residual's systematic size that moves with the joint can shift"
+        " the centre, noise over range of motion; the regions do not hold it; docs/joint-warnings.md)"
+    )
     if cal.robust is not None:
         lines.append(f"    (robust {cal.robust} fits: regions conditional on each joint's inlier frames)")
     return lines
