@@ -18,51 +18,100 @@ Whatever the command line does goes through :mod:`simbench.api`, so a Python use
 The layers and the import rule between them are in ARCHITECTURE.md.
 """
 
+import importlib
 import os
+import sys
+import types
 
 # MuJoCo picks its OpenGL backend when it is first imported: without a display, offscreen EGL
 # (Mesa) renders the report's pictures; a caller's own MUJOCO_GL choice (e.g. osmesa) wins.
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
+del os
 
-from calibration import Calibration
-from simbench import estimators
-from simbench.api import (
-    FALSE_ALARMS_PER_HOUR,
-    SLIP_WINDOW_S,
-    LiveUpdate,
-    Orientations,
-    Priors,
-    SlipReport,
-    calibrate,
-    calibration_document,
-    export,
-    follow,
-    orient,
-    read,
-    read_hierarchy,
-    read_imu,
-    read_poses,
-    replay,
-    score,
-    simulate,
-    slip_reports,
-    truth_document,
-    unit_scale,
-    write_calibration,
-    write_orientation_csv,
-    write_pose_csv,
-)
-from simbench.errors import CalibrationError, InputError
-from simbench.io.dataset import Dataset, read_dataset, write_dataset
-from simbench.io.imu import ImuRecording
-from simbench.io.marker_data import MarkerData
-from simbench.io.poses import PoseRecording
-from simbench.score import CalibrationScore, OrientationScore
-from simbench.sim.marker_clusters import MarkerConfig
-from simbench.sim.sensor_config import SensorConfig, load_sensor_config
-from simbench.sim.session import SessionConfig
-from simbench.versions import __version__, software_versions
+from simbench.versions import __version__, software_versions  # noqa: E402 (light: no numpy)
+
+#: ``{public name: the module that defines it}``: imported when first used (PEP 562), so that
+#: ``import simbench`` costs nothing until something is asked of it.
+_LAZY = {
+    **dict.fromkeys(
+        (
+            "FALSE_ALARMS_PER_HOUR",
+            "SLIP_WINDOW_S",
+            "LiveUpdate",
+            "Orientations",
+            "Priors",
+            "SlipReport",
+            "calibrate",
+            "calibration_document",
+            "export",
+            "follow",
+            "orient",
+            "read",
+            "read_hierarchy",
+            "read_imu",
+            "read_poses",
+            "replay",
+            "score",
+            "simulate",
+            "slip_reports",
+            "truth_document",
+            "unit_scale",
+            "write_calibration",
+            "write_examples",
+            "write_orientation_csv",
+            "write_pose_csv",
+        ),
+        "simbench.api",
+    ),
+    "Calibration": "calibration",
+    "CalibrationError": "simbench.errors",
+    "InputError": "simbench.errors",
+    "Dataset": "simbench.io.dataset",
+    "read_dataset": "simbench.io.dataset",
+    "write_dataset": "simbench.io.dataset",
+    "ImuRecording": "simbench.io.imu",
+    "MarkerData": "simbench.io.marker_data",
+    "PoseRecording": "simbench.io.poses",
+    "CalibrationScore": "simbench.score",
+    "OrientationScore": "simbench.score",
+    "MarkerConfig": "simbench.sim.marker_clusters",
+    "SensorConfig": "simbench.sim.sensor_config",
+    "load_sensor_config": "simbench.sim.sensor_config",
+    "SessionConfig": "simbench.sim.session",
+}
+
+
+#: Public functions named as submodules are (``simbench.score``, ``simbench.orient``): the package's
+#: attribute is the function, as ``sb.score(...)`` wants, even after the submodule is imported
+#: (which would otherwise set the attribute to the module; the module stays in ``sys.modules``).
+_SHADOWING = frozenset({"score", "orient"})
+
+
+class _Package(types.ModuleType):
+    def __setattr__(self, name: str, value: object) -> None:
+        if name in _SHADOWING and isinstance(value, types.ModuleType):
+            return  # the import system naming the submodule: the function keeps the name
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
+
+
+def __getattr__(name: str) -> object:
+    """A public name, imported from its module the first time it is asked for (PEP 562)."""
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value  # asked once
+        return value
+    if name == "estimators":
+        return importlib.import_module("simbench.estimators")
+    raise AttributeError(f"module 'simbench' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
 
 __all__ = [
     "FALSE_ALARMS_PER_HOUR",
@@ -105,6 +154,7 @@ __all__ = [
     "unit_scale",
     "write_calibration",
     "write_dataset",
+    "write_examples",
     "write_orientation_csv",
     "write_pose_csv",
 ]
