@@ -392,13 +392,17 @@ def _circles(
     by the circle and the dip (:func:`calibration.orientation.fit_circle_hard_iron`) on their
     magnetometer's ``valid`` ``(F, N)`` samples, the field's strength and dip from the sensors
     calibrated already; ``mag`` and ``fits`` updated in place."""
-    done = [k for k, n in enumerate(rec.names) if not isinstance(fits[n], str) and applies(fits[n])]
+    done = [
+        k
+        for k, n in enumerate(rec.names)
+        if not isinstance(fits[n], str) and applies(fits[n]) and not fits[n].left_out
+    ]
     if not done:
         return
     ref = reference_from_data(rec.acc[:, done], mag[:, done], "enu", valid=rec.valid[:, done])
     for k, name in enumerate(rec.names):
         fit = fits[name]
-        if k in done or (not isinstance(fit, str) and fit.determined):
+        if k in done or (not isinstance(fit, str) and fit.determined and not fit.left_out):
             continue
         up = np.nanmean(np.where(rec.valid[:, k, None], rec.acc[:, k], np.nan), axis=0)
         try:
@@ -406,7 +410,7 @@ def _circles(
         except CalibrationError:
             continue
         if applies(circle):
-            fits[name] = circle
+            fits[name] = dataclasses.replace(circle, left_out=())
             mag[:, k] = circle.apply(rec.mag[:, k])
 
 
@@ -484,7 +488,7 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
             "hard iron": "applied (hard iron only: too few directions for the soft iron)",
         }.get(fit.model, "applied (hard iron only, turns about one axis: the circle and the field's dip)")
     elif not fit.determined:
-        verdict = f"not applied: the semi-axes are known to {100 * fit.axis_error.max():.2g} % only"
+        verdict = "not applied: the samples determine none of its parameters"
     else:
         verdict = "not applied: the raw field strength is about as steady (already calibrated)"
     soft = float(np.linalg.norm(fit.soft_iron - np.eye(3), 2))
@@ -494,4 +498,5 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
         f"{fit.field_strength:.4g}; |m| spread {100 * fit.spread_before:.2g} % -> "
         f"{100 * fit.spread_after:.2g} %; "
         f"directions covered {', '.join(f'{x:.2f}' for x in fit.coverage)} (0.58 each all round)"
+        + "".join(f"; left out, not determined: {x}" for x in fit.left_out)
     )
