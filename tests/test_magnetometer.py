@@ -388,6 +388,53 @@ def test_turns_about_one_axis_leave_the_axis_uncorrected_and_are_never_worse_tha
         assert after < before
 
 
+def test_turns_about_two_axes_are_never_worse_than_no_calibration():
+    """Turns about the vertical (+-143 degrees) and a horizontal axis (+-46 degrees), a 2-degree
+    wobble, the same iron: whatever the fit keeps, TRIAD and the default are better calibrated
+    than not (measured: 19.9 -> 2.7 degrees, the default 20.0 -> 2.7)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from simbench.io.imu import ImuRecording
+    from simbench.orient import calibrate_magnetometers, estimate
+    from simbench.score import score_orientation
+
+    rng = np.random.default_rng(0)
+    n = 6000
+    t = np.arange(n) / 100.0
+    heading = 2.5 * np.sin(2 * np.pi * 0.2 * t + rng.uniform(0, 6))
+    pitch = 0.8 * np.sin(2 * np.pi * 0.13 * t + rng.uniform(0, 6))
+    wobble = gaussian_filter1d(rng.normal(size=(n, 3)), 30, axis=0)
+    wobble *= np.deg2rad(2.0) / wobble.std(axis=0)
+    R = (
+        rotvec_to_matrix(heading[:, None] * np.array([0.0, 0.0, 1.0]))
+        @ rotvec_to_matrix(pitch[:, None] * np.array([1.0, 0.0, 0.0]))
+        @ rotvec_to_matrix(wobble)
+        @ rotvec_to_matrix(np.array([0.3, -0.2, 0.0]))
+    )
+    soft = np.array([[1.05, 0.03, -0.02], [0.03, 0.96, 0.02], [-0.02, 0.02, 1.0]])
+    mag = raw_samples(R, soft, np.array([6.0, -4.0, 10.0]), 0.3, rng)
+    acc = np.einsum("fji,j->fi", R, [0.0, 0.0, 9.81])
+    rec = ImuRecording(
+        names=("s",),
+        time_s=t,
+        acc=acc[:, None],
+        gyro=np.zeros((n, 1, 3)),
+        mag=mag[:, None],
+        valid=np.ones((n, 1), dtype=bool),
+        q_true=matrix_to_quat(R)[:, None],
+        evaluate=None,
+        rate_hz=100.0,
+        source="test",
+    )
+    fixed, _ = calibrate_magnetometers(rec)
+    for method in ("triad", "skeleton"):
+        before, after = (
+            score_orientation(estimate(r, method).q_enu, r.q_true, r.names).per_sensor["s"]["total_deg"]
+            for r in (rec, fixed)
+        )
+        assert after < 0.5 * before
+
+
 def test_turns_every_way_apply_the_calibration_and_recover_the_iron():
     """The same sensor and iron turned every way: the ellipsoid is determined, applied, and
     gives back the hard iron to 1 % of the field and the soft iron to 1 %."""
