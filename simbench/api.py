@@ -82,6 +82,7 @@ from simbench.orient import (
     disturbed_fraction,
     estimate,
     in_frame,
+    input_warnings,
     skeleton_from_calibration,
     skeleton_of,
 )
@@ -418,6 +419,8 @@ class Orientations:
         field_strength_ut, inclination_deg: the reference field a built-in method took from the
             recording, uT and degrees (NaN for other estimators).
         notes: the recording's notes, with what the magnetometer calibration did.
+        warnings: inputs that cannot be trusted (:func:`simbench.orient.input_warnings`): an
+            axis held at its range, a field strength that drifts, no rest.
     """
 
     q_w_s: np.ndarray
@@ -430,6 +433,7 @@ class Orientations:
     field_strength_ut: float = math.nan
     inclination_deg: float = math.nan
     notes: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def in_frame(self, frame: str = "enu") -> np.ndarray:
         """``(F, N, 4)`` the orientations in world frame ``enu`` or ``ned`` (for
@@ -516,6 +520,7 @@ def orient(
         )
     if est.origin == "builtin" and params is not None:
         raise InputError(f"{est.name!r}: the built-in methods take their options as keyword arguments")
+    warned = input_warnings(rec, est.origin == "builtin", "gyro" in est.needs)
     fits = None
     if calibrate_mag is None:
         calibrate_mag = bool(est.defaults.get("calibrate_mag", False))
@@ -539,6 +544,7 @@ def orient(
         field_strength_ut=float(run.field_strength_ut),
         inclination_deg=float(run.inclination_deg),
         notes=tuple(rec.notes),
+        warnings=warned,
     )
 
 

@@ -31,6 +31,7 @@ import vqf
 from calibration import Calibration
 from calibration.errors import CalibrationError
 from calibration.orientation import (
+    REST_S,
     Estimate,
     MagnetometerCalibration,
     Priors,
@@ -39,18 +40,22 @@ from calibration.orientation import (
     Weighting,
     change_frame,
     disturbed_spans,
+    field_drift,
     fit_circle_hard_iron,
     fit_disturbed_spans,
     fit_magnetometer,
     follow_fits,
     fontaine,
+    longest_rest,
     mahony,
     reference_from_data,
+    saturated_axes,
     skeleton_orientation,
     smooth_vectors,
     triad,
     wahba,
 )
+from calibration.orientation.trust import DRIFT_SPREADS
 from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
 from simbench.io.calibration_json import (
@@ -392,13 +397,17 @@ def _circles(
     by the circle and the dip (:func:`calibration.orientation.fit_circle_hard_iron`) on their
     magnetometer's ``valid`` ``(F, N)`` samples, the field's strength and dip from the sensors
     calibrated already; ``mag`` and ``fits`` updated in place."""
-    done = [k for k, n in enumerate(rec.names) if not isinstance(fits[n], str) and applies(fits[n])]
+    done = [
+        k
+        for k, n in enumerate(rec.names)
+        if not isinstance(fits[n], str) and applies(fits[n]) and not fits[n].left_out
+    ]
     if not done:
         return
     ref = reference_from_data(rec.acc[:, done], mag[:, done], "enu", valid=rec.valid[:, done])
     for k, name in enumerate(rec.names):
         fit = fits[name]
-        if k in done or (not isinstance(fit, str) and fit.determined):
+        if k in done or (not isinstance(fit, str) and fit.determined and not fit.left_out):
             continue
         up = np.nanmean(np.where(rec.valid[:, k, None], rec.acc[:, k], np.nan), axis=0)
         try:
@@ -406,7 +415,7 @@ def _circles(
         except CalibrationError:
             continue
         if applies(circle):
-            fits[name] = circle
+            fits[name] = dataclasses.replace(circle, left_out=())
             mag[:, k] = circle.apply(rec.mag[:, k])
 
 
@@ -484,7 +493,7 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
             "hard iron": "applied (hard iron only: too few directions for the soft iron)",
         }.get(fit.model, "applied (hard iron only, turns about one axis: the circle and the field's dip)")
     elif not fit.determined:
-        verdict = f"not applied: the semi-axes are known to {100 * fit.axis_error.max():.2g} % only"
+        verdict = "not applied: the samples determine none of its parameters"
     else:
         verdict = "not applied: the raw field strength is about as steady (already calibrated)"
     soft = float(np.linalg.norm(fit.soft_iron - np.eye(3), 2))
@@ -494,4 +503,52 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
         f"{fit.field_strength:.4g}; |m| spread {100 * fit.spread_before:.2g} % -> "
         f"{100 * fit.spread_after:.2g} %; "
         f"directions covered {', '.join(f'{x:.2f}' for x in fit.coverage)} (0.58 each all round)"
+        + "".join(f"; left out, not determined: {x}" for x in fit.left_out)
     )
+
+
+def input_warnings(rec: ImuRecording, builtin: bool = False, gyro_aided: bool = False) -> tuple[str, ...]:
+    """Warnings on inputs that cannot be trusted (:mod:`calibration.orientation.trust`), one
+    line each, sensor by sensor: a gyroscope or accelerometer axis held at its range
+    (saturated), a magnetometer whose field strength drifts, and -- for a built-in method, which
+    takes the reference gravity and field dip from the recording -- a recording with no rest
+    (a gyro-aided one also estimates its gyroscope's bias at rest). A user's estimator's needs
+    are not known: no rest is not named for it.
+
+    Args:
+        rec: the recording as read (before any magnetometer calibration).
+        builtin: the method is a built-in one.
+        gyro_aided: the method integrates the gyroscope (the registry's ``needs``).
+    """
+    check_recording(rec)
+    out = []
+    xyz = "xyz"
+    for k, name in enumerate(rec.names):
+        valid = rec.valid[:, k]
+        for what, x, unit, use in (
+            ("gyroscope", rec.gyro[:, k], "rad/s", None),
+            ("accelerometer", rec.acc[:, k], "m/s^2", magnetometer_valid(rec)[:, k]),
+        ):
+            for s in saturated_axes(x, use):
+                out.append(
+                    f"{name}: {what} axis {xyz[s.axis]} held at +-{s.value:.4g} {unit} on "
+                    f"{100 * s.fraction:.2g} % of the samples: saturated (its range), the reading there "
+                    "is not the motion's"
+                    + (" (the gyro-aided methods integrate it)" if what == "gyroscope" else "")
+                )
+        change, spread = field_drift(rec.mag[:, k], rec.time_s, magnetometer_valid(rec)[:, k])
+        if spread > 0 and abs(change) > DRIFT_SPREADS * spread:
+            out.append(
+                f"{name}: the magnetometer's field strength drifts by {change:+.3g} uT over the recording "
+                f"({abs(change) / spread:.1f} times its spread about the trend): a gain or offset that "
+                "changes, or a field that does; the heading rests on it"
+            )
+        if builtin:
+            rest = longest_rest(rec.acc[:, k], rec.gyro[:, k], rec.rate_hz, valid)
+            if rest < REST_S:
+                bias = " and the gyroscope's bias is not estimated at rest" if gyro_aided else ""
+                out.append(
+                    f"{name}: no rest of {REST_S:g} s in the recording (longest {rest:.2g} s): the "
+                    f"reference gravity and the field's dip are taken from moving samples{bias}"
+                )
+    return tuple(out)

@@ -31,6 +31,9 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
   recording, on the calibrated skeleton (:class:`Skeleton`): each sensor's linear acceleration
   predicted from the chain's motion instead of ignored, heading carried across spans the data do
   not determine; without a skeleton, a smoother with priors on acceleration (:class:`Priors`).
+- :mod:`.trust`: inputs that cannot be trusted: an axis held at its range
+  (:func:`saturated_axes`), a field strength that drifts (:func:`field_drift`), no rest
+  (:func:`longest_rest`).
 - :mod:`.complementary`: :func:`mahony`, a gyro-aided reference (Mahony's explicit
   complementary filter), so users can see how far gyro-free estimation is from an established
   fusion filter.
@@ -53,6 +56,7 @@ from calibration.orientation.magnetometer import (
     follow_fits,
 )
 from calibration.orientation.skeleton import Priors, Skeleton, skeleton_orientation
+from calibration.orientation.trust import REST_S, Saturation, field_drift, longest_rest, saturated_axes
 from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
 from calibration.orientation.world import (
     FRAMES,
@@ -72,25 +76,30 @@ __all__ = [
     "GRAVITY",
     "MIN_NORM_FRACTION",
     "MIN_SIN_ANGLE",
+    "REST_S",
     "R_NED_ENU",
     "Estimate",
     "MagnetometerCalibration",
     "Priors",
     "Reference",
+    "Saturation",
     "Skeleton",
     "SpanCalibration",
     "Weighting",
     "change_frame",
     "disturbed_spans",
+    "field_drift",
     "fit_circle_hard_iron",
     "fit_disturbed_spans",
     "fit_magnetometer",
     "follow_fits",
     "fontaine",
+    "longest_rest",
     "mahony",
     "orientation_errors",
     "reference",
     "reference_from_data",
+    "saturated_axes",
     "skeleton_orientation",
     "smooth_vectors",
     "triad",

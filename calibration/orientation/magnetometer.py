@@ -13,18 +13,33 @@ over every valid sample. Then ``h = -M^-1 n``, ``A = M / (1 + h^T M h)``, and th
 ``b = S (m - h)`` with ``S = B A^(1/2)``, ``B = det(A)^(-1/6)`` (the geometric mean of the semi-axes:
 the calibrated field keeps the recording's strength).
 
-**Is it determined?** Turning about one axis only traces a circle of the ellipsoid: the fit is
-then singular along the axis. The nine coefficients' covariance (the least-squares residual's
-variance times ``(D^T D)^-1``) is carried to the three semi-axes by a numerical Jacobian; the fit
-is ``determined`` when every semi-axis is known to :data:`AXIS_TOLERANCE` (its standard error over
-its length), the unit-free test the data's own scatter makes. The directions the samples cover
-are reported too (the spread of the calibrated directions along their principal axes).
+**Is it determined?** Each parameter the correction applies -- the hard iron's component along
+each principal axis of the samples, and the soft iron as a whole (its eigenvalues' departures from
+one, the largest bound against the largest departure) -- is judged on its own by its error bound:
+:data:`BOUND_Z` standard errors, the standard error from the fit's Jacobian and its residuals (a
+sandwich: the residual times the design summed over each of :data:`BLOCKS` consecutive blocks of
+samples, so that a residual that follows the motion -- soft iron a model leaves out, a field that
+is not uniform -- counts as the correlated error it is, not as independent noise that averages
+out; along a direction the samples barely cover the fit magnifies it by the inverse of that
+spread). A parameter is determined when its bound is at most :data:`CORRECTION_FRACTION` of its
+correction (then applying it cannot move the field farther from the truth than leaving it out
+does) or at most :data:`FIELD_FRACTION` of the field (too small to matter either way). The
+ellipsoid is used when all its parameters are determined; otherwise the sphere (hard iron alone),
+its undetermined components left out one at a time (the least determined first, and first any
+direction the samples do not spread along beyond the noise, :data:`NOISE_SPREAD`; the others
+fitted again with it held at zero) until what remains is determined; nothing determined, no
+correction (``model="none"``). ``left_out`` says what was left out and why. Turning about one
+axis, the component along the axis is left out: the fit does not pull the field strength along a
+direction it cannot see (the issue-43 failure: 50 -> 42 uT, heading 0.94 -> 5.27 degrees). The
+semi-axes' standard errors (the residual as independent noise, ``axis_error``) and the directions
+the samples cover (the spread of the calibrated directions along their principal axes) are
+reported too.
 
 **Fewer directions: hard iron only.** A body segment that hardly turns (pelvis, torso) shows
 its magnetometer too few directions for nine coefficients. The hard iron alone, the sphere
 ``|m - h| = B`` (four coefficients, linear in ``h`` and ``B^2 - |h|^2``), needs fewer: when the
-ellipsoid is not determined, the sphere is fitted, and used when its centre is known to
-:data:`AXIS_TOLERANCE` of ``B`` (soft iron then taken as the identity; ``model`` says which).
+ellipsoid is not determined, the sphere is fitted, each component of its centre judged as above
+(soft iron then taken as the identity; ``model`` says which).
 
 **Turns about one axis: the circle and the dip.** A segment that only turns about the vertical
 (the trunk in gait) traces a circle: the sphere's centre is then unknown along the axis. The
@@ -44,6 +59,7 @@ reported as bad by the caller.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,8 +67,32 @@ import numpy as np
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.quantiles import mad_std
 
-#: Largest standard error of a semi-axis, over its length, of a determined fit (1 %).
+#: Largest standard error of a semi-axis, over its length, of a determined fit (1 %): the circle
+#: (:func:`fit_circle_hard_iron`), whose component along the axis comes from the dip.
 AXIS_TOLERANCE = 0.01
+
+#: A parameter is determined when its error bound is at most this fraction of its correction
+#: (module docstring): at a half, ``|estimate - truth| <= |estimate| / 2`` gives
+#: ``|estimate - truth| <= |truth|``, so applying it is no worse than leaving it out.
+CORRECTION_FRACTION = 0.5
+
+#: A parameter's error bound, in standard errors (a Gaussian estimate is off by more once in
+#: 370), the standard error from the fit's residuals summed over this many consecutive blocks of
+#: samples (a batch-means sandwich): a residual that follows the motion -- soft iron a model leaves
+#: out, a field that is not uniform -- is correlated from sample to sample and does not average
+#: out as independent noise would.
+BOUND_Z = 3.0
+BLOCKS = 20
+
+#: A direction along which the samples spread no more than this many times the sphere's own
+#: residual (radial, per axis) is not seen at all: the spread may be the noise itself, and a
+#: sphere fitted to a circle and its noise centres on the circle's plane (a radius of the
+#: horizontal field), which no standard error reveals.
+NOISE_SPREAD = 2.0
+
+#: ... or when its error bound is at most this fraction of the field strength (a field direction
+#: off by 0.6 degrees at most).
+FIELD_FRACTION = 0.01
 
 #: Fewest samples for a fit (nine coefficients and their scatter).
 MIN_SAMPLES = 30
@@ -67,15 +107,21 @@ class MagnetometerCalibration:
         soft_iron: ``(3, 3)`` symmetric correction ``S``: ``b = S (m - h)``.
         field_strength: ``B``, the calibrated field's strength, in the samples' unit.
         axes: ``(3,)`` semi-axes of the fitted ellipsoid, largest first, in the samples' unit.
-        axis_error: ``(3,)`` their standard errors over their lengths.
-        determined: every semi-axis known to :data:`AXIS_TOLERANCE`.
+        axis_error: ``(3,)`` their standard errors over their lengths (the residual as
+            independent noise).
+        determined: every parameter the correction applies is determined (module docstring);
+            ``False`` for ``model="none"``, which corrects nothing.
         coverage: ``(3,)`` spread of the calibrated directions along their principal axes
             (standard deviation of the unit vectors' components, largest first; 0.58 each for
             directions all over the sphere, one of them near 0 for turns about one axis).
         spread_before, spread_after: robust relative spread of ``|m|`` and of ``|b|``.
         n_samples: samples used.
-        model: ``"ellipsoid"`` (hard and soft iron), ``"hard iron"`` (the sphere) or
-            ``"hard iron, circle"`` (turns about one axis: :func:`fit_circle_hard_iron`).
+        model: ``"ellipsoid"`` (hard and soft iron), ``"hard iron"`` (the sphere, or the
+            components of its centre that are determined: ``left_out``), ``"hard iron, circle"``
+            (turns about one axis: :func:`fit_circle_hard_iron`) or ``"none"`` (nothing
+            determined: the identity).
+        left_out: what the samples do not determine and the correction leaves out, one line each
+            with its error bound against its size (empty when nothing was).
     """
 
     hard_iron: np.ndarray
@@ -89,6 +135,7 @@ class MagnetometerCalibration:
     spread_after: float
     n_samples: int
     model: str = "ellipsoid"
+    left_out: tuple[str, ...] = ()
 
     def apply(self, mag: np.ndarray) -> np.ndarray:
         """``(..., 3)`` calibrated field ``S (m - h)`` of raw samples ``(..., 3)``."""
@@ -140,34 +187,98 @@ def fit_magnetometer(mag: np.ndarray, valid: np.ndarray | None = None) -> Magnet
     if m.ndim != 2 or m.shape[1] != 3:
         raise CalibrationInputError(f"Expected mag of shape (frames, 3), got {m.shape}")
     m = _usable_samples(m, valid)
+    left_out: tuple[str, ...] = ()
     try:
         ellipsoid = _fit_ellipsoid(m)
         if ellipsoid.determined:
             return ellipsoid
-    except CalibrationError:
-        pass
-    return _fit_sphere(m)
+        left_out = ellipsoid.left_out
+    except CalibrationError as exc:
+        left_out = (f"soft iron: {exc}",)
+    sphere = _fit_sphere(m)
+    return dataclasses.replace(sphere, left_out=left_out + sphere.left_out)
+
+
+def _bounds(D: np.ndarray, r: np.ndarray, grads: np.ndarray) -> np.ndarray:
+    """Error bounds ``(P,)`` of ``P`` functions of a linear least-squares fit's coefficients,
+    their gradients ``grads`` ``(P, K)``, over the design ``D`` ``(F, K)`` (samples in time order)
+    with residual ``r`` ``(F,)``: :data:`BOUND_Z` standard errors from the covariance
+    ``G (sum_b s_b s_b^T) G``, ``G = (D^T D)^-1``, ``s_b`` the sum of ``D_t r_t`` over each of
+    :data:`BLOCKS` consecutive blocks of samples (module docstring); ``inf`` where the design does
+    not determine them."""
+    gram = D.T @ D
+    if not np.all(np.isfinite(grads)) or np.linalg.cond(gram) > 1e14:
+        return np.full(grads.shape[0], np.inf)
+    k = min(BLOCKS, D.shape[0])
+    scores = np.add.reduceat(D * r[:, None], np.linspace(0, D.shape[0], k, endpoint=False).astype(int))
+    Ga = np.linalg.solve(gram, grads.T)  # (K, P)
+    var = np.sum((scores @ Ga) ** 2, axis=0) * k / max(k - 1, 1)
+    return BOUND_Z * np.sqrt(var)
+
+
+def _judge(size: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """Which parameters (corrections ``size``, error bounds ``bound``, both as fractions of the
+    field) are determined: :data:`CORRECTION_FRACTION`, :data:`FIELD_FRACTION`."""
+    return (bound <= CORRECTION_FRACTION * np.abs(size)) | (bound <= FIELD_FRACTION)
+
+
+def _principal_axes(m: np.ndarray) -> np.ndarray:
+    """``(3, 3)`` the samples' principal axes as columns, largest spread first."""
+    _, vecs = np.linalg.eigh(np.cov(m.T))
+    return vecs[:, ::-1]
+
+
+def _axis_text(e: np.ndarray) -> str:
+    return "(" + ", ".join(f"{x:.2f}" for x in e) + ")"
 
 
 def _fit_sphere(m: np.ndarray) -> MagnetometerCalibration:
-    """The hard iron alone: ``|m|^2 = 2 m.h + (B^2 - |h|^2)``, linear least squares."""
+    """The hard iron alone: ``|m|^2 = 2 m.h + (B^2 - |h|^2)``, linear least squares, in the
+    samples' principal axes; the components not determined left out (held at zero) one at a
+    time, the least determined first, until what remains is determined."""
     scale = float(np.median(np.linalg.norm(m, axis=1)))
-    x = m / scale
-    D = np.column_stack([2 * x, np.ones(len(x))])
+    E = _principal_axes(m)
+    x = (m / scale) @ E  # in the principal axes
     y = np.sum(x * x, axis=1)
-    v, *_ = np.linalg.lstsq(D, y, rcond=None)
-    h = v[:3]
-    r2 = float(v[3] + h @ h)
-    if not r2 > 0:
-        raise CalibrationError("the magnetometer samples lie on no sphere: a field that changes")
-    r = np.sqrt(r2)
-    gram = D.T @ D
-    if np.linalg.cond(gram) > 1e14:
+    keep = [0, 1, 2]
+    left_out: list[str] = []
+    while True:
+        D = np.column_stack([2 * x[:, keep], np.ones(len(x))])
+        v, *_ = np.linalg.lstsq(D, y, rcond=None)
+        h = np.zeros(3)
+        h[keep] = v[:-1]
+        r2 = float(v[-1] + h @ h)
+        if not r2 > 0:
+            raise CalibrationError("the magnetometer samples lie on no sphere: a field that changes")
+        r = np.sqrt(r2)
+        res = y - D @ v
+        bound = _bounds(D, res, np.eye(len(keep) + 1)[:-1]) / r
+        # the radial noise per axis, from the residual of |x|^2 (about 2 r times it)
+        noise = float(np.sqrt(np.mean(res**2))) / (2 * r)
+        seen = np.std(x[:, keep], axis=0) > NOISE_SPREAD * noise
+        ok = _judge(h[keep] / r, bound) & seen
+        if ok.all():
+            break
+        # first a direction not seen (the least spread), then the least determined
+        ratio = bound / np.maximum(np.abs(h[keep] / r), 1e-300)
+        worst = int(np.argmin(np.std(x[:, keep], axis=0)) if not seen.all() else np.argmax(ratio))
+        j = keep.pop(worst)
+        left_out.append(
+            f"hard iron along {_axis_text(E[:, j])}: {h[j] * scale:.3g}, known to "
+            f"{bound[worst] * r * scale:.2g} only (the samples' spread along it is "
+            f"{np.std(x[:, j]) * scale:.2g})"
+        )
+        if not keep:
+            break
+    if not keep:
         error = np.full(3, np.inf)
+        hard = np.zeros(3)
+        r = float(np.median(np.linalg.norm(m, axis=1))) / scale
     else:
-        sigma2 = float(np.sum((D @ v - y) ** 2) / max(len(x) - 4, 1))
-        error = np.sqrt(np.diag(sigma2 * np.linalg.inv(gram))[:3]) / r
-    hard = h * scale
+        sigma2 = float(np.sum((D @ v - y) ** 2) / max(len(x) - D.shape[1], 1))
+        error = np.zeros(3)
+        error[keep] = np.sqrt(np.diag(sigma2 * np.linalg.pinv(D.T @ D))[:-1]) / r
+        hard = E @ h * scale
     b = m - hard
     u = b / np.linalg.norm(b, axis=1, keepdims=True)
     return MagnetometerCalibration(
@@ -176,12 +287,13 @@ def _fit_sphere(m: np.ndarray) -> MagnetometerCalibration:
         field_strength=r * scale,
         axes=np.full(3, r * scale),
         axis_error=np.sort(error)[::-1],
-        determined=bool(np.all(error <= AXIS_TOLERANCE)),
+        determined=bool(keep),
         coverage=np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(u.T)))[::-1].clip(min=0.0)),
         spread_before=_spread(np.linalg.norm(m, axis=1)),
         spread_after=_spread(np.linalg.norm(b, axis=1)),
         n_samples=int(m.shape[0]),
-        model="hard iron",
+        model="hard iron" if keep else "none",
+        left_out=tuple(left_out),
     )
 
 
@@ -296,6 +408,36 @@ def _fit_ellipsoid(m: np.ndarray) -> MagnetometerCalibration:
     strength = float(np.prod(axes) ** (1.0 / 3.0))
     soft = strength * W
     hard = h * scale
+    # each parameter the correction applies, in the samples' principal axes, over the field
+    E = _principal_axes(m)
+    p0 = _corrections(v, E)
+    J = np.empty((p0.size, 9))
+    step = 1e-6 * np.maximum(np.abs(v), 1e-3)
+    for k in range(9):
+        dv = np.zeros(9)
+        dv[k] = step[k]
+        try:
+            J[:, k] = (_corrections(v + dv, E) - _corrections(v - dv, E)) / (2 * step[k])
+        except np.linalg.LinAlgError:
+            J[:, k] = np.inf
+    bound = _bounds(D, D @ v - 1.0, J)
+    # the hard iron component by component; the soft iron as a whole, by its largest departure
+    # from the identity (its eigenvalues': their bounds against the largest of them)
+    ok = np.append(
+        _judge(p0[:3], bound[:3]), _judge(np.array([np.abs(p0[3:]).max()]), np.array([bound[3:].max()]))
+    )
+    names = [f"hard iron along {_axis_text(E[:, j])}" for j in range(3)]
+    left_out = tuple(
+        f"{names[k]}: {100 * p0[k]:.2g} % of the field, known to {100 * bound[k]:.2g} % only"
+        for k in np.flatnonzero(~ok[:3])
+    ) + (
+        ()
+        if ok[3]
+        else (
+            f"soft iron: {100 * np.abs(p0[3:]).max():.2g} % from the identity at most, known to "
+            f"{100 * bound[3:].max():.2g} % only",
+        )
+    )
     b = (m - hard) @ soft.T
     u = b / np.linalg.norm(b, axis=1, keepdims=True)
     coverage = np.sqrt(np.sort(np.linalg.eigvalsh(np.cov(u.T)))[::-1].clip(min=0.0))
@@ -305,12 +447,26 @@ def _fit_ellipsoid(m: np.ndarray) -> MagnetometerCalibration:
         field_strength=strength * scale,
         axes=axes * scale,
         axis_error=axis_error,
-        determined=bool(np.all(axis_error <= AXIS_TOLERANCE)),
+        determined=bool(ok.all()),
         coverage=coverage,
         spread_before=_spread(np.linalg.norm(m, axis=1)),
         spread_after=_spread(np.linalg.norm(b, axis=1)),
         n_samples=int(m.shape[0]),
+        left_out=left_out,
     )
+
+
+def _corrections(v: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """``(6,)`` the ellipsoid's corrections as fractions of the field: the hard iron's three
+    components in the principal axes ``E``, and the soft iron's departures from the identity
+    (its eigenvalues less one, ascending), of the quadric's coefficients ``v`` (normalised
+    samples)."""
+    h, A = _ellipsoid(v)
+    w = np.linalg.eigvalsh(A)
+    if not np.all(w > 0):
+        raise np.linalg.LinAlgError("not an ellipsoid")
+    strength = float(np.prod(w) ** (-1.0 / 6.0))
+    return np.concatenate([E.T @ h / strength, strength * np.sqrt(w) - 1.0])
 
 
 #: A sample departs from the recording's field strength when ``| |m| / B - 1 |`` exceeds this

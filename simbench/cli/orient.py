@@ -149,6 +149,8 @@ def cmd_orient(args: argparse.Namespace) -> int:
     print(f"  estimated {int(ori.ok.sum())} of {n_total} sensor samples ({masked} masked by the reader)")
     for note in ori.notes:  # the reader's, and what the magnetometer calibration did
         print(f"  note: {note}")
+    for warning in ori.warnings:  # inputs that cannot be trusted
+        print(f"  warning: {warning}")
     for name, fit in (ori.magnetometers or {}).items():
         print(f"  magnetometer {name}: {describe_fit(fit)}")
     disturbed = {n: f for n, f in (ori.disturbed or {}).items() if f > 0}
