@@ -100,9 +100,10 @@ def _one_line(exc: BaseException) -> str:
 
 
 #: Commands whose outputs are one set (:func:`simbench.api.output_set`): a failure part way leaves
-#: none of them. (``sweep``, ``validate``, ``report``, ``bench`` and ``calibrate --follow`` keep what
-#: they finished: their outputs are results of their own, written as they come.)
-OUTPUT_SETS = ("simulate", "export", "calibrate", "scale", "orient", "twin")
+#: none of them. (``sweep``, ``validate``, ``report``, ``twin``, ``bench`` and ``calibrate --follow``
+#: keep what they finished: their outputs are results of their own, written as they come, and a
+#: report's page embeds the figures written before it.)
+OUTPUT_SETS = ("simulate", "export", "calibrate", "scale", "orient")
 
 #: The options that name a file to write (argparse ``dest``), checked before any work is done.
 FILE_OUTPUTS = ("json", "csv", "output", "trc", "c3d", "sto", "imu_csv", "mjcf", "osim", "truth_json")
