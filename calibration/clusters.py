@@ -271,6 +271,8 @@ class MarkerGroups:
         doubtful_spread: each cluster kept whole whose top union's spread test lies beyond the
             :data:`SPREAD_DOUBT` quantile (:class:`Refusal` with that quantile as the limit):
             perhaps two bodies, kept as one, and said.
+        doubtful_partner: each cluster that may hold a marker of a pair left out (:class:`Partner`,
+            :func:`pair_partners`): kept, and said.
         virtual: groups of markers exactly rigid with each other (:func:`exact_groups`): landmarks
             computed from a cluster's pose, set aside before the cuts (their markers are in
             ``left_out`` too), sorted.
@@ -295,6 +297,7 @@ class MarkerGroups:
     splits: list[Refusal] = field(default_factory=list)
     doubtful: list[tuple[list[int], list[int], float, float, int]] = field(default_factory=list)
     doubtful_spread: list[Refusal] = field(default_factory=list)
+    doubtful_partner: list[Partner] = field(default_factory=list)
     virtual: list[list[int]] = field(default_factory=list)
     virtual_with: list[int | None] = field(default_factory=list)
     virtual_spread: list[float] = field(default_factory=list)
@@ -681,6 +684,73 @@ def rigid_parts(
     return parts, splits
 
 
+class Partner(NamedTuple):
+    """A cluster that may hold a marker of a pair of markers left out (:func:`pair_partners`).
+
+    Attributes:
+        marker: the cluster's marker that is the pair's steadiest partner.
+        rest: the cluster's other markers.
+        pair: the two markers left out.
+        to_pair: median distance spread of ``marker`` to the pair, in the markers' unit.
+        to_rest: median distance spread of ``marker`` to ``rest``, same unit.
+    """
+
+    marker: int
+    rest: list[int]
+    pair: list[int]
+    to_pair: float
+    to_rest: float
+
+
+def pair_partners(
+    spread: np.ndarray,
+    clusters: list[list[int]],
+    pairs: list[list[int]],
+    noise: SpreadNoise,
+    min_size: int = 3,
+) -> list[Partner]:
+    """Clusters that may hold a marker of a pair left out: the pair with it would be a cluster.
+
+    Two markers left out (too few for a pose) beside a cluster that joined last, as a branch of
+    its own, the pair's steadiest partner (the marker whose median distance spread to the pair is
+    the smallest of all clustered markers'), while the cluster keeps ``min_size`` markers without
+    it: that marker may be the pair's segment's, its distances as unsteady to its own segment as
+    to the cluster (a marker near the joint, on soft tissue), and no steadier with the cluster than
+    the spread test lets a marker join one (:func:`spread_excess` of the two median spreads within
+    :func:`spread_limit` at :data:`SPREAD_SMALL`). The data do not say which; the
+    grouping is kept and the cluster named. The distances alone cannot tell them apart: a thigh
+    marker 15 cm from the anterior iliac spine, near the hip, varies 5.5 mm in distance to the
+    pelvis's markers and 6.4 mm to the thigh's two others (OpenSim's Rajagopal running trial).
+
+    Args:
+        spread: ``(M, M)`` distance spread (:func:`distance_spread`).
+        clusters: the clusters (marker index lists).
+        pairs: the pairs of markers left out that move (split off a group).
+        noise: the recording's spread scatter (:func:`spread_noise`).
+        min_size: the smallest cluster.
+    """
+    out = []
+    clustered = [(k, c) for c in clusters for k in c]
+    for pair in pairs:
+        if len(pair) != 2 or not clustered:
+            continue
+        p = np.asarray(pair)
+        to_pair = [float(np.median(spread[k, p])) for k, _ in clustered]
+        best = int(np.argmin(to_pair))
+        k, c = clustered[best]
+        if len(c) <= min_size:
+            continue
+        a, b = _top_union(spread, np.asarray(c))
+        if k not in (a.tolist() if len(a) == 1 else b.tolist() if len(b) == 1 else []):
+            continue
+        rest = sorted(int(j) for j in c if j != k)
+        to_rest = float(np.median(spread[k, rest]))
+        if not math.log(to_pair[best] / to_rest) / noise.tau <= spread_limit(1, len(rest), SPREAD_SMALL):
+            continue  # much steadier with its cluster than with the pair
+        out.append(Partner(int(k), rest, sorted(int(j) for j in pair), to_pair[best], to_rest))
+    return out
+
+
 def _top_union(spread: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The two branches joined last in the spread tree of ``members`` (two or more)."""
     Z = _spread_tree(spread, members)
@@ -911,7 +981,11 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     each other; a group of ``min_size`` or more whose rigid fit rotates less than ``still_deg``
     (95th percentile from its mean orientation) is *still*: its distances are steady because it
     barely moves, so its rigidity is not proven (a body at rest, lab markers); it is reported
-    apart. The second cut, over the markers of the moving groups only, separates the segments
+    apart -- once the tests below have split off any marker that moves against it (a still group
+    is one rigid body too: an arm marker beside a pelvis that turns 5 degrees while running); a
+    still group that splits into two or more parts of ``min_size`` is kept whole, no motion telling
+    its bodies apart (a person standing). The second cut, over the markers of the moving groups
+    only, separates the segments
     (skin spread within a cluster, joint motion between clusters); each group it gives is then
     split into the parts that are each one rigid body (:func:`rigid_parts`): first by the misfit
     test alone, then by the misfit and spread tests, the spread test's noise taken from the parts
@@ -920,8 +994,9 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     for a pose -- are not joined to the next segment's cluster: a part too small to be a cluster is
     left out, named. A cluster that may still be two bodies is named in ``doubtful``
     (:func:`doubtful_unions`) or ``doubtful_spread`` (its top union's spread excess beyond the
-    :data:`SPREAD_DOUBT` quantile). ``still_deg`` defaults to 10 degrees: below that a joint
-    centre is not determined (DESIGN.md, facts from real recordings).
+    :data:`SPREAD_DOUBT` quantile), or ``doubtful_partner`` (a pair left out whose steadiest
+    partner joined a cluster last, :func:`pair_partners`). ``still_deg`` defaults to 10 degrees:
+    below that a joint centre is not determined (DESIGN.md, facts from real recordings).
     Markers seen too little to judge (:func:`unjudged_markers`) and markers exactly rigid with
     each other (:func:`exact_groups`: landmarks computed from a cluster) are set aside before
     either cut, with the reason, so that a marker never seen, or a spread of zero, does not decide
@@ -978,6 +1053,27 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         noise = spread_noise(spread, [p for p in rigid if len(p) >= min_size], measured_noise)
         if noise is None:
             break
+    # a still group is one rigid body too: a marker that moves against it (an arm's, steady in
+    # distance to a pelvis that turns 5 degrees while running) is split off by the same tests
+    kept_still = []
+    for g in still:
+        parts, refused = rigid_parts(x, spread, g, noise=noise, min_size=min_size)
+        if sum(len(p) >= min_size for p in parts) != 1:  # no motion to tell its bodies apart: whole
+            kept_still.append(g)
+            continue
+        splits += refused
+        for part in parts:
+            if len(part) >= min_size and tuple(part) not in stats:
+                try:
+                    stats[tuple(part)] = _rotation_deg(x[:, part])
+                except CalibrationError:
+                    pass
+            if len(part) >= min_size and tuple(part) in stats and stats[tuple(part)][1] < still_deg:
+                kept_still.append(part)
+            else:
+                rigid.append(part)
+                split_off.add(tuple(part))
+    still = kept_still
     split_off = {int(k) for p in split_off for k in p}
     clusters = []
     for g in rigid:
@@ -1009,6 +1105,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
             pa, pb = sorted(int(k) for k in a), sorted(int(k) for k in b)
             limit = spread_limit(len(a), len(b), SPREAD_DOUBT)
             doubtful_spread.append(Refusal(pa, pb, excess[1], limit, "spread", excess[0], SPREAD_DOUBT))
+    pairs = [sorted(int(k) for k in g) for g in rigid if len(g) == 2 and int(g[0]) in split_off]
     return MarkerGroups(
         clusters=clusters,
         still=still,
@@ -1020,6 +1117,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         splits=splits,
         doubtful=doubtful,
         doubtful_spread=doubtful_spread,
+        doubtful_partner=pair_partners(spread, clusters, pairs, noise, min_size) if noise is not None else [],
         virtual=virtual,
         virtual_with=_virtual_hosts(spread, virtual, groups, noise),
         virtual_spread=[float(spread[np.ix_(g, g)].max()) for g in virtual],
