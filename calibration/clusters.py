@@ -44,7 +44,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.quantiles import MAD_TO_SIGMA, f_ppf, mad_std, norm_ppf
+from calibration.quantiles import MAD_TO_SIGMA, f_ppf, mad_std, norm_ppf, t_ppf
 
 #: Fewest frames in which two markers are seen together for their distance's spread to be judged
 #: (a standard deviation of fewer than three samples says nothing about how steady it is).
@@ -54,6 +54,9 @@ MIN_FRAMES = 3
 #: frame's misfit ratio is beyond what one rigid body with independent marker noise exceeds in one
 #: frame in a thousand.
 RIGID_FALSE_ALARM = 1e-3
+
+#: Fewest blocks the burst test (:func:`burst_excess`) judges a union over: fewer give no scale.
+BURST_MIN_BLOCKS = 12
 
 #: False-alarm rate of the check of a cluster's top union against the recording's own clusters
 #: (:func:`doubtful_unions`), per cluster judged.
@@ -409,6 +412,29 @@ def union_misfit_ratio(
         :data:`MIN_FRAMES` frames show every marker, no degree of freedom is left in the parts
         (two single markers) or none is given up, or the union has no frame to define its shape.
     """
+    frames = union_misfit_frames(markers, a, b)
+    if frames is None:
+        return None
+    added, parts, d1, d2 = frames
+    f = (added / d1) / (parts / d2)
+    return float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2))
+
+
+def union_misfit_frames(
+    markers: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int, int] | None:
+    """Each frame's misfit of :func:`union_misfit_ratio`, in time order: ``(added, parts, d1, d2)``.
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        a, b: marker indices of the two parts (disjoint).
+
+    Returns:
+        ``(n,)`` the misfit added by fitting the union as one body (``S_ab - S_a - S_b``) and the
+        parts' own misfit (``S_a + S_b``), squared length units, in each of the ``n`` frames that
+        show every marker, and the degrees of freedom ``d1``, ``d2`` of their ratio; ``None`` when
+        it cannot be judged (as :func:`union_misfit_ratio`).
+    """
     both = np.concatenate([a, b])
     x = np.asarray(markers, dtype=float)[:, both]
     x = x[np.isfinite(x).all(axis=(1, 2))]
@@ -424,9 +450,71 @@ def union_misfit_ratio(
         return None
     # positions exact to rounding misfit by ~1e-16 of their size: not noise to scale the test by
     floor = (1e3 * np.finfo(float).eps * np.abs(x).max()) ** 2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        f = ((whole - parts) / d1) / np.maximum(parts / d2, floor)
-    return float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2))
+    return whole - parts, np.maximum(parts, floor), d1, d2
+
+
+def correlation_frames(series: np.ndarray) -> int:
+    """Frames over which a series stays correlated: the first lag at which its autocorrelation
+    falls below ``1/e`` (at least 1). Skin moves markers smoothly, so a misfit's frames are not
+    independent draws; blocks of a few such lengths are about as independent as frames of white
+    noise would be."""
+    y = np.asarray(series, dtype=float)
+    y = y[np.isfinite(y)]
+    y = y - np.median(y) if len(y) else y
+    n = len(y)
+    if n < 4 or not np.any(y):
+        return 1
+    spectrum = np.fft.rfft(y, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    acf /= acf[0]
+    below = np.flatnonzero(acf < math.exp(-1.0))
+    return max(1, int(below[0])) if len(below) else n
+
+
+def burst_excess(
+    added: np.ndarray, parts: np.ndarray, *, false_alarm: float = RIGID_FALSE_ALARM
+) -> tuple[float, float] | None:
+    """Whether a union misfits far worse in some stretch of the recording than in the rest:
+    ``(z, limit)``.
+
+    A joint that turns during a part of the recording only (an exercise that moves each joint in
+    turn) leaves the median frame's misfit that of one body, and the distance spread over the
+    whole recording diluted; its frames misfit by far more than the others. Each frame's misfit
+    added by the union (``added``, :func:`union_misfit_frames`) is taken over the parts' own
+    misfit pooled over the recording (its median: one frame's, with a few degrees of freedom,
+    scatters too widely to compare stretches by); the log of that ratio is cut into blocks of
+    twice the correlation length of the parts' own misfit (:func:`correlation_frames`: skin motion
+    is smooth, frames are not independent draws, and one body's misfit is what sets that length);
+    ``z`` is the largest block mean's distance above the block means' median, in units of their
+    robust standard deviation (:func:`calibration.quantiles.mad_std`): unit-free, the scale taken
+    from the recording's own blocks. The limit is Student's t quantile at ``false_alarm`` shared
+    over the blocks (Bonferroni), with one degree of freedom fewer than blocks: the scale is
+    estimated from those few blocks themselves (with the normal quantile, a chain of 5-8 skin
+    markers a segment had one cluster split in 30 sets). One body's largest block exceeds it
+    with probability about ``false_alarm``, if the block means are normal about their median.
+
+    Args:
+        added, parts: ``(n,)`` per-frame misfits in time order (:func:`union_misfit_frames`).
+        false_alarm: the rate at which one body's union exceeds the limit.
+
+    Returns:
+        ``None`` with fewer than :data:`BURST_MIN_BLOCKS` blocks, or no scale.
+    """
+    added, parts = np.asarray(added, dtype=float), np.asarray(parts, dtype=float)
+    level = float(np.median(parts))
+    if not level > 0:
+        return None
+    logs = np.log(np.maximum(added, 1e-12 * level) / level)
+    length = 2 * correlation_frames(np.log(parts))
+    blocks = len(logs) // length
+    if blocks < BURST_MIN_BLOCKS:
+        return None
+    means = logs[: blocks * length].reshape(blocks, length).mean(axis=1)
+    scale = mad_std(means)
+    if not scale > 0:
+        return None
+    z = float((means.max() - np.median(means)) / scale)
+    return z, float(t_ppf(1.0 - false_alarm / blocks, blocks - 1))
 
 
 class Refusal(NamedTuple):
@@ -438,7 +526,8 @@ class Refusal(NamedTuple):
             :func:`union_misfit_ratio`) or the spread excess in robust standard deviations
             (``test == "spread"``, :func:`spread_excess`).
         limit: the quantile it exceeded.
-        test: ``"misfit"`` or ``"spread"``.
+        test: ``"misfit"``, ``"spread"`` or ``"burst"`` (:func:`burst_excess`: the worst stretch
+            of frames' misfit, in robust standard deviations of the blocks' medians).
         ratio: the spread test's ratio of the between pairs' median distance spread to the within
             pairs' (:func:`spread_excess`); NaN for the misfit test.
         false_alarm: the rate at which one rigid body exceeds ``limit``.
@@ -658,10 +747,20 @@ def rigid_parts(
         a, b = nodes[i], nodes[j]
         ok = whole[i] and whole[j]
         if ok:
-            test = union_misfit_ratio(markers, a, b, false_alarm=false_alarm)
-            if test is not None and not test[0] <= test[1]:
-                ok = False
-                splits.append(Refusal([int(k) for k in a], [int(k) for k in b], *test))
+            frames = union_misfit_frames(markers, a, b)
+            if frames is not None:
+                added, own, d1, d2 = frames
+                f = (added / d1) / (own / d2)
+                test = (float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2)))
+                if not test[0] <= test[1]:
+                    ok = False
+                    splits.append(Refusal([int(k) for k in a], [int(k) for k in b], *test))
+                elif min(len(a), len(b)) >= min_size:  # two poses: a joint turning part of the time
+                    burst = burst_excess(added, own, false_alarm=false_alarm)
+                    if burst is not None and not burst[0] <= burst[1]:
+                        ok = False
+                        pa, pb = [int(k) for k in a], [int(k) for k in b]
+                        splits.append(Refusal(pa, pb, burst[0], burst[1], "burst", math.nan, false_alarm))
         if ok and noise is not None:
             excess = spread_excess(spread, a, b, noise)
             if excess is not None:
