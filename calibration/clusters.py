@@ -44,7 +44,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial.distance import squareform
 
 from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.quantiles import MAD_TO_SIGMA, f_ppf, mad_std, norm_ppf
+from calibration.quantiles import MAD_TO_SIGMA, f_ppf, mad_std, norm_ppf, t_ppf
 
 #: Fewest frames in which two markers are seen together for their distance's spread to be judged
 #: (a standard deviation of fewer than three samples says nothing about how steady it is).
@@ -54,6 +54,9 @@ MIN_FRAMES = 3
 #: frame's misfit ratio is beyond what one rigid body with independent marker noise exceeds in one
 #: frame in a thousand.
 RIGID_FALSE_ALARM = 1e-3
+
+#: Fewest blocks the burst test (:func:`burst_excess`) judges a union over: fewer give no scale.
+BURST_MIN_BLOCKS = 12
 
 #: False-alarm rate of the check of a cluster's top union against the recording's own clusters
 #: (:func:`doubtful_unions`), per cluster judged.
@@ -271,6 +274,8 @@ class MarkerGroups:
         doubtful_spread: each cluster kept whole whose top union's spread test lies beyond the
             :data:`SPREAD_DOUBT` quantile (:class:`Refusal` with that quantile as the limit):
             perhaps two bodies, kept as one, and said.
+        doubtful_partner: each cluster that may hold a marker of a pair left out (:class:`Partner`,
+            :func:`pair_partners`): kept, and said.
         virtual: groups of markers exactly rigid with each other (:func:`exact_groups`): landmarks
             computed from a cluster's pose, set aside before the cuts (their markers are in
             ``left_out`` too), sorted.
@@ -295,6 +300,7 @@ class MarkerGroups:
     splits: list[Refusal] = field(default_factory=list)
     doubtful: list[tuple[list[int], list[int], float, float, int]] = field(default_factory=list)
     doubtful_spread: list[Refusal] = field(default_factory=list)
+    doubtful_partner: list[Partner] = field(default_factory=list)
     virtual: list[list[int]] = field(default_factory=list)
     virtual_with: list[int | None] = field(default_factory=list)
     virtual_spread: list[float] = field(default_factory=list)
@@ -406,6 +412,29 @@ def union_misfit_ratio(
         :data:`MIN_FRAMES` frames show every marker, no degree of freedom is left in the parts
         (two single markers) or none is given up, or the union has no frame to define its shape.
     """
+    frames = union_misfit_frames(markers, a, b)
+    if frames is None:
+        return None
+    added, parts, d1, d2 = frames
+    f = (added / d1) / (parts / d2)
+    return float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2))
+
+
+def union_misfit_frames(
+    markers: np.ndarray, a: np.ndarray, b: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int, int] | None:
+    """Each frame's misfit of :func:`union_misfit_ratio`, in time order: ``(added, parts, d1, d2)``.
+
+    Args:
+        markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
+        a, b: marker indices of the two parts (disjoint).
+
+    Returns:
+        ``(n,)`` the misfit added by fitting the union as one body (``S_ab - S_a - S_b``) and the
+        parts' own misfit (``S_a + S_b``), squared length units, in each of the ``n`` frames that
+        show every marker, and the degrees of freedom ``d1``, ``d2`` of their ratio; ``None`` when
+        it cannot be judged (as :func:`union_misfit_ratio`).
+    """
     both = np.concatenate([a, b])
     x = np.asarray(markers, dtype=float)[:, both]
     x = x[np.isfinite(x).all(axis=(1, 2))]
@@ -421,9 +450,71 @@ def union_misfit_ratio(
         return None
     # positions exact to rounding misfit by ~1e-16 of their size: not noise to scale the test by
     floor = (1e3 * np.finfo(float).eps * np.abs(x).max()) ** 2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        f = ((whole - parts) / d1) / np.maximum(parts / d2, floor)
-    return float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2))
+    return whole - parts, np.maximum(parts, floor), d1, d2
+
+
+def correlation_frames(series: np.ndarray) -> int:
+    """Frames over which a series stays correlated: the first lag at which its autocorrelation
+    falls below ``1/e`` (at least 1). Skin moves markers smoothly, so a misfit's frames are not
+    independent draws; blocks of a few such lengths are about as independent as frames of white
+    noise would be."""
+    y = np.asarray(series, dtype=float)
+    y = y[np.isfinite(y)]
+    y = y - np.median(y) if len(y) else y
+    n = len(y)
+    if n < 4 or not np.any(y):
+        return 1
+    spectrum = np.fft.rfft(y, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    acf /= acf[0]
+    below = np.flatnonzero(acf < math.exp(-1.0))
+    return max(1, int(below[0])) if len(below) else n
+
+
+def burst_excess(
+    added: np.ndarray, parts: np.ndarray, *, false_alarm: float = RIGID_FALSE_ALARM
+) -> tuple[float, float] | None:
+    """Whether a union misfits far worse in some stretch of the recording than in the rest:
+    ``(z, limit)``.
+
+    A joint that turns during a part of the recording only (an exercise that moves each joint in
+    turn) leaves the median frame's misfit that of one body, and the distance spread over the
+    whole recording diluted; its frames misfit by far more than the others. Each frame's misfit
+    added by the union (``added``, :func:`union_misfit_frames`) is taken over the parts' own
+    misfit pooled over the recording (its median: one frame's, with a few degrees of freedom,
+    scatters too widely to compare stretches by); the log of that ratio is cut into blocks of
+    twice the correlation length of the parts' own misfit (:func:`correlation_frames`: skin motion
+    is smooth, frames are not independent draws, and one body's misfit is what sets that length);
+    ``z`` is the largest block mean's distance above the block means' median, in units of their
+    robust standard deviation (:func:`calibration.quantiles.mad_std`): unit-free, the scale taken
+    from the recording's own blocks. The limit is Student's t quantile at ``false_alarm`` shared
+    over the blocks (Bonferroni), with one degree of freedom fewer than blocks: the scale is
+    estimated from those few blocks themselves (with the normal quantile, a chain of 5-8 skin
+    markers a segment had one cluster split in 30 sets). One body's largest block exceeds it
+    with probability about ``false_alarm``, if the block means are normal about their median.
+
+    Args:
+        added, parts: ``(n,)`` per-frame misfits in time order (:func:`union_misfit_frames`).
+        false_alarm: the rate at which one body's union exceeds the limit.
+
+    Returns:
+        ``None`` with fewer than :data:`BURST_MIN_BLOCKS` blocks, or no scale.
+    """
+    added, parts = np.asarray(added, dtype=float), np.asarray(parts, dtype=float)
+    level = float(np.median(parts))
+    if not level > 0:
+        return None
+    logs = np.log(np.maximum(added, 1e-12 * level) / level)
+    length = 2 * correlation_frames(np.log(parts))
+    blocks = len(logs) // length
+    if blocks < BURST_MIN_BLOCKS:
+        return None
+    means = logs[: blocks * length].reshape(blocks, length).mean(axis=1)
+    scale = mad_std(means)
+    if not scale > 0:
+        return None
+    z = float((means.max() - np.median(means)) / scale)
+    return z, float(t_ppf(1.0 - false_alarm / blocks, blocks - 1))
 
 
 class Refusal(NamedTuple):
@@ -435,7 +526,8 @@ class Refusal(NamedTuple):
             :func:`union_misfit_ratio`) or the spread excess in robust standard deviations
             (``test == "spread"``, :func:`spread_excess`).
         limit: the quantile it exceeded.
-        test: ``"misfit"`` or ``"spread"``.
+        test: ``"misfit"``, ``"spread"`` or ``"burst"`` (:func:`burst_excess`: the worst stretch
+            of frames' misfit, in robust standard deviations of the blocks' medians).
         ratio: the spread test's ratio of the between pairs' median distance spread to the within
             pairs' (:func:`spread_excess`); NaN for the misfit test.
         false_alarm: the rate at which one rigid body exceeds ``limit``.
@@ -624,8 +716,10 @@ def rigid_parts(
     quantile), and -- given the recording's ``noise`` -- the distances between them vary no
     more than one body's (:func:`spread_excess` within :func:`spread_limit` at
     :data:`SPREAD_FALSE_ALARM`; at :data:`SPREAD_SMALL` for a branch of fewer than ``min_size``
-    markers joining one of ``min_size`` or more). A union a test cannot judge is joined, as the
-    distances alone joined it. The branches refused are the parts: a segment that lost markers is
+    markers joining one of ``min_size`` or more), and -- two poses, both branches ``min_size`` or
+    more -- no stretch of the recording misfits far beyond the others (:func:`burst_excess`: a
+    joint that turns part of the time). A union a test cannot judge is joined, as the distances
+    alone joined it. The branches refused are the parts: a segment that lost markers is
     not merged into the next one because the distances between them are as steady as its own, and
     a pair of markers on one segment is not joined to the next segment's cluster because the
     misfit test has too few degrees of freedom to refuse it.
@@ -655,10 +749,20 @@ def rigid_parts(
         a, b = nodes[i], nodes[j]
         ok = whole[i] and whole[j]
         if ok:
-            test = union_misfit_ratio(markers, a, b, false_alarm=false_alarm)
-            if test is not None and not test[0] <= test[1]:
-                ok = False
-                splits.append(Refusal([int(k) for k in a], [int(k) for k in b], *test))
+            frames = union_misfit_frames(markers, a, b)
+            if frames is not None:
+                added, own, d1, d2 = frames
+                f = (added / d1) / (own / d2)
+                test = (float(np.nanmedian(f)), float(f_ppf(1.0 - false_alarm, d1, d2)))
+                if not test[0] <= test[1]:
+                    ok = False
+                    splits.append(Refusal([int(k) for k in a], [int(k) for k in b], *test))
+                elif min(len(a), len(b)) >= min_size:  # two poses: a joint turning part of the time
+                    burst = burst_excess(added, own, false_alarm=false_alarm)
+                    if burst is not None and not burst[0] <= burst[1]:
+                        ok = False
+                        pa, pb = [int(k) for k in a], [int(k) for k in b]
+                        splits.append(Refusal(pa, pb, burst[0], burst[1], "burst", math.nan, false_alarm))
         if ok and noise is not None:
             excess = spread_excess(spread, a, b, noise)
             if excess is not None:
@@ -679,6 +783,73 @@ def rigid_parts(
         parent[int(left)] = parent[int(right)] = m + row
     parts = [nodes[n] for n in range(len(nodes)) if whole[n] and (parent[n] < 0 or not whole[parent[n]])]
     return parts, splits
+
+
+class Partner(NamedTuple):
+    """A cluster that may hold a marker of a pair of markers left out (:func:`pair_partners`).
+
+    Attributes:
+        marker: the cluster's marker that is the pair's steadiest partner.
+        rest: the cluster's other markers.
+        pair: the two markers left out.
+        to_pair: median distance spread of ``marker`` to the pair, in the markers' unit.
+        to_rest: median distance spread of ``marker`` to ``rest``, same unit.
+    """
+
+    marker: int
+    rest: list[int]
+    pair: list[int]
+    to_pair: float
+    to_rest: float
+
+
+def pair_partners(
+    spread: np.ndarray,
+    clusters: list[list[int]],
+    pairs: list[list[int]],
+    noise: SpreadNoise,
+    min_size: int = 3,
+) -> list[Partner]:
+    """Clusters that may hold a marker of a pair left out: the pair with it would be a cluster.
+
+    Two markers left out (too few for a pose) beside a cluster that joined last, as a branch of
+    its own, the pair's steadiest partner (the marker whose median distance spread to the pair is
+    the smallest of all clustered markers'), while the cluster keeps ``min_size`` markers without
+    it: that marker may be the pair's segment's, its distances as unsteady to its own segment as
+    to the cluster (a marker near the joint, on soft tissue), and no steadier with the cluster than
+    the spread test lets a marker join one (:func:`spread_excess` of the two median spreads within
+    :func:`spread_limit` at :data:`SPREAD_SMALL`). The data do not say which; the
+    grouping is kept and the cluster named. The distances alone cannot tell them apart: a thigh
+    marker 15 cm from the anterior iliac spine, near the hip, varies 5.5 mm in distance to the
+    pelvis's markers and 6.4 mm to the thigh's two others (OpenSim's Rajagopal running trial).
+
+    Args:
+        spread: ``(M, M)`` distance spread (:func:`distance_spread`).
+        clusters: the clusters (marker index lists).
+        pairs: the pairs of markers left out that move (split off a group).
+        noise: the recording's spread scatter (:func:`spread_noise`).
+        min_size: the smallest cluster.
+    """
+    out = []
+    clustered = [(k, c) for c in clusters for k in c]
+    for pair in pairs:
+        if len(pair) != 2 or not clustered:
+            continue
+        p = np.asarray(pair)
+        to_pair = [float(np.median(spread[k, p])) for k, _ in clustered]
+        best = int(np.argmin(to_pair))
+        k, c = clustered[best]
+        if len(c) <= min_size:
+            continue
+        a, b = _top_union(spread, np.asarray(c))
+        if k not in (a.tolist() if len(a) == 1 else b.tolist() if len(b) == 1 else []):
+            continue
+        rest = sorted(int(j) for j in c if j != k)
+        to_rest = float(np.median(spread[k, rest]))
+        if not math.log(to_pair[best] / to_rest) / noise.tau <= spread_limit(1, len(rest), SPREAD_SMALL):
+            continue  # much steadier with its cluster than with the pair
+        out.append(Partner(int(k), rest, sorted(int(j) for j in pair), to_pair[best], to_rest))
+    return out
 
 
 def _top_union(spread: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -911,7 +1082,11 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     each other; a group of ``min_size`` or more whose rigid fit rotates less than ``still_deg``
     (95th percentile from its mean orientation) is *still*: its distances are steady because it
     barely moves, so its rigidity is not proven (a body at rest, lab markers); it is reported
-    apart. The second cut, over the markers of the moving groups only, separates the segments
+    apart -- once the tests below have split off any marker that moves against it (a still group
+    is one rigid body too: an arm marker beside a pelvis that turns 5 degrees while running); a
+    still group that splits into two or more parts of ``min_size`` is kept whole, no motion telling
+    its bodies apart (a person standing). The second cut, over the markers of the moving groups
+    only, separates the segments
     (skin spread within a cluster, joint motion between clusters); each group it gives is then
     split into the parts that are each one rigid body (:func:`rigid_parts`): first by the misfit
     test alone, then by the misfit and spread tests, the spread test's noise taken from the parts
@@ -920,8 +1095,9 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
     for a pose -- are not joined to the next segment's cluster: a part too small to be a cluster is
     left out, named. A cluster that may still be two bodies is named in ``doubtful``
     (:func:`doubtful_unions`) or ``doubtful_spread`` (its top union's spread excess beyond the
-    :data:`SPREAD_DOUBT` quantile). ``still_deg`` defaults to 10 degrees: below that a joint
-    centre is not determined (DESIGN.md, facts from real recordings).
+    :data:`SPREAD_DOUBT` quantile), or ``doubtful_partner`` (a pair left out whose steadiest
+    partner joined a cluster last, :func:`pair_partners`). ``still_deg`` defaults to 10 degrees:
+    below that a joint centre is not determined (DESIGN.md, facts from real recordings).
     Markers seen too little to judge (:func:`unjudged_markers`) and markers exactly rigid with
     each other (:func:`exact_groups`: landmarks computed from a cluster) are set aside before
     either cut, with the reason, so that a marker never seen, or a spread of zero, does not decide
@@ -978,6 +1154,27 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         noise = spread_noise(spread, [p for p in rigid if len(p) >= min_size], measured_noise)
         if noise is None:
             break
+    # a still group is one rigid body too: a marker that moves against it (an arm's, steady in
+    # distance to a pelvis that turns 5 degrees while running) is split off by the same tests
+    kept_still = []
+    for g in still:
+        parts, refused = rigid_parts(x, spread, g, noise=noise, min_size=min_size)
+        if sum(len(p) >= min_size for p in parts) != 1:  # no motion to tell its bodies apart: whole
+            kept_still.append(g)
+            continue
+        splits += refused
+        for part in parts:
+            if len(part) >= min_size and tuple(part) not in stats:
+                try:
+                    stats[tuple(part)] = _rotation_deg(x[:, part])
+                except CalibrationError:
+                    pass
+            if len(part) >= min_size and tuple(part) in stats and stats[tuple(part)][1] < still_deg:
+                kept_still.append(part)
+            else:
+                rigid.append(part)
+                split_off.add(tuple(part))
+    still = kept_still
     split_off = {int(k) for p in split_off for k in p}
     clusters = []
     for g in rigid:
@@ -1009,6 +1206,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
             pa, pb = sorted(int(k) for k in a), sorted(int(k) for k in b)
             limit = spread_limit(len(a), len(b), SPREAD_DOUBT)
             doubtful_spread.append(Refusal(pa, pb, excess[1], limit, "spread", excess[0], SPREAD_DOUBT))
+    pairs = [sorted(int(k) for k in g) for g in rigid if len(g) == 2 and int(g[0]) in split_off]
     return MarkerGroups(
         clusters=clusters,
         still=still,
@@ -1020,6 +1218,7 @@ def find_clusters(markers: np.ndarray, *, still_deg: float = 10.0, min_size: int
         splits=splits,
         doubtful=doubtful,
         doubtful_spread=doubtful_spread,
+        doubtful_partner=pair_partners(spread, clusters, pairs, noise, min_size) if noise is not None else [],
         virtual=virtual,
         virtual_with=_virtual_hosts(spread, virtual, groups, noise),
         virtual_spread=[float(spread[np.ix_(g, g)].max()) for g in virtual],

@@ -1,6 +1,6 @@
 """Cluster finding on simbench's own marker sessions and on real C3D files (issue 42, items 1-2).
 
-    .venv/bin/python studies/cluster_sessions.py [--seeds 50] [--workers 2] [--real DIR ...]
+    .venv/bin/python studies/cluster_sessions.py [--seeds 50] [--workers 1] [--real DIR ...]
 
 Not a test: the figures of the closing note. Each simulated session is ``sb.simulate(model,
 duration_s=20, seed=seed, markers=MarkerConfig(skin_sd_m=0.002))`` (4 markers a segment, 2 mm
@@ -27,7 +27,8 @@ mean) of the joints between its segments is recorded: below 10 degrees a joint c
 determined (``find_clusters``' still limit) and the segments are one body to the data.
 
 Real C3D files given with ``--real`` (directories or files) are grouped and their clusters and
-notes recorded. Results go to ``studies/results/cluster_sessions.json``.
+notes recorded. Results go to ``studies/results/cluster_sessions.json``: the summary indented,
+each session and each real file on one line.
 """
 
 from __future__ import annotations
@@ -184,7 +185,7 @@ def real(paths: list[Path]) -> list[dict[str, Any]]:
                 "markers": len(c3d.labels),
                 "frames": int(c3d.xyz_m.shape[0]),
                 "clusters": clusters,
-                "notes": notes,
+                "notes": [n[:240] for n in notes if n.startswith(("cluster ", "virtual", "still"))],
                 "seconds": round(time.perf_counter() - start, 2),
             }
         )
@@ -212,10 +213,35 @@ def _tally(trials: list[dict[str, Any]], key: str) -> dict[str, Any]:
     }
 
 
+def brief(trial: dict[str, Any]) -> dict[str, Any]:
+    """A session's record for the results file: each union as one string
+    (``"forearm_l+hand_l 4+4 14.2deg named"``: segments, markers of each, the joints' rotation)."""
+    out = dict(trial)
+    for key, row in trial.items():
+        if isinstance(row, dict) and "unions" in row:
+            out[key] = {k: v for k, v in row.items() if k not in ("unions", "missing")}
+            out[key]["unions"] = [
+                f"{'+'.join(u['segments'])} {'+'.join(map(str, u['markers']))} "
+                f"{'/'.join(f'{d:g}' for d in u['joint_p95_deg'])}deg{' named' if u['named'] else ''}"
+                for u in row["unions"]
+            ]
+    return out
+
+
+def compact_json(result: dict[str, Any], listed: tuple[str, ...]) -> str:
+    """``result`` as indented JSON, but each item of the lists under ``listed`` on one line."""
+    head = {k: v for k, v in result.items() if k not in listed}
+    text = json.dumps(head, indent=1)[:-2]
+    for key in listed:
+        rows = ",\n".join("  " + json.dumps(r, separators=(",", ":")) for r in result[key])
+        text += f',\n "{key}": [\n{rows}\n ]'
+    return text + "\n}\n"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=50)
-    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--real", type=Path, nargs="*", default=[])
     args = parser.parse_args()
     start = time.perf_counter()
@@ -234,10 +260,10 @@ def main() -> None:
         "duration_s": DURATION_S,
         "summary": summary,
         "real": real(args.real),
-        "trials": trials,
+        "trials": [brief(t) for t in trials],
         "seconds": round(time.perf_counter() - start, 1),
     }
-    atomic_write_text(OUT, json.dumps(result, indent=1) + "\n")
+    atomic_write_text(OUT, compact_json(result, ("real", "trials")))
     print(json.dumps(summary, indent=1))
     print(f"wrote {OUT} in {result['seconds']} s")
 

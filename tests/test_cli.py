@@ -147,7 +147,8 @@ def hierarchy_file(tmp_path, text):
             "at least 3 frames",
         ),
         (lambda t, c: [csv_file(t, HEADER + "0,a,0,0,0,1,0,0,0\n0,a,0,0,0,1,0,0,0\n")], "appears twice"),
-        (lambda t, c: [csv_file(t, "x", name="poses.trc")], "unknown pose file type '.trc'"),
+        (lambda t, c: [csv_file(t, "x", name="poses.trc")], "poses.trc: not a TRC file"),
+        (lambda t, c: [csv_file(t, "x", name="poses.xyz")], "unknown pose file type '.xyz'"),
         (
             lambda t, c: [str(c), "--hierarchy", hierarchy_file(t, '{"head": "neck"}')],
             "h.json: sensor\\(s\\) \\['neck'\\] are not in",

@@ -17,9 +17,12 @@ from hypothesis import strategies as st
 import simbench as sb
 from calibration.clusters import (
     SPREAD_NULL,
+    SpreadNoise,
+    burst_excess,
     distance_spread,
     exact_groups,
     find_clusters,
+    pair_partners,
     reference_shape,
     rigid_fit,
     spread_excess,
@@ -30,6 +33,8 @@ from calibration.errors import CalibrationInputError
 from calibration.rotations import rotvec_to_matrix
 from simbench.errors import InputError
 from simbench.io.c3d import auto_clusters, c3d_poses, read_c3d, read_c3d_markers, write_c3d_markers
+from simbench.io.read import read_poses
+from simbench.io.trc import read_trc, trc_text
 from simbench.sim.marker_clusters import MarkerConfig, messy_markers
 from simbench.sim.markers import simulate_marker_chain, smooth_noise
 
@@ -288,3 +293,133 @@ def test_real_hip_trial_foot_markers_are_not_in_the_shank_cluster():
         n.startswith("not one rigid body, split: RCAL and RLM+4: the distances between them vary")
         for n in notes
     )
+
+
+def _running_pelvis(seed: int) -> np.ndarray:
+    """``(600, 17, 3)`` markers, m: a pelvis (markers 0-3) turning 4 degrees as in running, two legs
+    (thigh and shank, 3 markers each) swinging 40 and 50 degrees, and one arm marker (16) moving
+    12 mm about a point the pelvis carries; 1 mm smooth skin motion."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 10.0, 600)
+    zero, stride = 0.0 * t, 2 * np.pi * 0.9 * t
+    R_p = rotvec_to_matrix(np.stack([zero, zero, np.radians(4) * np.sin(stride)], axis=1))
+    p_p = np.stack([1.0 * t, zero, 0.9 + zero], axis=1)
+    pelvis = np.array([[0.12, 0.1, 0.05], [0.12, -0.1, 0.05], [-0.05, 0.0, 0.08], [0.0, 0.14, 0.0]])
+    out = [np.einsum("fij,kj->fki", R_p, pelvis) + p_p[:, None]]
+    for side, phase in ((0.09, 0.0), (-0.09, np.pi)):
+        hip = np.einsum("fij,j->fi", R_p, [0.0, side, -0.08]) + p_p
+        R_t = R_p @ rotvec_to_matrix(np.stack([zero, np.radians(40) * np.sin(stride + phase), zero], axis=1))
+        thigh = np.array([[0.06, 0.03, -0.15], [0.06, -0.03, -0.25], [0.0, 0.06, -0.32]])
+        out.append(np.einsum("fij,kj->fki", R_t, thigh) + hip[:, None])
+        knee = hip + np.einsum("fij,j->fi", R_t, [0.0, 0.0, -0.42])
+        flexion = -np.radians(50) * (1 + np.sin(stride + phase)) / 2
+        R_s = R_t @ rotvec_to_matrix(np.stack([zero, flexion, zero], axis=1))
+        shank = np.array([[0.05, 0.03, -0.1], [0.05, -0.03, -0.2], [0.0, 0.05, -0.3]])
+        out.append(np.einsum("fij,kj->fki", R_s, shank) + knee[:, None])
+    arm = np.einsum("fij,j->fi", R_p, [0.0, 0.22, 0.1]) + p_p
+    out.append((arm + 0.012 * np.stack([np.sin(stride), zero, np.cos(stride)], axis=1))[:, None])
+    x = np.concatenate(out, axis=1)
+    return x + 0.001 * smooth_noise(rng, len(t), x.shape[1:], cycles=10)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_marker_moving_against_a_still_pelvis_is_not_in_its_group(seed):
+    """Running: the pelvis turns 4 degrees (below the still limit), and an arm marker whose
+    distances to it vary far less than the legs' was in its still group (OpenSim's Hamner running
+    trial: L.Bicep with the pelvis, the pelvis then no segment of its own). A still group is one
+    rigid body too: the marker is split off, named; the pelvis stays still, the legs found."""
+    x = _running_pelvis(seed)
+    found = find_clusters(x)
+    assert found.still == [[0, 1, 2, 3]] and found.rotation_deg[-1] < 10.0
+    assert sorted(found.clusters) == [[4, 5, 6], [7, 8, 9], [10, 11, 12], [13, 14, 15]]
+    assert "too few for a pose" in found.left_out[16]
+    assert any(r.part == [16] or r.other == [16] for r in found.splits)
+
+
+def test_a_pair_left_out_beside_its_marker_in_a_cluster_is_named():
+    """A thigh marker near the hip, as unsteady to the pelvis as to the thigh's two others (OpenSim's
+    Rajagopal running trial: LTH1, 5.5 mm to the pelvis, 6.4 mm to LTH2 and LTH3), joined the
+    pelvis last; the thigh's two others, too few for a pose, were left out, and nothing said so.
+    The cluster is named; not when the marker is far steadier with its cluster than with the pair,
+    nor when the cluster would be left with fewer than three markers."""
+    spread = np.full((8, 8), 30.0)
+    pelvis, pair = [0, 1, 2, 3], [4, 5]
+    spread[np.ix_([0, 1, 2], [0, 1, 2])] = [[0, 1.0, 3.8], [1.0, 0, 2.2], [3.8, 2.2, 0]]
+    spread[3, :3] = spread[:3, 3] = [5.5, 4.6, 6.1]
+    spread[4, 5] = spread[5, 4] = 1.3
+    spread[3, pair] = spread[pair, 3] = [6.3, 6.4]
+    np.fill_diagonal(spread, 0.0)
+    noise = SpreadNoise(level=1.25, tau=0.38, pairs=50)
+    found = pair_partners(spread, [pelvis, [6, 7]], [pair], noise)
+    assert len(found) == 1
+    assert (found[0].marker, found[0].rest, found[0].pair) == (3, [0, 1, 2], pair)
+    assert found[0].to_pair == pytest.approx(6.35) and found[0].to_rest == pytest.approx(5.5)
+    far = spread.copy()
+    far[3, pair] = far[pair, 3] = 25.0
+    assert pair_partners(far, [pelvis], [pair], noise) == []
+    assert pair_partners(spread, [[1, 2, 3]], [pair], noise) == []
+
+
+def test_trc_files_as_opensim_writes_them_are_calibrated(tmp_path, linkage):
+    """A TRC file (OpenSim's layout: header values two tabs apart, every data line ending in a tab)
+    is read as ``simbench calibrate`` reads a C3D file: the same clusters, found automatically."""
+    ds, _, truth = linkage
+    m = ds.markers
+    text = trc_text(list(m.labels), ds.time_s, m.xyz).splitlines()
+    text[2] = "\t\t".join(text[2].split("\t"))
+    text[5:] = [line + "\t" for line in text[5:]]
+    path = tmp_path / "walk.trc"
+    path.write_text("\n".join(text) + "\n")
+    read = read_trc(path)
+    assert read.labels == tuple(m.labels) and np.allclose(read.xyz, m.xyz, atol=1e-9)
+    write_c3d_markers(tmp_path / "walk.c3d", list(m.labels), m.xyz, 120.0)
+    rec = read_poses(path)
+    assert rec.names == c3d_poses(tmp_path / "walk.c3d").names and len(rec.names) == len(truth)
+    assert sb.calibrate(rec).joints
+    scaled = read_poses(path, units="cm")  # a unit given overrides the file's, with a note
+    assert any("units cm given; the file says mm" in n for n in scaled.notes)
+
+
+@pytest.fixture(scope="module")
+def humanoid():
+    """The humanoid's exercise (one slot per articulation, 1.3 s each in 20 s), 4 markers a segment,
+    2 mm smooth skin motion: the README's session on the full body."""
+    ds = sb.simulate("humanoid", duration_s=20.0, seed=0, markers=MarkerConfig(skin_sd_m=0.002))
+    return ds, np.array(ds.markers.segment)
+
+
+def test_a_joint_turning_part_of_the_time_separates_its_segments(humanoid):
+    """The exercise turns each joint during its own 1.3 s of the 20: the median frame's misfit is
+    one body's, the distance spread diluted, and shank and foot were one cluster (31 of 50
+    sessions; here the right side, its ankle turning 12 degrees at the 95th percentile). The
+    frames where the joint turns misfit far beyond the recording's other stretches
+    (``burst_excess``, blocks of twice the skin motion's correlation length): refused, and the
+    segments found."""
+    ds, segment = humanoid
+    found = find_clusters(ds.markers.xyz)
+    for name in ("shank_r", "foot_r", "abdomen", "chest"):
+        assert np.flatnonzero(segment == name).tolist() in found.clusters
+    bursts = [r for r in found.splits if r.test == "burst"]
+    assert bursts and all(r.value > r.limit for r in bursts)
+    assert frozenset(("shank_r", "foot_r")) in {
+        frozenset(segment[r.part]) | frozenset(segment[r.other]) for r in bursts
+    }
+    assert all(len(set(segment[r.part]) | set(segment[r.other])) > 1 for r in bursts)  # never one body
+
+
+def test_the_burst_test_keeps_one_body_whole():
+    """One body's misfit has no stretch beyond its others': smooth skin motion on a rigid cluster
+    carried through space (8 markers, every union of two parts of three or more judged), and
+    white noise, are never split by it; a stretch of frames 100 times worse is."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n = 2400
+        parts = np.exp(0.3 * smooth_noise(rng, n, (), cycles=60))  # one body's own misfit
+        added = parts * rng.chisquare(6, n) / 6 * np.exp(0.3 * smooth_noise(rng, n, (), cycles=60))
+        z, limit = burst_excess(added, parts)
+        assert z <= limit
+        burst = added.copy()
+        burst[1000:1150] *= 100.0
+        z, limit = burst_excess(burst, parts)
+        assert z > limit
+    assert burst_excess(np.ones(100), np.ones(100)) is None  # no scale

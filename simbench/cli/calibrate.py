@@ -71,8 +71,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--units",
         choices=sorted(LENGTH_UNITS),
         default=None,
-        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, which a "
-        "unit given here overrides, with a note)",
+        help="length unit of the positions (default: m for a CSV; a C3D file's own POINT:UNITS, a TRC "
+        "file's Units, which a unit given here overrides, with a note)",
     )
     cal.add_argument("--hierarchy", metavar="FILE.json", help='known hierarchy {"child": "parent", ...}')
     cal.add_argument("--root", metavar="NAME", help="root sensor (default: the centre of the inferred tree)")
@@ -116,7 +116,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument(
         "--clusters",
         metavar="SPEC.toml",
-        help="C3D input: marker clusters [clusters] segment = [labels] (default: found)",
+        help="C3D or TRC input: marker clusters [clusters] segment = [labels] (default: found)",
     )
     cal.add_argument(
         "--wide",
@@ -151,6 +151,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
     add_follow_arguments(cal)
     cal.set_defaults(func=cmd_calibrate)
+
+
+def _file_units(path: str) -> str:
+    """Where a file's length unit came from when ``--units`` is not given."""
+    suffix = Path(path).suffix.lower()
+    return {".c3d": "POINT:UNITS", ".trc": "Units"}.get(suffix, "m")
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
@@ -215,7 +221,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                 "sensors": list(rec.names),
                 "frames": rec.n_frames,
                 "rate_hz": rec.rate_hz,
-                "units": args.units or ("POINT:UNITS" if str(args.input).lower().endswith(".c3d") else "m"),
+                "units": args.units or _file_units(args.input),
             },
             notes=(*rec.notes, odd) if odd else rec.notes,
             options={

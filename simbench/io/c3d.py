@@ -36,6 +36,7 @@ from simbench.errors import InputError, load_toml
 from simbench.io.atomic import atomic_path
 from simbench.io.marker_data import MarkerData
 from simbench.io.poses import PoseRecording
+from simbench.io.trc import read_trc
 from simbench.units import LENGTH_UNITS
 
 
@@ -294,6 +295,14 @@ def auto_clusters(
             f"{1 / r.false_alarm:.0f}; split beyond 1 in {1 / SPREAD_FALSE_ALARM:.0f}); kept as one: if they "
             "are on two segments, name the clusters (--clusters SPEC.toml)"
         )
+    for d in found.doubtful_partner:
+        notes.append(
+            f"cluster {_group_name([labels[k] for k in sorted([d.marker, *d.rest])])} may be two bodies: "
+            f"{labels[d.marker]} and {_group_name([labels[k] for k in d.rest])}: {labels[d.marker]} joined "
+            f"it last, and it is the steadiest partner of {', '.join(labels[k] for k in d.pair)}, left out "
+            f"(median distance spread {d.to_pair * 1e3:.3g} mm to them, {d.to_rest * 1e3:.3g} mm to the "
+            "cluster): if it is on their segment, name the clusters (--clusters SPEC.toml)"
+        )
     if found.unseen:
         notes.append(
             "not seen enough to group, left out: "
@@ -370,7 +379,49 @@ def c3d_poses(
         clusters: ``{segment: [labels]}``; ``None`` to find clusters automatically.
         still_deg: automatic grouping: a group rotating less than this is still, degrees.
     """
-    read = read_c3d(path, units=units)
+    return marker_poses(read_c3d(path, units=units), path, clusters=clusters, still_deg=still_deg)
+
+
+def trc_poses(
+    path: str | os.PathLike[str],
+    *,
+    clusters: dict[str, list[str]] | None = None,
+    still_deg: float = 10.0,
+    units: str | None = None,
+) -> PoseRecording:
+    """Segment poses from the marker clusters of a TRC file (:func:`simbench.io.trc.read_trc`), as
+    :func:`c3d_poses` makes them from a C3D file.
+
+    Args:
+        path: the TRC file.
+        units: the positions' unit, overriding the file's ``Units``; ``None``: the file's.
+        clusters: ``{segment: [labels]}``; ``None`` to find clusters automatically.
+        still_deg: automatic grouping: a group rotating less than this is still, degrees.
+
+    Raises:
+        InputError: an unreadable TRC file (:func:`simbench.io.trc.read_trc`), or ``units`` not a
+            length unit.
+    """
+    trc = read_trc(path)
+    xyz, unit, notes = trc.xyz, trc.units, ()
+    if units is not None and units != trc.units:
+        if units not in LENGTH_UNITS:
+            raise InputError(f"units {units!r}: expected one of {sorted(LENGTH_UNITS)}")
+        xyz = xyz / LENGTH_UNITS[trc.units] * LENGTH_UNITS[units]
+        unit, notes = units, (f"units {units} given; the file says {trc.units}",)
+    read = C3DMarkers(list(trc.labels), xyz, trc.rate_hz, unit, notes)
+    return marker_poses(read, path, clusters=clusters, still_deg=still_deg)
+
+
+def marker_poses(
+    read: C3DMarkers,
+    path: str | os.PathLike[str],
+    *,
+    clusters: dict[str, list[str]] | None = None,
+    still_deg: float = 10.0,
+) -> PoseRecording:
+    """Segment poses from the marker clusters of markers read from ``path`` (a C3D or TRC file):
+    :func:`c3d_poses`, :func:`trc_poses`."""
     labels, xyz, rate = read.labels, read.xyz_m, read.rate_hz
     index = {label: k for k, label in enumerate(labels)}
     notes: list[str] = []
@@ -411,7 +462,7 @@ def c3d_poses(
     )
 
 
-def marker_poses(markers: MarkerData, time_s: np.ndarray, where: str = "dataset") -> PoseRecording:
+def dataset_marker_poses(markers: MarkerData, time_s: np.ndarray, where: str = "dataset") -> PoseRecording:
     """The poses of a dataset's optical markers: one cluster per segment (the markers' ``segment``),
     each segment's pose per frame by :func:`cluster_fits` (in the cluster's own frame, not the
     sensor's: its joint centres are compared in the world).

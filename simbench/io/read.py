@@ -1,7 +1,8 @@
 """One entry for every recording simbench reads, chosen by the file's type and contents.
 
 - pose CSV (``.csv``, ``.txt``; positions in ``units``), a wide tracker export (``wide=`` a spec
-  TOML), optical markers (``.c3d``, clustered by ``clusters=`` a spec TOML or automatically):
+  TOML), optical markers (``.c3d``, ``.trc``, clustered by ``clusters=`` a spec TOML or
+  automatically):
   a :class:`~simbench.io.dataset.Dataset` of measured poses (inertial data NaN, no truth);
 - a simbench dataset (``.h5``/``.hdf5`` with ``format = "simbench-dataset"``): the Dataset;
 - a BROAD trial (``.h5``/``.hdf5`` otherwise): an :class:`~simbench.io.imu.ImuRecording`
@@ -22,7 +23,7 @@ from calibration.diagnostics import rotation_ranges
 from calibration.joint import LOCATED_RANK
 from calibration.poses import CHUNK_FRAMES
 from simbench.errors import InputError
-from simbench.io.c3d import c3d_poses, read_cluster_spec
+from simbench.io.c3d import c3d_poses, read_cluster_spec, trc_poses
 from simbench.io.dataset import FORMAT as DATASET_FORMAT
 from simbench.io.dataset import Dataset, dataset_from_poses, read_dataset, read_dataset_poses
 from simbench.io.hdf5 import open_hdf5
@@ -30,13 +31,13 @@ from simbench.io.imu import ImuRecording, read_broad
 from simbench.io.poses import PoseRecording, read_pose_csv
 from simbench.io.wide_csv import read_wide_csv, read_wide_spec
 
-POSE_SUFFIXES = (".csv", ".txt", ".c3d", ".h5", ".hdf5")
+POSE_SUFFIXES = (".csv", ".txt", ".c3d", ".trc", ".h5", ".hdf5")
 
 #: The pose recordings simbench reads, by kind: what ``--help`` and the errors list.
 POSE_INPUTS: dict[str, str] = {
     "csv": "a pose CSV (.csv, .txt: time,sensor,x,y,z,qw,qx,qy,qz)",
     "wide": "a tracker's wide export (.csv with --wide SPEC.toml)",
-    "c3d": "optical markers (.c3d, clustered by --clusters SPEC.toml or found)",
+    "c3d": "optical markers (.c3d, .trc: clustered by --clusters SPEC.toml or found)",
     "h5": "a simbench dataset (.h5, .hdf5)",
 }
 
@@ -59,14 +60,14 @@ def read_poses(
     clusters: str | os.PathLike[str] | None = None,
     wide: str | os.PathLike[str] | None = None,
 ) -> PoseRecording:
-    """A pose recording from a pose CSV, a wide export, a C3D file or a simbench dataset.
+    """A pose recording from a pose CSV, a wide export, a C3D or TRC file or a simbench dataset.
 
     Args:
         path: the file.
         units: length unit of the positions (``m``, ``cm``, ``mm``, ``in``); ``None``: metres for
-            a CSV, the file's ``POINT:UNITS`` for a C3D file (a unit given overrides it, with a
-            note); datasets hold metres.
-        clusters: for ``.c3d``: a TOML ``[clusters]`` spec (default: found automatically).
+            a CSV, the file's ``POINT:UNITS`` for a C3D file and ``Units`` for a TRC file (a unit
+            given overrides it, with a note); datasets hold metres.
+        clusters: for ``.c3d`` and ``.trc``: a TOML ``[clusters]`` spec (default: found automatically).
         wide: a wide-export spec TOML: read ``path`` as a wide export.
     """
     return check_plausible(_read_poses(path, units, clusters, wide), path)
@@ -140,6 +141,8 @@ def _read_poses(
         return read_wide_csv(path, read_wide_spec(wide))
     if suffix == ".c3d":
         return c3d_poses(path, clusters=read_cluster_spec(clusters) if clusters else None, units=units)
+    if suffix == ".trc":
+        return trc_poses(path, clusters=read_cluster_spec(clusters) if clusters else None, units=units)
     if suffix in (".csv", ".txt"):
         return read_pose_csv(path, units=units or "m")
     if suffix in (".h5", ".hdf5"):

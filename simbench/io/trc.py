@@ -185,7 +185,9 @@ def read_trc(path: str | os.PathLike[str], *, up: str = "z") -> TrcMarkers:
     lines = read_text(path).splitlines()
     if len(lines) < 5 or not lines[0].startswith("PathFileType"):
         raise InputError(f"{path}: not a TRC file: expected a first line starting with PathFileType")
-    keys, values = lines[1].split("\t"), lines[2].split("\t")
+    # some writers put two tabs between the values (OpenSim's Rajagopal walk) or tabs after them
+    keys = [k.strip() for k in lines[1].split("\t") if k.strip()]
+    values = [v.strip() for v in lines[2].split("\t") if v.strip()]
     header = dict(zip(keys, values, strict=False))
     missing = [k for k in ("DataRate", "NumFrames", "NumMarkers", "Units") if k not in header]
     if missing:
@@ -215,6 +217,8 @@ def read_trc(path: str | os.PathLike[str], *, up: str = "z") -> TrcMarkers:
         cells = line.split("\t")
         if len(cells) < width:  # trailing empty fields of markers not seen may be cut
             cells += [""] * (width - len(cells))
+        while len(cells) > width and not cells[-1].strip():  # or a line end with a tab (OpenSim's)
+            cells.pop()
         if len(cells) != width:
             raise InputError(f"{path}, line {number}: {len(cells)} fields, expected {width}")
         data[i] = [_float(c, f"{path}, line {number}") for c in cells]

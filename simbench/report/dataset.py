@@ -20,7 +20,7 @@ from calibration.joint import JointFit
 from calibration.pipeline import Joint
 from calibration.skeleton import SegmentLength, segment_lengths
 from simbench.errors import InputError
-from simbench.io.c3d import marker_poses
+from simbench.io.c3d import dataset_marker_poses
 from simbench.io.calibration_json import calibration_joints, read_calibration_json
 from simbench.io.dataset import Dataset, read_dataset
 from simbench.io.poses import PoseRecording
@@ -73,7 +73,7 @@ def _read_input(
         if source == "markers" or (source == "auto" and ds.markers is not None):
             if ds.markers is None:
                 raise InputError(f"{dataset}: --source markers, but the dataset has no markers")
-            return ds, marker_poses(ds.markers, ds.time_s, str(dataset)), 1.0
+            return ds, dataset_marker_poses(ds.markers, ds.time_s, str(dataset)), 1.0
         return ds, check_plausible(ds.poses(), dataset), ds.position_unit_scale
     if source == "markers":
         raise InputError(f"{dataset}: --source markers is for a simbench dataset with markers")
