@@ -20,6 +20,7 @@ COMMANDS = (
     "report",
     "baseline",
     "sweep",
+    "examples",
 )
 
 
@@ -55,6 +56,7 @@ def test_every_command_has_help_and_a_handler(capsys, command):
             "twin": ["twin", "trial.hdf5"],
             "report": ["report", "data.h5"],
             "sweep": ["sweep", "study.toml"],
+            "examples": ["examples", "first-steps"],
         }.get(command, [command])
     )
     assert args.command == command
@@ -67,7 +69,7 @@ def test_every_command_has_help_and_a_handler(capsys, command):
         ([], "the following arguments are required: COMMAND"),
         (["bogus"], "invalid choice: 'bogus'"),
         (["scale", "poses.csv", "--sensors", "a", "b"], "the following arguments are required: --distance"),
-        (["simulate"], "the following arguments are required: -o/--output"),
+        (["examples"], "the following arguments are required: DIR"),
         (["baseline", "--tolerance", "x"], "argument --tolerance: expected a number, got 'x'"),
     ],
 )
