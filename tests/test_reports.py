@@ -557,8 +557,11 @@ window.addEventListener('load', function () {
   }).map(function (e) { return e.tagName; });
   var out = document.createElement('pre');
   out.id = 'simbench-measure';
+  var scrolled = Array.from(document.querySelectorAll('table')).filter(function (t) {
+    return t.scrollWidth > t.clientWidth + 0.5;
+  }).map(function (t) { return t.rows[0].textContent.slice(0, 60); });
   out.textContent = JSON.stringify({
-    scrollWidth: page.scrollWidth, clientWidth: page.clientWidth, wide: wide,
+    scrollWidth: page.scrollWidth, clientWidth: page.clientWidth, wide: wide, scrolled: scrolled,
     images: Array.from(document.images).map(function (i) { return [i.complete, i.naturalWidth]; })
   });
   document.body.appendChild(out);
@@ -613,3 +616,19 @@ def test_report_screenshot_in_headless_chromium(quick_report, tmp_path):
     assert len(measured["images"]) == 6 and all(ok and width > 0 for ok, width in measured["images"])
     assert measured["scrollWidth"] <= measured["clientWidth"], measured
     assert measured["wide"] == [], measured["wide"]
+    assert measured["scrolled"] == [], measured["scrolled"]  # every table fits its column, unscrolled
+
+
+def test_length_tables_of_many_trials_stay_narrow():
+    """Five trials' computed lengths and differences side by side made a 21-column table 1,439 px
+    wide in the full report's 1,100 px column; now two tables of at most 2 + trials columns."""
+    from simbench.report.validation import _lengths_table
+
+    trials = [
+        {"rows": {limb: {"true_cm": 40.0, "computed_cm": 40.5, "difference_cm": 0.5} for limb in ("a", "b")}}
+        for _ in range(5)
+    ]
+    text = _lengths_table("limb", trials, [f"t{k}" for k in range(5)], [f"diff t{k}" for k in range(5)])
+    headers = [line for line in text.splitlines() if line.startswith("| limb")]
+    assert [h.count("|") - 1 for h in headers] == [7, 6]  # limb, true, 5 computed; limb, 5 differences
+    assert "| a | 40.00 | 40.50 |" in text and "| a | 0.50 | 0.50 |" in text

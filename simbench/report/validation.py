@@ -75,24 +75,28 @@ def _side_by_side(results: dict[str, Any]) -> list[str]:
 
 
 def _lengths_table(first: str, tables: list[dict[str, Any]], names: list[str], diff_names: list[str]) -> str:
-    """True lengths, the computed ones and the differences of several sets or trials (cm).
+    """True lengths and the computed ones of several sets or trials, then their differences in a
+    table of their own (cm): one row per length, so that many trials keep the tables within a
+    page's width.
 
     Args:
         first: the title of the first column (what a row is).
         tables: each ``{"rows": {label: {"true_cm", "computed_cm", "difference_cm"}}}``.
         names, diff_names: the titles of each table's computed and difference columns.
     """
-    header = [first, "true", *names, *diff_names]
-    rows = [
+    labels = list(tables[0]["rows"])
+    computed = markdown_table(
+        [first, "true", *names],
         [
-            label,
-            tables[0]["rows"][label]["true_cm"],
-            *[t["rows"][label]["computed_cm"] for t in tables],
-            *[t["rows"][label]["difference_cm"] for t in tables],
-        ]
-        for label in tables[0]["rows"]
-    ]
-    return markdown_table(header, rows)
+            [label, tables[0]["rows"][label]["true_cm"], *[t["rows"][label]["computed_cm"] for t in tables]]
+            for label in labels
+        ],
+    )
+    differences = markdown_table(
+        [first, *diff_names],
+        [[label, *[t["rows"][label]["difference_cm"] for t in tables]] for label in labels],
+    )
+    return computed + "\n\n" + differences
 
 
 def _linkage(linkage: dict[str, Any]) -> list[str]:
