@@ -29,7 +29,8 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
 del os
 
-from simbench.versions import __version__, software_versions  # noqa: E402 (light: no numpy)
+from simbench.versions import __version__ as __version__  # noqa: E402 (light: no numpy)
+from simbench.versions import software_versions as software_versions  # noqa: E402
 
 #: ``{public name: the module that defines it}``: imported when first used (PEP 562), so that
 #: ``import simbench`` costs nothing until something is asked of it.
@@ -113,48 +114,4 @@ def __dir__() -> list[str]:
     return sorted(__all__)
 
 
-__all__ = [
-    "FALSE_ALARMS_PER_HOUR",
-    "SLIP_WINDOW_S",
-    "Calibration",
-    "CalibrationError",
-    "CalibrationScore",
-    "Dataset",
-    "ImuRecording",
-    "InputError",
-    "LiveUpdate",
-    "MarkerConfig",
-    "MarkerData",
-    "OrientationScore",
-    "Orientations",
-    "PoseRecording",
-    "Priors",
-    "SensorConfig",
-    "SessionConfig",
-    "SlipReport",
-    "__version__",
-    "calibrate",
-    "calibration_document",
-    "estimators",
-    "export",
-    "follow",
-    "load_sensor_config",
-    "orient",
-    "read",
-    "read_dataset",
-    "read_hierarchy",
-    "read_imu",
-    "read_poses",
-    "replay",
-    "score",
-    "simulate",
-    "slip_reports",
-    "software_versions",
-    "truth_document",
-    "unit_scale",
-    "write_calibration",
-    "write_dataset",
-    "write_examples",
-    "write_orientation_csv",
-    "write_pose_csv",
-]
+__all__ = sorted([*_LAZY, "__version__", "estimators", "software_versions"])

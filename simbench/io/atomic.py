@@ -175,7 +175,8 @@ def atomic_path(path: str | os.PathLike[str], *, in_set: bool = True) -> Iterato
         pending.append((Path(tmp), dest))
 
 
-def _running(pid: int) -> bool:
+def process_running(pid: int) -> bool:
+    """Whether a process of this number runs on this machine (someone else's counts)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -193,7 +194,7 @@ def sweep_stale(dest: str | os.PathLike[str]) -> list[Path]:
     removed = []
     for tmp in folder.glob(f".{glob_escape(dest.name)}.*.tmp"):
         pid = tmp.name[len(dest.name) + 2 :].split(".", 1)[0]
-        if pid.isdigit() and int(pid) != os.getpid() and not _running(int(pid)):
+        if pid.isdigit() and int(pid) != os.getpid() and not process_running(int(pid)):
             with contextlib.suppress(FileNotFoundError):
                 tmp.unlink()
                 removed.append(tmp)

@@ -52,7 +52,7 @@ import numpy as np
 
 import calibration.rotations
 from simbench.errors import InputError
-from simbench.io.atomic import atomic_path
+from simbench.io.atomic import atomic_path, process_running
 from simbench.sim.models import CaptureModel
 from simbench.sim.plan import SessionPlan
 
@@ -275,16 +275,6 @@ def writable(folder: Path) -> str | None:
     return None
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # another user's process of that number
-        return True
-    return True
-
-
 def sweep_leftovers(root: str | os.PathLike[str] | None = None, *, now: float | None = None) -> list[Path]:
     """Remove the temporary caches killed runs left in ``root`` (default: ``TMPDIR``).
 
@@ -315,7 +305,7 @@ def sweep_leftovers(root: str | os.PathLike[str] | None = None, *, now: float | 
             except (OSError, ValueError, KeyError, TypeError):
                 pid, owner_host = -1, ""
             if owner_host == host and pid > 0:
-                leftover = not _alive(pid)
+                leftover = not process_running(pid)
             else:
                 leftover = now - st.st_mtime > LEFTOVER_AGE_S
             if leftover:
