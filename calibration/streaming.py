@@ -46,8 +46,16 @@ the batch's). The noise model is the data's own, as the batch's, from the last
   when the fit moves (an earlier version restarted when it moved by 10 times the white noise, so
   that on skin, whose residual is not white, a joint never armed).
 - *Motion.* Soft tissue that follows the joint, and the fit's own error, grow with the joint's
-  rotation between the two windows: ``d`` is divided by ``sqrt(1 + (|dM| / m0)^2)``, ``m0`` the
-  history's median ``|dM|``, so a fast movement is judged against fast movements.
+  rotation between the two windows: ``d`` is divided by ``sqrt(1 + r^2)``, ``r = |dM| / m0``,
+  ``m0`` the history's median ``|dM|`` (the history so divided gives the noise model), so a fast
+  movement is judged against fast movements. The skin under each sensor also follows the other
+  joints of its segment (a pelvis cluster moves with the hips, which the pelvis-abdomen joint does
+  not see turn): the test divides by ``sqrt(1 + r^2)`` with ``r`` the largest of the joint's own
+  and its neighbours' (the joints sharing a sensor with it): a neighbour's ``|dM|`` in excess of
+  its own ``m0``, over the larger of the two joints' ``m0`` (one without a noise model yet: its
+  ``|dM|`` over the joint's ``m0``). A neighbour moving as it usually does adds nothing, and one
+  that barely moves (its ``m0`` its noise) does not count; a joint still for seconds whose
+  neighbour then moves fast is judged against that movement, not against its quiet history.
 - *Scale* per joint and frame: :func:`calibration.slip_stats.robust_scale`, raised to its upper
   confidence bound (:data:`LIVE_TAIL_CONFIDENCE`, chi-square with the history's independent values,
   its length over the correlation time): a joint seconds old has few.
@@ -71,7 +79,7 @@ detector, the joint is not refitted around a candidate (that needs the frames af
 
 Measured (``studies/live_slip_real.py``, ``studies/results/live_slip_real.json``): on 7 real
 recordings (marker clusters of hip, knee, wheelchair racing and propulsion, arm), 2 cm slips
-injected, and on the skin-artefact presets; the figures are in ``docs/live.md``.
+injected, and on the skin-artefact presets; the figures are in ``docs/live-slip.md``.
 
 **Operator guidance** (:class:`Coverage`): the three weak singular values of a joint's normal
 matrix, ``s_k^2 = n (1 - sigma_k(M))`` with ``M`` the mean relative rotation
@@ -677,6 +685,7 @@ class _SlipMonitor:
         self.q = np.zeros((self.R.shape[0], j, _Q))  # the held frames' products (_products)
         self.cs = np.zeros((self.R.shape[0] + 1, j, _Q))  # their running sums, from 0
         self.hist = np.zeros((j, self.history, _Q - 1))  # rings of the products' window difference
+        self.nbr = np.zeros((j, j), dtype=bool)  # joints sharing a sensor
         self.n_hist = np.zeros(j, dtype=np.int64)
         self.scale = np.zeros((j, 2, 3))
         self.threshold = np.full((j, 2), np.inf)
@@ -685,7 +694,22 @@ class _SlipMonitor:
 
     def arrays(self) -> list[np.ndarray]:
         """Every array held (for :attr:`StreamingCalibrator.nbytes`)."""
-        names = ("R", "p", "ok", "par", "chi", "lp", "lc", "q", "cs", "hist", "n_hist", "scale", "threshold")
+        names = (
+            "R",
+            "p",
+            "ok",
+            "par",
+            "chi",
+            "lp",
+            "lc",
+            "q",
+            "cs",
+            "hist",
+            "nbr",
+            "n_hist",
+            "scale",
+            "threshold",
+        )
         return [getattr(self, k) for k in (*names, "motion0", "quiet_until")]
 
     def take_new(self) -> list[SlipAlert]:
@@ -746,6 +770,9 @@ class _SlipMonitor:
             self.keys = keys
             self.par = np.array([k[0] for k in keys], dtype=np.int64)
             self.chi = np.array([k[1] for k in keys], dtype=np.int64)
+            ends = np.stack([self.par, self.chi], axis=1)  # (J, 2)
+            self.nbr = (ends[:, None, :, None] == ends[None, :, None, :]).any(axis=(2, 3))
+            np.fill_diagonal(self.nbr, False)
             self.q = self._products(self.R, self.p, self.ok)
             self.cs = np.concatenate([np.zeros((1, *self.q.shape[1:])), np.cumsum(self.q, axis=0)])
         self.lp = np.array([j.fit.joint_in_parent for j in cal.joints]).reshape(-1, 3)
@@ -789,7 +816,15 @@ class _SlipMonitor:
         d = self._d(delta, self.lp, self.lc)  # (c, J, 2, 3)
         frames = e0 + ends
         self._latest = (d, frames)
-        factor = self._motion_factor(delta[..., :9], self.motion0)  # (c, J)
+        # each joint's own rotation between the windows against its typical one, and the largest
+        # of its neighbours' (the joints sharing a sensor with it; _motion_factor)
+        turn = np.nan_to_num(np.linalg.norm(delta[..., :9], axis=2))  # (c, J) |dM|
+        m0 = self.motion0
+        known = np.where(np.isfinite(m0), m0, 0.0)  # a neighbour without a noise model: 0
+        typical = np.fmax(m0[:, None], known[None, :])  # (J, J): the larger of j's and k's
+        excess = np.maximum(turn[:, None, :] - known[None, None, :], 0.0) / typical  # (c, J, J)
+        near = np.where(self.nbr, excess, 0.0).max(axis=2, initial=0.0)
+        factor = self._motion_factor(np.fmax(turn / m0, near))
         self._examine(d / factor[..., None, None], factor, delta, frames, q, e0)
 
     def _examine(
@@ -828,13 +863,11 @@ class _SlipMonitor:
                 self._models()
 
     @staticmethod
-    def _motion_factor(dM: np.ndarray, typical: np.ndarray | float) -> np.ndarray:
-        """``sqrt(1 + (|dM| / typical)^2)`` (``dM``: ``(..., 9)`` window differences of ``R_p^T R_c``):
-        what ``d`` is divided by, so that the residual's motion-driven part (soft tissue following
-        the joint, fit error: both grow with the joint's rotation between the windows) weighs as
-        much in a fast movement as in a slow one (module docstring)."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.sqrt(1.0 + (np.linalg.norm(dM, axis=-1) / typical) ** 2)
+    def _motion_factor(r: np.ndarray) -> np.ndarray:
+        """``sqrt(1 + r^2)``: what ``d`` is divided by (module docstring), ``r`` a window
+        difference ``|dM|`` of ``R_p^T R_c`` over the joint's typical one (the median over its
+        history; ``inf`` before it has a noise model: ``r = 0``)."""
+        return np.sqrt(1.0 + r**2)
 
     def _residual(self, q: np.ndarray, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``e`` ``(m, 2, 3)`` (the residual in the parent's and the child's frame, joint ``j`` as
@@ -867,8 +900,9 @@ class _SlipMonitor:
             start = n_hist % self.history if n_hist > self.history else 0
             hist = self.hist[j, (start + np.arange(filled)) % self.history]  # (filled, 15)
             d = self._d(hist, self.lp[j], self.lc[j])  # (filled, 2, 3)
-            self.motion0[j] = max(float(np.median(np.linalg.norm(hist[:, :9], axis=1))), 1e-12)
-            d = d / self._motion_factor(hist[:, :9], self.motion0[j])[:, None, None]
+            own = np.linalg.norm(hist[:, :9], axis=1)
+            self.motion0[j] = max(float(np.median(own)), 1e-12)
+            d = d / self._motion_factor(own / self.motion0[j])[:, None, None]
             tau = _correlation_frames(d.reshape(filled, 6)).reshape(2, 3).max(axis=1)  # samples
             use = np.ones(filled, dtype=bool)
             for i in range(2):
@@ -905,8 +939,10 @@ class _SlipMonitor:
         step at its least-squares change point, a constant and those six columns; the jump stands
         when the fitted step, divided by the crossing's motion ``factor`` and whitened by the noise
         model of ``d`` (the step a window difference sees at the change point), still crosses the
-        threshold. ``e`` is ``(m, 2, 3)`` from frame
-        ``e0``, ``M`` ``(m, 3, 3)`` the relative rotation ``R_p^T R_c``.
+        threshold, and also crosses it whitened by the white noise of the last ``2 w`` frames
+        alone (a tracker whose noise grows with the distance from its source, as a magnetic one's,
+        is noisier now than in the history the model was fitted to). ``e`` is ``(m, 2, 3)`` from
+        frame ``e0``, ``M`` ``(m, 3, 3)`` the relative rotation ``R_p^T R_c``.
         """
         end = frame - e0 + 1
         lo = max(0, end - 2 * self.w)
@@ -926,7 +962,13 @@ class _SlipMonitor:
             X[:, :, 6:9] = eye if i == 0 else np.swapaxes(Mw, 1, 2)
             X[:, :, 9:12] = -Mw if i == 0 else -eye
             theta = np.linalg.lstsq(X.reshape(3 * m, 12), e_i.reshape(3 * m), rcond=None)[0]
-            if whitened_norm(theta[None, :3] / factor, self.scale[j, i])[0] > self.threshold[j, i]:
+            if whitened_norm(theta[None, :3] / factor, self.scale[j, i])[0] <= self.threshold[j, i]:
+                continue
+            # the step's own white noise now: sigma from the median second difference (robust to
+            # the step, blind to smooth skin motion), over the frames either side of the change
+            sigma = 1.4826 * np.median(np.abs(np.diff(e_i, n=2, axis=0)), axis=0) / np.sqrt(6.0)
+            white = sigma * np.sqrt(1.0 / max(cp, 1) + 1.0 / max(m - cp, 1))
+            if whitened_norm(theta[None, :3], white)[0] > self.threshold[j, i]:
                 return True
         return False
 
