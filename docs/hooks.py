@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import html
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -95,6 +96,8 @@ def command_markdown(name: str, parser: argparse.ArgumentParser, summary: str) -
 def cli_reference(parser: argparse.ArgumentParser | None = None) -> str:
     """The whole command-line reference as Markdown: a table of the commands, then each one."""
     if parser is None:
+        if str(ROOT) not in sys.path:  # this checkout's parser, whatever simbench is installed
+            sys.path.insert(0, str(ROOT))
         from simbench.cli import build_parser  # the real parser, imported when a page asks for it
 
         parser = build_parser()
