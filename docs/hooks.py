@@ -5,6 +5,7 @@
   defaults and choices, and the ``examples:`` epilog of :mod:`simbench.cli.help_examples`.
 - ``<!-- benchmark-results -->`` becomes every figure of every file in ``benchmarks/results/``,
   read from the files themselves.
+- ``<!-- include: FILE -->`` becomes the repository's ``FILE`` (ARCHITECTURE.md: one source).
 - The pictures the pages show from ``reports/`` (the committed reference report) are added to
   the site from there (:data:`REPORT_PICTURES`), not copied into ``docs/``.
 
@@ -16,13 +17,17 @@ from __future__ import annotations
 import argparse
 import html
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
 
+from mkdocs.structure.files import File
+
 ROOT = Path(__file__).resolve().parent.parent
 CLI_MARKER = "<!-- cli-reference -->"
 RESULTS_MARKER = "<!-- benchmark-results -->"
+INCLUDE = re.compile(r"^<!-- include: ([\w./-]+) -->$", flags=re.MULTILINE)
 #: ``{path in the site: file in the repository}``: pictures of the reference report the pages show.
 REPORT_PICTURES = {"assets/pictures_linkage.png": ROOT / "reports" / "pictures_linkage.png"}
 
@@ -177,13 +182,11 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         markdown = markdown.replace(CLI_MARKER, cli_reference())
     if RESULTS_MARKER in markdown:
         markdown = markdown.replace(RESULTS_MARKER, results_markdown())
-    return markdown
+    return INCLUDE.sub(lambda m: (ROOT / m[1]).read_text(encoding="utf-8"), markdown)
 
 
 def on_files(files: Any, config: Any) -> Any:
     """MkDocs event: add the reference report's pictures to the site."""
-    from mkdocs.structure.files import File  # mkdocs itself, present whenever a hook runs
-
     for uri, path in REPORT_PICTURES.items():
         files.append(File.generated(config, uri, abs_src_path=str(path)))
     return files
