@@ -49,6 +49,14 @@ def _summaries(parser: argparse.ArgumentParser) -> dict[str, str]:
     return {a.dest: a.help or "" for a in action._choices_actions}
 
 
+def _usage(parser: argparse.ArgumentParser) -> str:
+    """The usage line(s) without argparse's ``usage: `` prefix, continuation lines moved left with it."""
+    prefix = "usage: "
+    lines = parser.format_usage().strip().splitlines()
+    lines = [lines[0].removeprefix(prefix)] + [line.removeprefix(" " * len(prefix)) for line in lines[1:]]
+    return "\n".join(lines)
+
+
 def _argument(parser: argparse.ArgumentParser, action: argparse.Action) -> str:
     """One argument as a Markdown list item: its flags and metavar, help, default and choices."""
     formatter = parser._get_formatter()
@@ -84,8 +92,7 @@ def command_markdown(name: str, parser: argparse.ArgumentParser, summary: str) -
         lines += [f"*{_text(summary)}*", ""]
     if parser.description:
         lines += [_text(parser.description), ""]
-    usage = parser.format_usage().removeprefix("usage: ").strip()
-    lines += ["```text", usage, "```", ""]
+    lines += ["```text", _usage(parser), "```", ""]
     positionals = [a for a in parser._actions if not a.option_strings]
     options = [a for a in parser._actions if a.option_strings and a.help != argparse.SUPPRESS]
     if positionals:
@@ -110,7 +117,7 @@ def cli_reference(parser: argparse.ArgumentParser | None = None) -> str:
     summaries = _summaries(parser)
     lines = [
         "```text",
-        parser.format_usage().removeprefix("usage: ").strip(),
+        _usage(parser),
         "```",
         "",
         _text(parser.description or ""),
