@@ -404,7 +404,8 @@ def union_misfit_ratio(
 
     Args:
         markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
-        a, b: marker indices of the two parts (disjoint).
+        a: marker indices of the first part.
+        b: marker indices of the second part (disjoint from ``a``).
         false_alarm: probability that one rigid body's frame exceeds the limit.
 
     Returns:
@@ -427,7 +428,8 @@ def union_misfit_frames(
 
     Args:
         markers: ``(F, M, 3)`` marker positions, any length unit (NaN where not seen).
-        a, b: marker indices of the two parts (disjoint).
+        a: marker indices of the first part.
+        b: marker indices of the second part (disjoint from ``a``).
 
     Returns:
         ``(n,)`` the misfit added by fitting the union as one body (``S_ab - S_a - S_b``) and the
@@ -494,7 +496,8 @@ def burst_excess(
     with probability about ``false_alarm``, if the block means are normal about their median.
 
     Args:
-        added, parts: ``(n,)`` per-frame misfits in time order (:func:`union_misfit_frames`).
+        added: ``(n,)`` per-frame misfits of the union in time order (:func:`union_misfit_frames`).
+        parts: ``(n,)`` per-frame misfits of the parts, the same frames.
         false_alarm: the rate at which one body's union exceeds the limit.
 
     Returns:

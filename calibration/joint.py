@@ -223,9 +223,12 @@ def joint_residual_vectors(
     """World-frame residual of the joint constraint (O'Brien eq. 8) at every frame.
 
     Args:
-        R_w_p, R_w_c: ``(..., 3, 3)`` sensor rotations (sensor to world).
-        p_w_p, p_w_c: ``(..., 3)`` sensor positions in world, metres.
-        joint_in_parent, joint_in_child: ``(3,)`` joint centre in each sensor frame, metres.
+        R_w_p: ``(..., 3, 3)`` parent sensor rotations (sensor to world).
+        R_w_c: ``(..., 3, 3)`` child sensor rotations (sensor to world).
+        p_w_p: ``(..., 3)`` parent sensor positions in world, metres.
+        p_w_c: ``(..., 3)`` child sensor positions in world, metres.
+        joint_in_parent: ``(3,)`` joint centre in the parent sensor frame, metres.
+        joint_in_child: ``(3,)`` joint centre in the child sensor frame, metres.
 
     Returns:
         ``(..., 3)`` ``(R_w_p l_p + p_w_p) - (R_w_c l_c + p_w_c)``, metres.

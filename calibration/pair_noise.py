@@ -56,9 +56,11 @@ def pair_noise_variance(
     Args:
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
         p_w_s: ``(frames, sensors, 3)`` positions in world, metres (any length unit).
-        parent, child: ``(P,)`` sensor indices of each pair.
-        joint_in_parent, joint_in_child: ``(P, 3)`` each pair's fitted joint centre in both sensor
-            frames, in the unit of ``p_w_s``.
+        parent: ``(P,)`` parent sensor index of each pair.
+        child: ``(P,)`` child sensor index of each pair.
+        joint_in_parent: ``(P, 3)`` each pair's fitted joint centre in the parent sensor frame,
+            in the unit of ``p_w_s``.
+        joint_in_child: ``(P, 3)`` the same centre in the child sensor frame.
         valid: optional ``(frames, sensors)`` bool mask; non-finite poses are always invalid.
         chunk_frames: frames per chunk.
 

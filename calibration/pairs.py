@@ -404,8 +404,10 @@ def residual_operators(
 
     Args:
         n: number of sensors ``N``.
-        parent, child: ``(J,)`` sensor indices of each joint.
-        joint_in_parent, joint_in_child: ``(J, 3)`` joint centres in each sensor frame, metres.
+        parent: ``(J,)`` parent sensor index of each joint.
+        child: ``(J,)`` child sensor index of each joint.
+        joint_in_parent: ``(J, 3)`` joint centres in the parent sensor frame, metres.
+        joint_in_child: ``(J, 3)`` joint centres in the child sensor frame, metres.
 
     Returns:
         ``rot`` ``(3 N, J)`` (lengths) and ``pos`` ``(N, J)`` (+1 / -1 selections).
@@ -445,8 +447,10 @@ def frame_residuals(
     Args:
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
         p_w_s: ``(frames, sensors, 3)`` positions in world, metres.
-        parent, child: ``(J,)`` sensor indices of each joint.
-        joint_in_parent, joint_in_child: ``(J, 3)`` joint centres in each sensor frame, metres.
+        parent: ``(J,)`` parent sensor index of each joint.
+        child: ``(J,)`` child sensor index of each joint.
+        joint_in_parent: ``(J, 3)`` joint centres in the parent sensor frame, metres.
+        joint_in_child: ``(J, 3)`` joint centres in the child sensor frame, metres.
         valid: optional ``(frames, sensors)`` bool mask.
         chunk_frames: frames per chunk.
         keep_frames: also return the per-frame residuals (``frames x J`` floats).

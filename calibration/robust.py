@@ -535,7 +535,11 @@ def robust_pair_misfits(
         R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
         p_w_s: ``(frames, sensors, 3)`` sensor positions in world, metres.
         valid: optional ``(frames, sensors)`` bool, False where a pose is missing.
-        loss, tuning, max_iter, tol, single_axis_ratio: as :func:`robust_fit_joint`.
+        loss: as :func:`robust_fit_joint`.
+        tuning: as :func:`robust_fit_joint`.
+        max_iter: as :func:`robust_fit_joint`.
+        tol: as :func:`robust_fit_joint`.
+        single_axis_ratio: as :func:`robust_fit_joint`.
 
     Raises:
         CalibrationInputError: malformed arrays or options.

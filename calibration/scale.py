@@ -38,7 +38,8 @@ def unit_scale(p_w_a: np.ndarray, p_w_b: np.ndarray, known_distance: float) -> S
     """Estimate the unit scale factor from two sensors rigidly ``known_distance`` apart.
 
     Args:
-        p_w_a, p_w_b: ``(frames, 3)`` reported sensor positions, in the system's units.
+        p_w_a: ``(frames, 3)`` reported positions of sensor a, in the system's units.
+        p_w_b: ``(frames, 3)`` reported positions of sensor b, the same units.
         known_distance: the true distance between the sensor origins (e.g. metres).
     """
     a = np.asarray(p_w_a, dtype=float)

@@ -424,10 +424,13 @@ def detect_slip(
     ``noise``, ``threshold``, ``min_jump`` and ``tests_per_hour`` are the chunks' medians.
 
     Args:
-        R_w_p, R_w_c: ``(frames, 3, 3)`` parent and child rotations, sensor to world (arrays, or
-            anything that gives one for a slice of frames, e.g. an h5py dataset's view).
-        p_w_p, p_w_c: ``(frames, 3)`` parent and child positions in world, any length unit.
-        joint_in_parent, joint_in_child: ``(3,)`` the fitted joint, the same unit.
+        R_w_p: ``(frames, 3, 3)`` parent rotations, sensor to world (an array, or anything
+            that gives one for a slice of frames, e.g. an h5py dataset's view).
+        R_w_c: ``(frames, 3, 3)`` child rotations, likewise.
+        p_w_p: ``(frames, 3)`` parent positions in world, any length unit.
+        p_w_c: ``(frames, 3)`` child positions in world, the same unit.
+        joint_in_parent: ``(3,)`` the fitted joint in the parent frame, the same unit.
+        joint_in_child: ``(3,)`` the fitted joint in the child frame, the same unit.
         window: ``w`` of the module docstring, frames (at least 2, at most half the frames).
         rate_hz: frames per second (turns the rate per hour into a rate per frame).
         false_alarms_per_hour: expected false alarms per hour of this joint's recording when

@@ -461,7 +461,8 @@ def covers(
     flat region: a truth off its plane (by more than rounding) is not covered.
 
     Args:
-        estimate, truth: ``(..., 3)`` metres (or any one unit).
+        estimate: ``(..., 3)`` estimated points, metres (or any one unit).
+        truth: ``(..., 3)`` true points, the same unit.
         cov3: ``(..., 3, 3)`` covariance of ``estimate``, the unit squared.
         level: coverage probability.
         dof: degrees of freedom of ``cov3`` (scalar or broadcasting over ``...``).
@@ -751,8 +752,10 @@ def length_uncertainty(
     length's bias, ``tr(cov_d (I - u u^T)) / (2 |d|)``, is of second order and ignored).
 
     Args:
-        c1, c2: ``(3,)`` centres, metres, in the same sensor frame.
-        cov1, cov2: ``(3, 3)`` their covariances, m^2.
+        c1: ``(3,)`` first centre, metres.
+        c2: ``(3,)`` second centre, metres, in the same sensor frame.
+        cov1: ``(3, 3)`` covariance of ``c1``, m^2.
+        cov2: ``(3, 3)`` covariance of ``c2``, m^2.
         cov12: ``(3, 3)`` ``Cov(c1, c2)``, m^2; ``None`` assumes zero (independent fits: no
             shared sensor noise, or disjoint data). Two fits of the same sensor over the same
             frames share its noise: use :func:`segment_length_uncertainty`.

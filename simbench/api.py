@@ -882,7 +882,9 @@ def follow(
         timeout_s: stop after this many seconds of wall time (``None``: at Ctrl-C only).
         refresh_s: seconds of capture between two ``state`` updates.
         hierarchy: a known hierarchy ``{child: parent}``; inferred when ``None``.
-        root, hierarchy_method, single_axis_ratio: O'Brien's options (:func:`calibrate`).
+        root: the root sensor, as in :func:`calibrate`.
+        hierarchy_method: how an inferred tree weighs each pair, as in :func:`calibrate`.
+        single_axis_ratio: the single-axis test's floor, as in :func:`calibrate`.
         slip: raise slip alerts (a 0.5 s causal window:
             :data:`calibration.streaming.LIVE_SLIP_WINDOW_S`).
         false_alarms_per_hour: per joint, the rate the alert threshold is set for.
@@ -934,8 +936,13 @@ def replay(
         units: a file's length unit (:func:`read_poses`).
         speed: a multiple of real time (1.0: the capture rate), or ``None``: as fast as the
             updates are taken.
-        refresh_s, hierarchy, root, hierarchy_method, single_axis_ratio, slip,
-            false_alarms_per_hour: as :func:`follow`.
+        refresh_s: as :func:`follow`.
+        hierarchy: as :func:`follow`.
+        root: as :func:`follow`.
+        hierarchy_method: as :func:`follow`.
+        single_axis_ratio: as :func:`follow`.
+        slip: as :func:`follow`.
+        false_alarms_per_hour: as :func:`follow`.
 
     Raises:
         InputError: fewer than 2 frames, or an option the calibrator refuses.
@@ -981,7 +988,8 @@ def twin(
         seed: the seed of the noise the twin's orientation runs get.
         window: ``(start, end)`` s, or ``"START:END"``, of the report's traces (default: 10 s about
             the middle of the motion phase).
-        cutoff_hz, position_cutoff_hz: smoothing cutoffs of the orientation and the position, Hz.
+        cutoff_hz: smoothing cutoff of the orientation, Hz.
+        position_cutoff_hz: smoothing cutoff of the position, Hz.
         without: effects left out (:data:`simbench.twin.EFFECTS`), to measure what each explains.
         methods: orientation methods to score (names or specs of the estimator registry).
 

@@ -20,6 +20,7 @@ import pytest
 
 import simbench
 from simbench.io.examples import EXAMPLE_FILES
+from tests.test_readme import flow_fences, readme_fences
 
 ROOT = Path(simbench.__file__).resolve().parent.parent
 SOURCES = ("pyproject.toml", "README.md", "simbench", "calibration")
@@ -114,6 +115,56 @@ def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
         text=True,
     )
     assert run.returncode == 0 and "hierarchy: inferred" in run.stdout, run.stderr
+
+
+def test_newcomers_path_runs_from_the_installed_wheel(wheel, tmp_path):
+    """The README's install lines, its quickstart and the first steps of docs/getting-started.md, as a
+    newcomer runs them: the installed wheel's command and package (not the sources), in a folder of
+    their own that ``simbench examples`` fills."""
+    pytest.importorskip("pandas")
+    pytest.importorskip("distributed")
+    target = tmp_path / "site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", target, wheel],
+        check=True,
+        capture_output=True,
+    )
+    env = dict(os.environ, PYTHONPATH=str(target))
+    work = tmp_path / "newcomer"
+    work.mkdir()
+    # the README's install block and the docs' first steps lay out the same folder
+    (install,) = [code for _, lang, code in readme_fences() if lang == "bash" and "simbench examples" in code]
+    examples = "simbench examples first-steps && cd first-steps"
+    assert examples in install and examples in flow_fences()[0].code
+    steps = [(f.lang, f.code) for f in flow_fences()]
+    steps.append(("python", next(code for _, lang, code in readme_fences() if lang == "python")))
+    for lang, code in steps:
+        if lang == "python":
+            run = subprocess.run(
+                [sys.executable, "-c", code], cwd=work, env=env, capture_output=True, text=True
+            )
+            assert run.returncode == 0, run.stderr
+            continue
+        for line in code.splitlines():
+            line = line.split("  #", 1)[0].strip()
+            if not line.startswith("simbench"):  # pip: the wheel is installed above
+                continue
+            for command in line.split(" && "):
+                argv = command.split()
+                if argv[0] == "cd":
+                    work = work / argv[1]
+                    continue
+                run = subprocess.run(
+                    [target / "bin" / "simbench", *argv[1:]],
+                    cwd=work,
+                    env=env,
+                    capture_output=True,
+                    text=True,
+                )
+                assert run.returncode == 0, (line, run.stderr)
+    assert work.name == "first-steps"
+    for name in ("first.h5", "first.trc", "first.c3d", "quickstart/summary.md", "first_report/index.html"):
+        assert (work / name).stat().st_size > 0, name
 
 
 @pytest.mark.slow

@@ -447,7 +447,9 @@ def sphere_joint(
         R_w_c: optional ``(frames, 3, 3)`` child sensor rotations; with ``p_w_c`` gives the
             centre in the child's frame too.
         p_w_c: optional ``(frames, 3)`` child sensor positions in world, metres.
-        variant, bias_correction, noise_std_m: as :func:`fit_sphere`.
+        variant: as :func:`fit_sphere`.
+        bias_correction: as :func:`fit_sphere`.
+        noise_std_m: as :func:`fit_sphere`.
         valid: optional ``(frames,)`` bool; frames marked False are not used (and may hold NaN).
 
     Returns:

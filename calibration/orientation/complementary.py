@@ -29,11 +29,13 @@ def mahony(
     """Mahony's explicit complementary filter with magnetometer (gyro-aided reference).
 
     Args:
-        acc, gyro, mag: ``(F, ..., 3)`` measurements in the sensor frame (m/s^2, rad/s, uT),
-            frames first.
+        acc: ``(F, ..., 3)`` specific force in the sensor frame, m/s^2, frames first.
+        gyro: ``(F, ..., 3)`` angular velocity in the sensor frame, rad/s.
+        mag: ``(F, ..., 3)`` magnetic field in the sensor frame, uT.
         rate_hz: sample rate, Hz.
         ref: reference vectors (default ENU).
-        kp, ki: proportional and integral gains of the correction, 1/s.
+        kp: proportional gain of the correction, 1/s.
+        ki: integral gain of the correction, 1/s.
         q0: ``(..., 4)`` initial orientation; default the TRIAD estimate of the first sample.
         valid: optional ``(F, ...)`` mask; invalid samples are propagated with the gyro only (and
             output NaN). A sample whose gyro is not finite is propagated with the correction alone

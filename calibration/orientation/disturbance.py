@@ -102,7 +102,8 @@ def weighted_smooth(x: np.ndarray, w: np.ndarray, rate_hz: float, cutoff_hz: flo
 
     Args:
         x: ``(F, ..., 3)`` values. w: ``(F, ...)`` weights >= 0.
-        rate_hz, cutoff_hz: as in :func:`smooth_vectors`.
+        rate_hz: as in :func:`smooth_vectors`.
+        cutoff_hz: as in :func:`smooth_vectors`.
     """
     num = smooth_vectors(x * w[..., None], rate_hz, cutoff_hz)
     den = smooth_vectors(w[..., None], rate_hz, cutoff_hz)

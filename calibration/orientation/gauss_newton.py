@@ -119,8 +119,9 @@ def fontaine(
     """Fontaine et al.'s iterative estimator (module docstring), Gauss-Newton on a rotation vector.
 
     Args:
-        acc, mag: ``(..., 3)`` measured vectors in the sensor frame (m/s^2, uT); with
+        acc: ``(..., 3)`` measured specific force in the sensor frame, m/s^2; with
             ``temporal_hz``, frames first.
+        mag: ``(..., 3)`` measured magnetic field in the sensor frame, uT, shaped as ``acc``.
         ref: reference vectors (default ENU, 50 uT, 60 degrees).
         weighting: disturbance weighting, or ``None`` for equal fixed weights.
         valid: optional ``(...)`` bool mask.

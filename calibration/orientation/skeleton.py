@@ -1166,8 +1166,10 @@ def skeleton_orientation(
     """Every sensor's orientation over the recording, jointly on the skeleton (module docstring).
 
     Args:
-        acc, mag: ``(F, N, 3)`` measured specific force (m/s^2) and field (any unit) in each
-            sensor's frame, frames first, at a constant rate.
+        acc: ``(F, N, 3)`` measured specific force (m/s^2) in each sensor's frame, frames
+            first, at a constant rate.
+        mag: ``(F, N, 3)`` measured magnetic field (any unit) in each sensor's frame, the same
+            frames.
         rate_hz: sample rate, Hz.
         skeleton: the tree and its joints in the sensors' frames, m (``None``: every sensor on
             its own).

@@ -113,7 +113,8 @@ def wahba(
     """The optimal weighted solution of Wahba's problem for the two measured directions.
 
     Args:
-        acc, mag: ``(..., 3)`` measured vectors in the sensor frame (m/s^2, uT).
+        acc: ``(..., 3)`` measured specific force in the sensor frame, m/s^2.
+        mag: ``(..., 3)`` measured magnetic field in the sensor frame, uT.
         ref: reference vectors (default ENU).
         weights: ``(..., 2)`` or ``(2,)`` accelerometer and magnetometer weights (default equal).
         valid: optional ``(...)`` bool mask.

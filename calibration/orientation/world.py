@@ -106,7 +106,8 @@ def reference_from_data(
     disturbances during part of the recording do not move them.
 
     Args:
-        acc, mag: ``(..., 3)`` measured vectors in the sensor frames (m/s^2, uT).
+        acc: ``(..., 3)`` measured specific force in the sensor frames, m/s^2.
+        mag: ``(..., 3)`` measured magnetic field in the sensor frames, uT.
         frame: world frame of the result.
         valid: optional ``(...)`` mask of samples to use.
     """
@@ -213,7 +214,8 @@ def orientation_errors(q_est: np.ndarray, q_true: np.ndarray, up_w: np.ndarray |
     input is NaN or zero (no rotation); neither needs unit length.
 
     Args:
-        q_est, q_true: ``(..., 4)`` scalar-first quaternions of ``R_w_s``, same world frame.
+        q_est: ``(..., 4)`` estimated scalar-first quaternions of ``R_w_s``.
+        q_true: ``(..., 4)`` reference quaternions, the same layout and world frame.
         up_w: ``(3,)`` unit vector up in that world frame.
     """
     up = np.array([0.0, 0.0, 1.0]) if up_w is None else np.asarray(up_w, dtype=float)
