@@ -96,11 +96,12 @@ from typing import Any
 import numpy as np
 
 from calibration.errors import CalibrationInputError
-from calibration.joint import MIN_FRAMES, check_pair, joint_residual_vectors
-from calibration.pairs import pair_statistics, solve_pairs
+from calibration.hinge import block_edges
+from calibration.joint import MIN_FRAMES, check_pair
+from calibration.pairs import solve_pairs, statistics_of_blocks
 from calibration.slip_stats import (
     change_point,
-    correlation_frames,
+    correlation_times,
     robust_scale,
     tail_threshold,
     whitened_norm,
@@ -129,6 +130,10 @@ RESOLUTION_ULPS = 1e3
 #: chunk is searched: 2^18 made calibrate's peak 558 MiB on 1,000,000 x 32 frames, 296 MiB without
 #: slip detection).
 CHUNK_FRAMES = 1 << 16
+
+#: Frames of poses read at once while a chunk's products are formed (:class:`_Pair`): the poses
+#: (24 numbers a frame) are not held for a whole chunk, only the products (17 a frame).
+READ_FRAMES = 1 << 13
 
 #: Windows of overlap each side between consecutive chunks (the search ignores a step within a
 #: window of a chunk's ends: every frame is at least this far inside one chunk's core).
@@ -201,80 +206,167 @@ def _check_options(n: int, window: int, rate_hz: float, false_alarms_per_hour: f
 
 @dataclass(frozen=True)
 class _Pair:
-    """The two sensors' poses and the residual series of the joint as fitted.
+    """One joint's frames as the search needs them: the pose products the window differences
+    are affine in, and the joint as fitted.
 
-    The search asks for the same refits many times (each candidate is tested with the events
-    found so far as cuts, and those cuts again at the next step): each piece's refit and each
-    set of cuts' window differences are computed once (``_pieces``, ``_diffs``).
+    Per frame, with ``M = R_p^T R_c``, ``u_p = R_p^T (p_c - p_p)`` and ``u_c = R_c^T (p_c - p_p)``,
+    the residual of a joint ``(l_p, l_c)`` in the two frames is ``e_p = l_p - u_p - M l_c`` and
+    ``e_c = M^T l_p - u_c - l_c``. Window means are linear, so away from the cuts (both windows in
+    one piece) ``d_p = -D(u_p) - D(M) l_c`` and ``d_c = D(M)^T l_p - D(u_c)`` with ``D`` the window
+    difference of those products, taken once (``coupling``); only the ``2 w`` rows around each cut
+    are recomputed from their residuals. The refits come from the same products' sums (O'Brien's
+    normal equations, :func:`_refit`). The search asks for the same refits and window differences
+    many times; each piece's joint is computed once, and the last few sets of cuts' window
+    differences are kept (``_joints``, ``_diffs``).
     """
 
-    poses: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    terms: np.ndarray  # (frames, 17): M (9), u_p, u_c, |p_c - p_p|^2, 1; zeros where not ok
+    coupling: np.ndarray  # (frames, 15): the window differences of terms[:, :15]
     ok: np.ndarray
-    r: np.ndarray
+    joint: tuple[np.ndarray, np.ndarray]
     window: int
     rate_hz: float
     rate: float
     resolution: float = 0.0  # m: the residuals' floating-point resolution: no jump is smaller
-    _pieces: dict[tuple[int, int], np.ndarray | None] = field(default_factory=dict, repr=False, compare=False)
+    _joints: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
     _diffs: dict[tuple[int, ...], list[np.ndarray]] = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def of(
+        cls,
+        sources: tuple[Any, Any, Any, Any],
+        a: int,
+        b: int,
+        joint: tuple[np.ndarray, np.ndarray],
+        *,
+        window: int,
+        rate_hz: float,
+        rate: float,
+    ) -> _Pair:
+        """Frames ``a:b`` of the poses (``R_w_p``, ``p_w_p``, ``R_w_c``, ``p_w_c`` of
+        :func:`detect_slip`, read :data:`READ_FRAMES` at a time) and the joint as fitted (``(3,)``
+        each)."""
+        jp, jc = (np.asarray(x, dtype=float) for x in joint)
+        n = b - a
+        terms = np.empty((n, 17))
+        ok = np.zeros(n, dtype=bool)
+        top = 0.0
+        for s in range(a, b, READ_FRAMES):
+            t = min(b, s + READ_FRAMES)
+            R_p, p_p, R_c, p_c = check_pair(*(x[s:t] for x in sources))
+            rows = terms[s - a : t - a]
+            rel = p_c - p_p
+            rows[:, :9] = np.matmul(R_p.transpose(0, 2, 1), R_c).reshape(t - s, 9)
+            rows[:, 9:12] = np.einsum("fji,fj->fi", R_p, rel)
+            rows[:, 12:15] = np.einsum("fji,fj->fi", R_c, rel)
+            rows[:, 15] = np.einsum("fi,fi->f", rel, rel)
+            rows[:, 16] = 1.0
+            good = np.isfinite(rows).all(axis=1) & np.isfinite(p_p).all(axis=1) & np.isfinite(p_c).all(axis=1)
+            good &= bool(np.isfinite(jp).all() and np.isfinite(jc).all())
+            ok[s - a : t - a] = good
+            top = max(
+                top,
+                float(np.max(np.abs(p_p[good]), initial=0.0)),
+                float(np.max(np.abs(p_c[good]), initial=0.0)),
+            )
+        terms[~ok] = 0.0
+        coupling = np.empty((n, 15))
+        for k in range(0, 15, 3):  # a few columns at a time: the sums' scratch stays small
+            coupling[:, k : k + 3] = window_difference(terms[:, k : k + 3], ok, window)
+        resolution = RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
+        return cls(terms, coupling, ok, (jp, jc), window, rate_hz, rate, resolution)
+
+    def residual_frames(self, a: int = 0, b: int | None = None, joint: Any = None) -> list[np.ndarray]:
+        """``[e_p, e_c]``, ``(b - a, 3)`` each: the residual of ``joint`` (default: as fitted) in the
+        parent's and the child's frame over frames ``a:b`` (zeros where not ok)."""
+        jp, jc = self.joint if joint is None else joint
+        t = self.terms[a:b]
+        M = t[:, :9].reshape(-1, 3, 3)
+        ok = self.ok[a:b, None]
+        e_p = np.where(ok, jp - t[:, 9:12] - M @ jc, 0.0)
+        e_c = np.where(ok, np.einsum("fji,j->fi", M, jp) - t[:, 12:15] - jc, 0.0)
+        return [e_p, e_c]
 
     def diffs(self, cuts: list[int]) -> list[np.ndarray]:
         """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``
         (the caller must not change them)."""
         key = tuple(sorted(cuts))
-        if key not in self._diffs:
-            ds = [window_difference(e, self.ok, self.window) for e in self.frames(self.piecewise(list(key)))]
-            for d in ds:
-                d.flags.writeable = False
-            self._diffs[key] = ds
-        return self._diffs[key]
+        if key in self._diffs:
+            return self._diffs[key]
+        n, w = self.ok.size, self.window
+        edges = [0, *key, n]
+        joints = [self._piece_joint(a, b) for a, b in pairwise(edges)]
+        D = self.coupling
+        out = [np.empty((n, 3)), np.empty((n, 3))]
+        for (a, b), (jp, jc) in zip(pairwise(edges), joints, strict=True):
+            m = b - a
+            np.dot(D[a:b, :9].reshape(3 * m, 3), -jc, out=out[0][a:b].reshape(3 * m))
+            out[0][a:b] -= D[a:b, 9:12]
+            np.einsum("fji,j->fi", D[a:b, :9].reshape(m, 3, 3), jp, out=out[1][a:b])
+            out[1][a:b] -= D[a:b, 12:15]
+        for lo, hi in _near(key, w, n):  # rows whose windows hold two pieces: from their residuals
+            s, t = max(0, lo - w), min(n, hi + w)
+            e = [np.zeros((t - s, 3)), np.zeros((t - s, 3))]
+            for (a, b), joint in zip(pairwise(edges), joints, strict=True):
+                if a < t and b > s:
+                    for x, y in zip(e, self.residual_frames(max(a, s), min(b, t), joint), strict=True):
+                        x[max(a, s) - s : min(b, t) - s] = y
+            for d, x in zip(out, e, strict=True):
+                d[lo:hi] = window_difference(x, self.ok[s:t], w)[lo - s : hi - s]
+        for d in out:
+            d.flags.writeable = False
+        if len(self._diffs) >= 4:  # the search asks again only for the last few sets of cuts
+            del self._diffs[next(iter(self._diffs))]
+        self._diffs[key] = out
+        return out
 
-    def frames(self, r: np.ndarray) -> list[np.ndarray]:
-        """``e = R_w_s^T r`` in the parent's and the child's frame, ``(frames, 3)`` each."""
-        rot = (self.poses[0], self.poses[2])
-        okr = np.where(self.ok[:, None], r, 0.0)
-        return [np.einsum("fji,fj->fi", np.where(self.ok[:, None, None], R, 0.0), okr) for R in rot]
-
-    def piecewise(self, cuts: list[int]) -> np.ndarray:
-        """``(frames, 3)`` residuals with the joint refitted on each piece between ``cuts``.
-
-        A piece shorter than the window, or that cannot be fitted, keeps the whole fit's residual.
-        """
-        r = self.r.copy()
-        for a, b in pairwise([0, *sorted(cuts), self.ok.size]):
-            piece = self._piece(a, b)
-            if piece is not None:
-                r[a:b] = piece
-        return r
-
-    def _piece(self, a: int, b: int) -> np.ndarray | None:
-        """``(b - a, 3)`` residuals of the joint refitted on frames ``a:b``; ``None`` when the
-        piece is shorter than the window or cannot be fitted."""
-        if (a, b) not in self._pieces:
-            out = None
-            if b - a >= self.window:
-                sl = [x[a:b] for x in self.poses]
-                fit = _refit(*sl, self.ok[a:b])
-                if fit is not None:
-                    out = joint_residual_vectors(*sl, *fit)
-            self._pieces[(a, b)] = out
-        return self._pieces[(a, b)]
+    def _piece_joint(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """The joint refitted on frames ``a:b``; the whole fit's when the piece is shorter than
+        the window or cannot be fitted."""
+        if (a, b) not in self._joints:
+            fit = _refit(self.terms[a:b]) if b - a >= self.window else None
+            self._joints[(a, b)] = self.joint if fit is None else fit
+        return self._joints[(a, b)]
 
 
-def _refit(
-    R_w_p: np.ndarray, p_w_p: np.ndarray, R_w_c: np.ndarray, p_w_c: np.ndarray, ok: np.ndarray
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(joint_in_parent, joint_in_child)`` of the joint refitted on these frames, or ``None``
-    with fewer than :data:`~calibration.joint.MIN_FRAMES` usable: :func:`calibration.joint.fit_joint`'s
-    answer with ``effect_size=False`` (the single-axis verdict's test, not its effect size) from the
-    normal equations of the all-pairs path (:func:`calibration.pairs.solve_pairs`), several times
-    faster on long pieces."""
-    stats = pair_statistics(  # without the third differences: the verdict's test alone, as a short refit
-        np.stack([R_w_p, R_w_c], axis=1),
-        np.stack([p_w_p, p_w_c], axis=1),
-        valid=np.stack([ok, ok], axis=1),
-        third_differences=False,
-    )
+def _near(cuts: tuple[int, ...], w: int, n: int) -> list[tuple[int, int]]:
+    """``[lo, hi)`` row ranges within ``w`` of a cut (``|t - cut| < w``), merged, inside ``[0, n)``."""
+    out: list[tuple[int, int]] = []
+    for c in cuts:
+        lo, hi = max(0, c - w + 1), min(n, c + w)
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        elif lo < hi:
+            out.append((lo, hi))
+    return out
+
+
+def _refit(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(joint_in_parent, joint_in_child)`` of the joint refitted on these frames (``terms`` of
+    :class:`_Pair`, ``(frames, 17)``), or ``None`` with fewer than
+    :data:`~calibration.joint.MIN_FRAMES` usable: :func:`calibration.joint.fit_joint`'s answer with
+    ``effect_size=False`` (the single-axis verdict's test, not its effect size) from the normal
+    equations of the all-pairs path (:func:`calibration.pairs.solve_pairs`), their sums over each
+    block of the verdict's test (:func:`calibration.hinge.block_edges`) taken from the products
+    the search holds. Positions centred on the pair's mean as :func:`calibration.pairs.pair_statistics`
+    centres them: ``p_c - centre = (p_c - p_p) / 2``."""
+    edges = block_edges(terms.shape[0])
+    sums = np.add.reduceat(terms, edges[:-1], axis=0)  # (B, 17)
+    nb = sums.shape[0]
+    cnt = sums[:, 16]
+    eye = cnt[:, None, None] * np.eye(3)
+    M = sums[:, :9].reshape(nb, 3, 3)
+    gram = np.empty((nb, 2, 2, 3, 3))
+    gram[:, 0, 0], gram[:, 0, 1], gram[:, 1, 0], gram[:, 1, 1] = eye, M, M.transpose(0, 2, 1), eye
+    half_p, half_c = 0.5 * sums[:, 9:12], 0.5 * sums[:, 12:15]
+    cross = np.stack([np.stack([-half_p, half_p], 1), np.stack([-half_c, half_c], 1)], 1)
+    self_cross = np.stack([np.stack([-half_p, -half_p], 1), np.stack([half_c, half_c], 1)], 1)
+    sq = np.zeros((nb, 2, 2))
+    sq[:, 0, 1] = sq[:, 1, 0] = sums[:, 15]
+    count = np.broadcast_to(np.rint(cnt).astype(np.int64)[:, None, None], (nb, 2, 2))
+    stats = statistics_of_blocks(list(zip(gram, cross, self_cross, sq, count, strict=True)), terms.shape[0])
     sol = solve_pairs(stats, np.array([0]), np.array([1]))
     if sol.n_frames[0] < MIN_FRAMES:
         return None
@@ -285,7 +377,7 @@ def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarra
     """``(scale, threshold, tests per hour)`` of one sensor frame's ``d``, from the frames ``use``."""
     scale = robust_scale(d, use)
     z = whitened_norm(d, scale)
-    tau = max(correlation_frames(d[:, k], use) for k in range(3))
+    tau = float(correlation_times(d, use).max())
     tests_per_hour = len(_FRAMES) * 3600.0 * pair.rate_hz / tau
     return scale, tail_threshold(z[use], tests_per_hour, pair.rate, tau), tests_per_hour
 
@@ -327,14 +419,18 @@ def _excess(z: float, threshold: float) -> float:
     return float("inf") if z > 0.0 else 0.0
 
 
-def _resolution(ok: np.ndarray, *positions: np.ndarray) -> float:
-    """The floating-point resolution of a joint residual, m: :data:`RESOLUTION_ULPS` units in the
-    last place of the largest position coordinate over the frames ``ok``. Noise-free poses leave
-    residuals of rounding alone (about 1e-16 m), whose noise model is that rounding: a rounding
-    blip then passes its test, and is kept out as a jump below the resolution (a 0.0 mm
-    "slip")."""
-    top = max((float(np.max(np.abs(p[ok]), initial=0.0)) for p in positions), default=0.0)
-    return RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
+def _check_sources(sources: tuple[Any, Any, Any, Any], n: int) -> None:
+    """Shapes of :func:`detect_slip`'s poses: ``(frames, 3, 3)``, ``(frames, 3)``, ``(frames, 3, 3)``,
+    ``(frames, 3)``, ``n`` frames each."""
+    names = ("R_w_p", "p_w_p", "R_w_c", "p_w_c")
+    for name, x, tail in zip(names, sources, ((3, 3), (3,), (3, 3), (3,)), strict=True):
+        shape = tuple(np.shape(x))
+        if len(shape) != 1 + len(tail) or shape[1:] != tail:
+            raise CalibrationInputError(
+                f"Expected {name} to have shape (frames, {', '.join(map(str, tail))}), got {shape}"
+            )
+        if shape[0] != n:
+            raise CalibrationInputError(f"Expected {name} to have {n} frames like R_w_p, got {shape[0]}")
 
 
 def _peak(d: np.ndarray, free: np.ndarray) -> int | None:
@@ -348,7 +444,7 @@ def _closer_than_window(pair: _Pair, i: int, k: int, k2: int) -> bool:
     """Whether the steps near ``k`` and ``k2`` (least-squares change points) are closer than ``w``."""
     w = pair.window
     n = pair.ok.size
-    e = pair.frames(pair.r)[i]
+    e = pair.residual_frames()[i]
     a = change_point(e, pair.ok, max(0, k - w), min(n, k + w))
     b = change_point(e, pair.ok, max(0, k2 - w), min(n, k2 + w))
     return abs(a - b) < w
@@ -387,8 +483,10 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
             if k2 is None:
                 break
             z, thr = _test(pair, free & (np.abs(frames - k2) > w), [*cuts, k2], k, i)
+            if not z > thr:  # the pair cannot stand: its partner's test is not needed
+                break
             z2, thr2 = _test(pair, free & (np.abs(frames - k) > w), [*cuts, k], k2, i)
-            if not (z > thr and z2 > thr2) or _closer_than_window(pair, i, k, k2):
+            if not z2 > thr2 or _closer_than_window(pair, i, k, k2):
                 break
             best = (k, i, z, thr)
         # attribution: the moved sensor's frame holds the step steady, the other's turns it
@@ -440,19 +538,17 @@ def detect_slip(
         CalibrationInputError: shapes that do not match, a window out of range, a rate or a
             false-alarm rate that is not positive and finite.
     """
-    options = {"window": window, "rate_hz": rate_hz, "false_alarms_per_hour": false_alarms_per_hour}
+    options = {"window": window, "rate_hz": float(rate_hz), "rate": float(false_alarms_per_hour)}
     try:
         n = len(R_w_p)
     except TypeError:
         raise CalibrationInputError(
             f"Expected R_w_p of shape (frames, 3, 3), got {np.shape(R_w_p)}"
         ) from None
-    if n <= chunk_frames:
-        rep, _ = _detect_chunk(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child, **options)
-        return rep if series else dataclasses.replace(rep, jump=np.empty(0))
+    _check_sources((R_w_p, p_w_p, R_w_c, p_w_c), n)
     _check_options(n, window, rate_hz, false_alarms_per_hour)
     overlap = OVERLAP_WINDOWS * window
-    if chunk_frames < 2 * overlap + 8 * window:
+    if n > chunk_frames and chunk_frames < 2 * overlap + 8 * window:
         raise CalibrationInputError(
             f"chunk_frames must be at least {2 * overlap + 8 * window} for a window of {window}, got "
             f"{chunk_frames}"
@@ -461,10 +557,9 @@ def detect_slip(
     reports = []
     reference = None  # the first chunk's first piece: every chunk's intervals are judged against it
     for a, b, core_a, core_b in pieces:
-        poses = [np.asarray(x[a:b], dtype=float) for x in (R_w_p, p_w_p, R_w_c, p_w_c)]
-        rep, reference = _detect_chunk(
-            *poses, joint_in_parent, joint_in_child, **options, reference=reference
-        )
+        pair = _Pair.of((R_w_p, p_w_p, R_w_c, p_w_c), a, b, (joint_in_parent, joint_in_child), **options)
+        rep, reference = _detect_chunk(pair, reference=reference)
+        del pair
         if not series:
             rep = dataclasses.replace(rep, jump=np.empty(0))
         reports.append((a, core_a, core_b, rep))
@@ -520,36 +615,13 @@ def _merged(intervals: list[tuple[int, int]], seams: set[int]) -> list[tuple[int
 
 
 def _detect_chunk(
-    R_w_p: np.ndarray,
-    p_w_p: np.ndarray,
-    R_w_c: np.ndarray,
-    p_w_c: np.ndarray,
-    joint_in_parent: np.ndarray,
-    joint_in_child: np.ndarray,
-    *,
-    window: int,
-    rate_hz: float,
-    false_alarms_per_hour: float,
-    reference: list[np.ndarray | None] | None = None,
+    pair: _Pair, reference: list[np.ndarray | None] | None = None
 ) -> tuple[SlipReport, list[np.ndarray | None]]:
     """:func:`detect_slip` on frames held at once (the whole recording, or one chunk), and the
     mean offsets its intervals were judged against (``reference``: a later chunk's, the first
     chunk's; :func:`_intervals`)."""
-    R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
-    n = R_w_p.shape[0]
-    _check_options(n, window, rate_hz, false_alarms_per_hour)
-    r = joint_residual_vectors(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child)
-    ok = np.isfinite(r).all(axis=1)
-    pair = _Pair(
-        (R_w_p, p_w_p, R_w_c, p_w_c),
-        ok,
-        r,
-        window,
-        float(rate_hz),
-        float(false_alarms_per_hour),
-        _resolution(ok, p_w_p, p_w_c),
-    )
-    es = pair.frames(r)
+    n, window, ok = pair.ok.size, pair.window, pair.ok
+    es = pair.residual_frames()
     ds = [window_difference(e, ok, window) for e in es]
     valid = np.isfinite(ds[0]).all(axis=1) & np.isfinite(ds[1]).all(axis=1)
     found, _ = _search(pair, valid)
@@ -589,7 +661,7 @@ def _detect_chunk(
         window=window,
         threshold=thr_all,
         min_jump=min_jump,
-        false_alarms_per_hour=false_alarms_per_hour,
+        false_alarms_per_hour=pair.rate,
         tests_per_hour=tests_per_hour,
     )
     return report, reference

@@ -8,8 +8,12 @@ factor scales :func:`window_difference` and :func:`robust_scale` by that factor 
 from __future__ import annotations
 
 import numpy as np
+from scipy.fft import next_fast_len
 
 from calibration.quantiles import MAD_TO_SIGMA, chi2_ppf
+
+#: :func:`correlation_times` first computes the lags up to ``samples / LAG_FRACTION``.
+LAG_FRACTION = 8
 
 #: Quantile of the statistic above which its tail is modelled (the exponential tail's origin).
 TAIL_QUANTILE = 0.75
@@ -19,11 +23,35 @@ TAIL_QUANTILE = 0.75
 TAIL_CONFIDENCE = 0.75
 
 
+def window_sums(x: np.ndarray, w: int) -> np.ndarray:
+    """``(frames - w + 1, k)`` sums of ``x`` (``(frames, k)``) over the ``w`` rows from each row ``t``.
+
+    Each sum is a block's total less a prefix of it plus a prefix of the next block (blocks of
+    ``w`` rows), so its rounding error is that of sums of ``w`` rows, not of a running sum over the
+    whole series (whose differences lose the digits the series' magnitude takes: the window
+    difference of terms of 1 m that cancel to micrometres, :mod:`calibration.slip`).
+    """
+    n, k = x.shape
+    if n < w:
+        return np.empty((0, k))
+    nb = -(-n // w)
+    blocks = np.zeros(((nb + 1) * w, k))
+    blocks[:n] = x
+    blocks = blocks.reshape(nb + 1, w, k)
+    inclusive = np.cumsum(blocks, axis=1)
+    before = np.zeros_like(inclusive)  # the block's rows before each row
+    before[:, 1:] = inclusive[:, :-1]
+    out = inclusive[:-1, -1][:, None, :] - before[:-1]
+    out += before[1:]
+    return out.reshape(nb * w, k)[: n - w + 1]
+
+
 def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
-    """``(frames, 3)`` mean of ``e`` over the ``w`` frames from ``t`` minus over the ``w`` before.
+    """``(frames, k)`` mean of ``e`` over the ``w`` frames from ``t`` minus over the ``w`` before.
 
     Args:
-        e: ``(frames, 3)`` a series (any unit); rows where ``ok`` is false are ignored.
+        e: ``(frames, k)`` a series (any unit; ``k`` columns, 3 for a residual vector); rows
+            where ``ok`` is false are ignored.
         ok: ``(frames,)`` valid rows.
         w: window, frames.
 
@@ -31,18 +59,18 @@ def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
     either window.
     """
     n = e.shape[0]
-    cs = np.zeros((n + 1, 3))
-    cs[1:] = np.cumsum(np.where(ok[:, None], e, 0.0), axis=0)
-    cn = np.zeros(n + 1)
+    out = np.full(e.shape, np.nan)
+    if n < 2 * w:
+        return out
+    sums = window_sums(np.where(ok[:, None], e, 0.0), w)  # [t]: rows t .. t + w - 1
+    cn = np.zeros(n + 1, dtype=np.int64)
     cn[1:] = np.cumsum(ok)
-    out = np.full((n, 3), np.nan)
-    t = np.arange(w, n - w + 1)
-    nb = cn[t] - cn[t - w]
-    na = cn[t + w] - cn[t]
+    count = cn[w:] - cn[:-w]
+    na, nb = count[w:], count[: n - 2 * w + 1]
     enough = (nb >= w / 2) & (na >= w / 2)
     with np.errstate(invalid="ignore", divide="ignore"):
-        diff = (cs[t + w] - cs[t]) / na[:, None] - (cs[t] - cs[t - w]) / nb[:, None]
-    out[t] = np.where(enough[:, None], diff, np.nan)
+        diff = sums[w:] / na[:, None] - sums[: n - 2 * w + 1] / nb[:, None]
+    out[w : n - w + 1] = np.where(enough[:, None], diff, np.nan)
     return out
 
 
@@ -52,11 +80,14 @@ def robust_scale(d: np.ndarray, use: np.ndarray) -> np.ndarray:
     A component with no spread gets a floor of ``1e-12`` times the largest ``|d|`` (so that an
     exactly constant series yields zeros, not infinities); all zeros when ``d[use]`` is.
     """
-    x = d[use]
-    if x.shape[0] == 0:
+    x = d[use].T.copy()  # (3, samples): each component's median over contiguous samples
+    if x.shape[1] == 0:
         return np.zeros(3)
-    s = MAD_TO_SIGMA * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+    centre = np.median(x, axis=1)
     top = float(np.max(np.abs(x)))
+    x -= centre[:, None]
+    np.abs(x, out=x)
+    s = MAD_TO_SIGMA * np.median(x, axis=1)
     return np.maximum(s, 1e-12 * top)
 
 
@@ -75,21 +106,49 @@ def correlation_frames(x: np.ndarray, use: np.ndarray | None = None) -> float:
     not bridged); samples a distance ``tau`` apart count as about independent. At least 1.
     """
     x = np.asarray(x, dtype=float)
-    m = np.isfinite(x) if use is None else (np.asarray(use, dtype=bool) & np.isfinite(x))
-    n = x.size
-    if m.sum() < 3:
-        return 1.0
-    xc = np.where(m, x - x[m].mean(), 0.0)
-    mf = m.astype(float)
-    fx = np.fft.rfft(xc, 2 * n)
-    fm = np.fft.rfft(mf, 2 * n)
-    num = np.fft.irfft(fx * np.conj(fx))[:n]
-    pairs = np.round(np.fft.irfft(fm * np.conj(fm))[:n])
-    if num[0] <= 0:
-        return 1.0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cov = np.where(pairs > 0, num / np.maximum(pairs, 1.0), np.nan)
-    return initial_positive_time(cov / cov[0])
+    return float(correlation_times(x[:, None], use)[0])
+
+
+def correlation_times(x: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
+    """``(k,)`` :func:`correlation_frames` of each column of ``x`` (``(samples, k)``), in one batch
+    of FFTs (the pairs' counts transformed once when every column uses the same samples).
+
+    The sum stops at the first lag that is not positive, which for a window difference comes
+    within a few windows; the FFTs are first zero-padded only to the first length of factors 2,
+    3 and 5 from ``samples + samples / 8`` (:data:`LAG_FRACTION`), which gives every lag up to the
+    padding exactly (a circular correlation wraps only beyond it), and again to ``2 samples - 1``
+    (every lag) for a column whose autocorrelation is still positive there.
+    """
+    x = np.asarray(x, dtype=float)
+    n, k = x.shape
+    m = np.isfinite(x)
+    if use is not None:
+        m &= np.asarray(use, dtype=bool)[:, None]
+    out = np.ones(k)
+    count = m.sum(axis=0)
+    cols = np.flatnonzero(count >= 3)
+    if cols.size == 0:
+        return out
+    m = np.ascontiguousarray(m[:, cols].T)  # (columns, samples): each FFT over contiguous samples
+    xs = np.where(m, x[:, cols].T, 0.0)
+    xc = np.where(m, xs - (xs.sum(axis=1) / count[cols])[:, None], 0.0)
+    full = next_fast_len(2 * n - 1, real=True)
+    for size in dict.fromkeys((min(next_fast_len(n + max(n // LAG_FRACTION, 1), real=True), full), full)):
+        lags = min(n, size - n + 1)  # lags 0 .. size - n are exact
+        fx = np.fft.rfft(xc, size)
+        num = np.fft.irfft(fx * np.conj(fx), size)[:, :lags]
+        same = bool((m == m[:1]).all())
+        fm = np.fft.rfft((m[:1] if same else m).astype(float), size)
+        pairs = np.broadcast_to(np.round(np.fft.irfft(fm * np.conj(fm), size)[:, :lags]), num.shape)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cov = np.where(pairs > 0, num / np.maximum(pairs, 1.0), np.nan)
+        ended = lags == n or bool((~(cov[:, 1:] > 0)).any(axis=1)[num[:, 0] > 0].all())
+        if ended:
+            break
+    for c, col in enumerate(cols):
+        if num[c, 0] > 0:
+            out[col] = initial_positive_time(cov[c] / cov[c, 0])
+    return out
 
 
 def initial_positive_time(rho: np.ndarray) -> float:
