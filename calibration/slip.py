@@ -105,7 +105,7 @@ from calibration.slip_stats import (
     robust_scale,
     tail_threshold,
     whitened_norm,
-    window_difference,
+    window_difference_rows,
 )
 
 #: Default expected false alarms per hour of joint time (the one default: ``simbench calibrate
@@ -220,8 +220,8 @@ class _Pair:
     differences are kept (``_joints``, ``_diffs``).
     """
 
-    terms: np.ndarray  # (frames, 17): M (9), u_p, u_c, |p_c - p_p|^2, 1; zeros where not ok
-    coupling: np.ndarray  # (frames, 15): the window differences of terms[:, :15]
+    terms: np.ndarray  # (17, frames): M (9, row-major), u_p, u_c, |p_c - p_p|^2, 1; zeros where not ok
+    coupling: np.ndarray  # (15, frames): the window differences of terms[:15]
     ok: np.ndarray
     joint: tuple[np.ndarray, np.ndarray]
     window: int
@@ -250,20 +250,20 @@ class _Pair:
         each)."""
         jp, jc = (np.asarray(x, dtype=float) for x in joint)
         n = b - a
-        terms = np.empty((n, 17))
+        terms = np.empty((17, n))  # a row per product: sums and window sums run along rows
         ok = np.zeros(n, dtype=bool)
         top = 0.0
         for s in range(a, b, READ_FRAMES):
             t = min(b, s + READ_FRAMES)
             R_p, p_p, R_c, p_c = check_pair(*(x[s:t] for x in sources))
-            rows = terms[s - a : t - a]
             rel = p_c - p_p
-            rows[:, :9] = np.matmul(R_p.transpose(0, 2, 1), R_c).reshape(t - s, 9)
-            rows[:, 9:12] = np.einsum("fji,fj->fi", R_p, rel)
-            rows[:, 12:15] = np.einsum("fji,fj->fi", R_c, rel)
-            rows[:, 15] = np.einsum("fi,fi->f", rel, rel)
-            rows[:, 16] = 1.0
-            good = np.isfinite(rows).all(axis=1) & np.isfinite(p_p).all(axis=1) & np.isfinite(p_c).all(axis=1)
+            cols = terms[:, s - a : t - a]
+            cols[:9] = np.matmul(R_p.transpose(0, 2, 1), R_c).reshape(t - s, 9).T
+            cols[9:12] = np.einsum("fji,fj->if", R_p, rel)
+            cols[12:15] = np.einsum("fji,fj->if", R_c, rel)
+            cols[15] = np.einsum("fi,fi->f", rel, rel)
+            cols[16] = 1.0
+            good = np.isfinite(cols).all(axis=0) & np.isfinite(p_p).all(axis=1) & np.isfinite(p_c).all(axis=1)
             good &= bool(np.isfinite(jp).all() and np.isfinite(jc).all())
             ok[s - a : t - a] = good
             top = max(
@@ -271,10 +271,11 @@ class _Pair:
                 float(np.max(np.abs(p_p[good]), initial=0.0)),
                 float(np.max(np.abs(p_c[good]), initial=0.0)),
             )
-        terms[~ok] = 0.0
-        coupling = np.empty((n, 15))
-        for k in range(0, 15, 3):  # a few columns at a time: the sums' scratch stays small
-            coupling[:, k : k + 3] = window_difference(terms[:, k : k + 3], ok, window)
+        if not ok.all():
+            terms[:, ~ok] = 0.0
+        coupling = np.empty((15, n))
+        for k in range(0, 15, 3):  # a few rows at a time: the sums' scratch stays small
+            coupling[k : k + 3] = window_difference_rows(terms[k : k + 3], ok, window)
         resolution = RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
         return cls(terms, coupling, ok, (jp, jc), window, rate_hz, rate, resolution)
 
@@ -282,12 +283,18 @@ class _Pair:
         """``[e_p, e_c]``, ``(b - a, 3)`` each: the residual of ``joint`` (default: as fitted) in the
         parent's and the child's frame over frames ``a:b`` (zeros where not ok)."""
         jp, jc = self.joint if joint is None else joint
-        t = self.terms[a:b]
-        M = t[:, :9].reshape(-1, 3, 3)
-        ok = self.ok[a:b, None]
-        e_p = np.where(ok, jp - t[:, 9:12] - M @ jc, 0.0)
-        e_c = np.where(ok, np.einsum("fji,j->fi", M, jp) - t[:, 12:15] - jc, 0.0)
-        return [e_p, e_c]
+        e_p, e_c = _affine(self.terms[:15, a:b], jp, jc)
+        e_p += jp[:, None]
+        e_c -= jc[:, None]
+        ok = self.ok[a:b]
+        return [np.where(ok, e_p, 0.0).T, np.where(ok, e_c, 0.0).T]
+
+    def fitted_diff(self, rows: int | slice, i: int) -> np.ndarray:
+        """``d`` of the joint as fitted (no refit) in sensor frame ``i`` at ``rows``: ``(3,)`` or
+        ``(rows, 3)``."""
+        C = self.coupling[:, rows]
+        d = _affine(C if C.ndim == 2 else C[:, None], *self.joint)[i].T
+        return d if C.ndim == 2 else d[0]
 
     def diffs(self, cuts: list[int]) -> list[np.ndarray]:
         """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``
@@ -298,37 +305,48 @@ class _Pair:
         n, w = self.ok.size, self.window
         edges = [0, *key, n]
         joints = [self._piece_joint(a, b) for a, b in pairwise(edges)]
-        D = self.coupling
-        out = [np.empty((n, 3)), np.empty((n, 3))]
-        for (a, b), (jp, jc) in zip(pairwise(edges), joints, strict=True):
-            m = b - a
-            np.dot(D[a:b, :9].reshape(3 * m, 3), -jc, out=out[0][a:b].reshape(3 * m))
-            out[0][a:b] -= D[a:b, 9:12]
-            np.einsum("fji,j->fi", D[a:b, :9].reshape(m, 3, 3), jp, out=out[1][a:b])
-            out[1][a:b] -= D[a:b, 12:15]
+        out = [np.empty((3, n)), np.empty((3, n))]
+        for (a, b), joint in zip(pairwise(edges), joints, strict=True):
+            out[0][:, a:b], out[1][:, a:b] = _affine(self.coupling[:, a:b], *joint)
         for lo, hi in _near(key, w, n):  # rows whose windows hold two pieces: from their residuals
             s, t = max(0, lo - w), min(n, hi + w)
-            e = [np.zeros((t - s, 3)), np.zeros((t - s, 3))]
+            e = np.zeros((2, 3, t - s))
             for (a, b), joint in zip(pairwise(edges), joints, strict=True):
                 if a < t and b > s:
                     for x, y in zip(e, self.residual_frames(max(a, s), min(b, t), joint), strict=True):
-                        x[max(a, s) - s : min(b, t) - s] = y
+                        x[:, max(a, s) - s : min(b, t) - s] = y.T
             for d, x in zip(out, e, strict=True):
-                d[lo:hi] = window_difference(x, self.ok[s:t], w)[lo - s : hi - s]
-        for d in out:
+                d[:, lo:hi] = window_difference_rows(x, self.ok[s:t], w)[:, lo - s : hi - s]
+        views = [d.T for d in out]  # (frames, 3)
+        for d in views:
             d.flags.writeable = False
         if len(self._diffs) >= 4:  # the search asks again only for the last few sets of cuts
             del self._diffs[next(iter(self._diffs))]
-        self._diffs[key] = out
-        return out
+        self._diffs[key] = views
+        return views
 
     def _piece_joint(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
         """The joint refitted on frames ``a:b``; the whole fit's when the piece is shorter than
         the window or cannot be fitted."""
         if (a, b) not in self._joints:
-            fit = _refit(self.terms[a:b]) if b - a >= self.window else None
+            fit = _refit(self.terms[:, a:b]) if b - a >= self.window else None
             self._joints[(a, b)] = self.joint if fit is None else fit
         return self._joints[(a, b)]
+
+
+def _affine(x: np.ndarray, jp: np.ndarray, jc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(-x_p - X_M l_c, X_M^T l_p - x_c)``, ``(3, m)`` each, of rows ``x`` ``(15, m)`` laid out as
+    :class:`_Pair`'s ``terms`` (``X_M`` the 3 x 3 of the first nine, ``x_p``, ``x_c`` the next
+    three each): the window differences of the residual from those of the products (module of
+    :class:`_Pair`), or the residual less its constants ``(l_p, -l_c)`` from the products."""
+    m = x.shape[1]
+    M = x[:9].reshape(3, 3, m)
+    d_p = np.negative(x[9:12])
+    d_c = np.negative(x[12:15])
+    for j in range(3):  # d_p[i] -= M[i, j] l_c[j]; d_c[i] += l_p[j] M[j, i]
+        d_p -= M[:, j] * jc[j]
+        d_c += M[j] * jp[j]
+    return d_p, d_c
 
 
 def _near(cuts: tuple[int, ...], w: int, n: int) -> list[tuple[int, int]]:
@@ -345,15 +363,15 @@ def _near(cuts: tuple[int, ...], w: int, n: int) -> list[tuple[int, int]]:
 
 def _refit(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """``(joint_in_parent, joint_in_child)`` of the joint refitted on these frames (``terms`` of
-    :class:`_Pair`, ``(frames, 17)``), or ``None`` with fewer than
+    :class:`_Pair`, ``(17, frames)``), or ``None`` with fewer than
     :data:`~calibration.joint.MIN_FRAMES` usable: :func:`calibration.joint.fit_joint`'s answer with
     ``effect_size=False`` (the single-axis verdict's test, not its effect size) from the normal
     equations of the all-pairs path (:func:`calibration.pairs.solve_pairs`), their sums over each
     block of the verdict's test (:func:`calibration.hinge.block_edges`) taken from the products
     the search holds. Positions centred on the pair's mean as :func:`calibration.pairs.pair_statistics`
     centres them: ``p_c - centre = (p_c - p_p) / 2``."""
-    edges = block_edges(terms.shape[0])
-    sums = np.add.reduceat(terms, edges[:-1], axis=0)  # (B, 17)
+    edges = block_edges(terms.shape[1])
+    sums = np.add.reduceat(terms, edges[:-1], axis=1).T  # (B, 17)
     nb = sums.shape[0]
     cnt = sums[:, 16]
     eye = cnt[:, None, None] * np.eye(3)
@@ -366,7 +384,7 @@ def _refit(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     sq = np.zeros((nb, 2, 2))
     sq[:, 0, 1] = sq[:, 1, 0] = sums[:, 15]
     count = np.broadcast_to(np.rint(cnt).astype(np.int64)[:, None, None], (nb, 2, 2))
-    stats = statistics_of_blocks(list(zip(gram, cross, self_cross, sq, count, strict=True)), terms.shape[0])
+    stats = statistics_of_blocks(list(zip(gram, cross, self_cross, sq, count, strict=True)), terms.shape[1])
     sol = solve_pairs(stats, np.array([0]), np.array([1]))
     if sol.n_frames[0] < MIN_FRAMES:
         return None
@@ -376,10 +394,10 @@ def _refit(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
 def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, float, float]:
     """``(scale, threshold, tests per hour)`` of one sensor frame's ``d``, from the frames ``use``."""
     scale = robust_scale(d, use)
-    z = whitened_norm(d, scale)
+    z = whitened_norm(d[use], scale)
     tau = float(correlation_times(d, use).max())
     tests_per_hour = len(_FRAMES) * 3600.0 * pair.rate_hz / tau
-    return scale, tail_threshold(z[use], tests_per_hour, pair.rate, tau), tests_per_hour
+    return scale, tail_threshold(z, tests_per_hour, pair.rate, tau), tests_per_hour
 
 
 def _test(
@@ -444,10 +462,11 @@ def _closer_than_window(pair: _Pair, i: int, k: int, k2: int) -> bool:
     """Whether the steps near ``k`` and ``k2`` (least-squares change points) are closer than ``w``."""
     w = pair.window
     n = pair.ok.size
-    e = pair.residual_frames()[i]
-    a = change_point(e, pair.ok, max(0, k - w), min(n, k + w))
-    b = change_point(e, pair.ok, max(0, k2 - w), min(n, k2 + w))
-    return abs(a - b) < w
+    at = []
+    for c in (k, k2):
+        lo, hi = max(0, c - w), min(n, c + w)
+        at.append(lo + change_point(pair.residual_frames(lo, hi)[i], pair.ok[lo:hi], 0, hi - lo))
+    return abs(at[0] - at[1]) < w
 
 
 def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, float]], np.ndarray]:
@@ -558,10 +577,8 @@ def detect_slip(
     reference = None  # the first chunk's first piece: every chunk's intervals are judged against it
     for a, b, core_a, core_b in pieces:
         pair = _Pair.of((R_w_p, p_w_p, R_w_c, p_w_c), a, b, (joint_in_parent, joint_in_child), **options)
-        rep, reference = _detect_chunk(pair, reference=reference)
+        rep, reference = _detect_chunk(pair, reference=reference, series=series)
         del pair
-        if not series:
-            rep = dataclasses.replace(rep, jump=np.empty(0))
         reports.append((a, core_a, core_b, rep))
     events, intervals, jumps = [], [], []
     for a, core_a, core_b, rep in reports:
@@ -615,22 +632,21 @@ def _merged(intervals: list[tuple[int, int]], seams: set[int]) -> list[tuple[int
 
 
 def _detect_chunk(
-    pair: _Pair, reference: list[np.ndarray | None] | None = None
+    pair: _Pair, reference: list[np.ndarray | None] | None = None, series: bool = True
 ) -> tuple[SlipReport, list[np.ndarray | None]]:
     """:func:`detect_slip` on frames held at once (the whole recording, or one chunk), and the
     mean offsets its intervals were judged against (``reference``: a later chunk's, the first
-    chunk's; :func:`_intervals`)."""
+    chunk's; :func:`_intervals`). ``series``: compute the report's ``jump`` (else empty)."""
     n, window, ok = pair.ok.size, pair.window, pair.ok
-    es = pair.residual_frames()
-    ds = [window_difference(e, ok, window) for e in es]
-    valid = np.isfinite(ds[0]).all(axis=1) & np.isfinite(ds[1]).all(axis=1)
+    valid = np.isfinite(pair.coupling[0])  # both windows hold enough frames (d is finite)
     found, _ = _search(pair, valid)
     while True:
         events = []
         for k, i, z, thr in found:
-            frame = change_point(es[i], ok, max(0, k - window), min(n, k + window))
-            d_at = ds[i][frame] if np.isfinite(ds[i][frame]).all() else ds[i][k]
-            jump = float(np.linalg.norm(d_at))
+            lo, hi = max(0, k - window), min(n, k + window)
+            frame = lo + change_point(pair.residual_frames(lo, hi)[i], ok[lo:hi], 0, hi - lo)
+            d_at = pair.fitted_diff(frame, i)
+            jump = float(np.linalg.norm(d_at if np.isfinite(d_at).all() else pair.fitted_diff(k, i)))
             events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
         shown = found[0][1] if found else 1
         d_clean = pair.diffs([f[0] for f in found])[shown]
@@ -652,11 +668,11 @@ def _detect_chunk(
             break
         found = kept
     events.sort(key=lambda ev: ev.frame)
-    intervals, reference = _intervals(es, ok, events, n, min_jump, reference)
+    intervals, reference = _intervals(pair, events, min_jump, reference)
     report = SlipReport(
         events=tuple(events),
         intervals=intervals,
-        jump=np.linalg.norm(ds[shown], axis=1),
+        jump=np.linalg.norm(pair.fitted_diff(slice(None), shown), axis=-1) if series else np.empty(0),
         noise=noise,
         window=window,
         threshold=thr_all,
@@ -668,28 +684,27 @@ def _detect_chunk(
 
 
 def _intervals(
-    es: list[np.ndarray],
-    ok: np.ndarray,
+    pair: _Pair,
     events: list[SlipEvent],
-    n: int,
     min_jump: float,
     reference: list[np.ndarray | None] | None = None,
 ) -> tuple[tuple[tuple[int, int], ...], list[np.ndarray | None]]:
     """Pieces between events whose mean offset (in each sensor frame) differs from the reference
     by more than ``min_jump``, and the reference: the first piece's mean offsets, or those given
     (a later chunk of a recording is judged against the recording's first piece)."""
+    ok, n = pair.ok, pair.ok.size
     cuts = [0, *(ev.frame for ev in events), n]
     pieces = list(pairwise(cuts))
     if reference is None:
-        first = ok[: pieces[0][1]]
-        reference = [np.mean(e[: pieces[0][1]][first], axis=0) if first.any() else None for e in es]
-        pieces = pieces[1:]
+        a, b = pieces.pop(0)
+        first = ok[a:b]
+        reference = [np.mean(e[first], axis=0) if first.any() else None for e in pair.residual_frames(a, b)]
     out = []
     for a, b in pieces:
         seg = ok[a:b]
-        moved = any(
-            seg.any() and ref is not None and np.linalg.norm(np.mean(e[a:b][seg], axis=0) - ref) > min_jump
-            for e, ref in zip(es, reference, strict=True)
+        moved = seg.any() and any(
+            ref is not None and np.linalg.norm(np.mean(e[seg], axis=0) - ref) > min_jump
+            for e, ref in zip(pair.residual_frames(a, b), reference, strict=True)
         )
         if moved:
             out.append((a, b))

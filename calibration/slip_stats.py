@@ -24,26 +24,26 @@ TAIL_CONFIDENCE = 0.75
 
 
 def window_sums(x: np.ndarray, w: int) -> np.ndarray:
-    """``(frames - w + 1, k)`` sums of ``x`` (``(frames, k)``) over the ``w`` rows from each row ``t``.
+    """``(k, samples - w + 1)`` sums of each row of ``x`` (``(k, samples)``) over the ``w`` samples
+    from each sample ``t``.
 
     Each sum is a block's total less a prefix of it plus a prefix of the next block (blocks of
-    ``w`` rows), so its rounding error is that of sums of ``w`` rows, not of a running sum over the
-    whole series (whose differences lose the digits the series' magnitude takes: the window
-    difference of terms of 1 m that cancel to micrometres, :mod:`calibration.slip`).
+    ``w`` samples), so its rounding error is that of sums of ``w`` samples, not of a running sum
+    over the whole series (whose differences lose the digits the series' magnitude takes: the
+    window difference of terms of 1 m that cancel to micrometres, :mod:`calibration.slip`).
     """
-    n, k = x.shape
+    k, n = x.shape
     if n < w:
-        return np.empty((0, k))
+        return np.empty((k, 0))
     nb = -(-n // w)
-    blocks = np.zeros(((nb + 1) * w, k))
-    blocks[:n] = x
-    blocks = blocks.reshape(nb + 1, w, k)
-    inclusive = np.cumsum(blocks, axis=1)
-    before = np.zeros_like(inclusive)  # the block's rows before each row
-    before[:, 1:] = inclusive[:, :-1]
-    out = inclusive[:-1, -1][:, None, :] - before[:-1]
-    out += before[1:]
-    return out.reshape(nb * w, k)[: n - w + 1]
+    blocks = np.zeros((k, (nb + 1) * w))
+    blocks[:, :n] = x
+    blocks = blocks.reshape(k, nb + 1, w)
+    inclusive = np.cumsum(blocks, axis=2)
+    before = np.subtract(inclusive, blocks, out=blocks)  # the block's samples before each one
+    out = inclusive[:, :-1, -1:] - before[:, :-1]
+    out += before[:, 1:]
+    return out.reshape(k, nb * w)[:, : n - w + 1]
 
 
 def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
@@ -58,19 +58,24 @@ def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
     Returns NaN within ``w`` of the ends and where fewer than ``w / 2`` valid rows fall in
     either window.
     """
-    n = e.shape[0]
-    out = np.full(e.shape, np.nan)
+    return window_difference_rows(np.asarray(e, dtype=float).T, ok, w).T.copy()
+
+
+def window_difference_rows(x: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
+    """:func:`window_difference` of series laid out as rows: ``x`` ``(k, frames)`` to ``(k, frames)``."""
+    k, n = x.shape
+    out = np.full((k, n), np.nan)
     if n < 2 * w:
         return out
-    sums = window_sums(np.where(ok[:, None], e, 0.0), w)  # [t]: rows t .. t + w - 1
+    sums = window_sums(np.where(ok, x, 0.0), w)  # [:, t]: samples t .. t + w - 1
     cn = np.zeros(n + 1, dtype=np.int64)
     cn[1:] = np.cumsum(ok)
     count = cn[w:] - cn[:-w]
     na, nb = count[w:], count[: n - 2 * w + 1]
     enough = (nb >= w / 2) & (na >= w / 2)
     with np.errstate(invalid="ignore", divide="ignore"):
-        diff = sums[w:] / na[:, None] - sums[: n - 2 * w + 1] / nb[:, None]
-    out[w : n - w + 1] = np.where(enough[:, None], diff, np.nan)
+        diff = sums[:, w:] / na - sums[:, : n - 2 * w + 1] / nb
+    out[:, w : n - w + 1] = np.where(enough, diff, np.nan)
     return out
 
 
@@ -83,11 +88,11 @@ def robust_scale(d: np.ndarray, use: np.ndarray) -> np.ndarray:
     x = d[use].T.copy()  # (3, samples): each component's median over contiguous samples
     if x.shape[1] == 0:
         return np.zeros(3)
-    centre = np.median(x, axis=1)
-    top = float(np.max(np.abs(x)))
+    top = float(max(x.max(), -x.min()))
+    centre = np.median(x, axis=1, overwrite_input=True)  # reorders x's rows: only their sets matter
     x -= centre[:, None]
     np.abs(x, out=x)
-    s = MAD_TO_SIGMA * np.median(x, axis=1)
+    s = MAD_TO_SIGMA * np.median(x, axis=1, overwrite_input=True)
     return np.maximum(s, 1e-12 * top)
 
 
