@@ -133,7 +133,7 @@ CHUNK_FRAMES = 1 << 16
 
 #: Frames of poses read at once while a chunk's products are formed (:class:`_Pair`): the poses
 #: (24 numbers a frame) are not held for a whole chunk, only the products (17 a frame).
-READ_FRAMES = 1 << 13
+READ_FRAMES = 1 << 14
 
 #: Windows of overlap each side between consecutive chunks (the search ignores a step within a
 #: window of a chunk's ends: every frame is at least this far inside one chunk's core).
@@ -231,7 +231,7 @@ class _Pair:
     _joints: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = field(
         default_factory=dict, repr=False, compare=False
     )
-    _diffs: dict[tuple[int, ...], list[np.ndarray]] = field(default_factory=dict, repr=False, compare=False)
+    _diffs: dict[tuple[int, ...], np.ndarray] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def of(
@@ -274,8 +274,8 @@ class _Pair:
         if not ok.all():
             terms[:, ~ok] = 0.0
         coupling = np.empty((15, n))
-        for k in range(0, 15, 3):  # a few rows at a time: the sums' scratch stays small
-            coupling[k : k + 3] = window_difference_rows(terms[k : k + 3], ok, window)
+        for k in range(15):  # a row at a time: the sums' scratch stays small
+            window_difference_rows(terms[k : k + 1], ok, window, out=coupling[k : k + 1])
         resolution = RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
         return cls(terms, coupling, ok, (jp, jc), window, rate_hz, rate, resolution)
 
@@ -293,37 +293,41 @@ class _Pair:
         """``d`` of the joint as fitted (no refit) in sensor frame ``i`` at ``rows``: ``(3,)`` or
         ``(rows, 3)``."""
         C = self.coupling[:, rows]
-        d = _affine(C if C.ndim == 2 else C[:, None], *self.joint)[i].T
+        d = _affine_frame(C if C.ndim == 2 else C[:, None], *self.joint, i).T
         return d if C.ndim == 2 else d[0]
 
     def diffs(self, cuts: list[int]) -> list[np.ndarray]:
         """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``
         (the caller must not change them)."""
-        key = tuple(sorted(cuts))
+        return [self.diff(cuts, 0), self.diff(cuts, 1)]
+
+    def diff(self, cuts: list[int], i: int) -> np.ndarray:
+        """``d``, ``(frames, 3)``, of sensor frame ``i`` with the joint refitted between ``cuts``
+        (the caller must not change it)."""
+        key = (*sorted(cuts), -1 - i)
         if key in self._diffs:
             return self._diffs[key]
         n, w = self.ok.size, self.window
-        edges = [0, *key, n]
+        edges = [0, *key[:-1], n]
         joints = [self._piece_joint(a, b) for a, b in pairwise(edges)]
-        out = [np.empty((3, n)), np.empty((3, n))]
+        out = np.empty((3, n))
         for (a, b), joint in zip(pairwise(edges), joints, strict=True):
-            out[0][:, a:b], out[1][:, a:b] = _affine(self.coupling[:, a:b], *joint)
-        for lo, hi in _near(key, w, n):  # rows whose windows hold two pieces: from their residuals
+            out[:, a:b] = _affine_frame(self.coupling[:, a:b], *joint, i)
+        for lo, hi in _near(key[:-1], w, n):  # rows whose windows hold two pieces: from their residuals
             s, t = max(0, lo - w), min(n, hi + w)
-            e = np.zeros((2, 3, t - s))
+            e = np.zeros((3, t - s))
             for (a, b), joint in zip(pairwise(edges), joints, strict=True):
                 if a < t and b > s:
-                    for x, y in zip(e, self.residual_frames(max(a, s), min(b, t), joint), strict=True):
-                        x[:, max(a, s) - s : min(b, t) - s] = y.T
-            for d, x in zip(out, e, strict=True):
-                d[:, lo:hi] = window_difference_rows(x, self.ok[s:t], w)[:, lo - s : hi - s]
-        views = [d.T for d in out]  # (frames, 3)
-        for d in views:
-            d.flags.writeable = False
-        if len(self._diffs) >= 4:  # the search asks again only for the last few sets of cuts
+                    e[:, max(a, s) - s : min(b, t) - s] = self.residual_frames(max(a, s), min(b, t), joint)[
+                        i
+                    ].T
+            out[:, lo:hi] = window_difference_rows(e, self.ok[s:t], w)[:, lo - s : hi - s]
+        view = out.T  # (frames, 3)
+        view.flags.writeable = False
+        if len(self._diffs) >= 3:  # the search asks again only for the last few sets of cuts
             del self._diffs[next(iter(self._diffs))]
-        self._diffs[key] = views
-        return views
+        self._diffs[key] = view
+        return view
 
     def _piece_joint(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
         """The joint refitted on frames ``a:b``; the whole fit's when the piece is shorter than
@@ -339,14 +343,21 @@ def _affine(x: np.ndarray, jp: np.ndarray, jc: np.ndarray) -> tuple[np.ndarray, 
     :class:`_Pair`'s ``terms`` (``X_M`` the 3 x 3 of the first nine, ``x_p``, ``x_c`` the next
     three each): the window differences of the residual from those of the products (module of
     :class:`_Pair`), or the residual less its constants ``(l_p, -l_c)`` from the products."""
-    m = x.shape[1]
-    M = x[:9].reshape(3, 3, m)
-    d_p = np.negative(x[9:12])
-    d_c = np.negative(x[12:15])
-    for j in range(3):  # d_p[i] -= M[i, j] l_c[j]; d_c[i] += l_p[j] M[j, i]
-        d_p -= M[:, j] * jc[j]
-        d_c += M[j] * jp[j]
-    return d_p, d_c
+    return _affine_frame(x, jp, jc, 0), _affine_frame(x, jp, jc, 1)
+
+
+def _affine_frame(x: np.ndarray, jp: np.ndarray, jc: np.ndarray, i: int) -> np.ndarray:
+    """Sensor frame ``i``'s half of :func:`_affine`, ``(3, m)``."""
+    M = x[:9].reshape(3, 3, x.shape[1])
+    if i == 0:
+        out = np.negative(x[9:12])
+        for j in range(3):  # out[i] -= M[i, j] l_c[j]
+            out -= M[:, j] * jc[j]
+    else:
+        out = np.negative(x[12:15])
+        for j in range(3):  # out[i] += l_p[j] M[j, i]
+            out += M[j] * jp[j]
+    return out
 
 
 def _near(cuts: tuple[int, ...], w: int, n: int) -> list[tuple[int, int]]:
@@ -414,8 +425,8 @@ def _test(
     """
     w = pair.window
     frames = np.arange(free.size)
-    d_k = (pair.diffs(cuts)[i] if d_now is None else d_now)[k : k + 1]
-    d = pair.diffs([*cuts, k])[i]
+    d_k = (pair.diff(cuts, i) if d_now is None else d_now)[k : k + 1]
+    d = pair.diff([*cuts, k], i)
     rest = free & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
     for c in cuts:
         rest &= np.abs(frames - c) > w
@@ -649,7 +660,7 @@ def _detect_chunk(
             jump = float(np.linalg.norm(d_at if np.isfinite(d_at).all() else pair.fitted_diff(k, i)))
             events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
         shown = found[0][1] if found else 1
-        d_clean = pair.diffs([f[0] for f in found])[shown]
+        d_clean = pair.diff([f[0] for f in found], shown)
         # the joint refitted on each side of every event absorbs its step: every frame counts
         rest = valid & np.isfinite(d_clean).all(axis=1)
         scale, thr_all, tests_per_hour = _noise_model(pair, d_clean, rest)

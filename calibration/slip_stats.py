@@ -61,10 +61,15 @@ def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
     return window_difference_rows(np.asarray(e, dtype=float).T, ok, w).T.copy()
 
 
-def window_difference_rows(x: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
-    """:func:`window_difference` of series laid out as rows: ``x`` ``(k, frames)`` to ``(k, frames)``."""
+def window_difference_rows(
+    x: np.ndarray, ok: np.ndarray, w: int, out: np.ndarray | None = None
+) -> np.ndarray:
+    """:func:`window_difference` of series laid out as rows: ``x`` ``(k, frames)`` to ``(k, frames)``
+    (into ``out`` when given)."""
     k, n = x.shape
-    out = np.full((k, n), np.nan)
+    if out is None:
+        out = np.empty((k, n))
+    out.fill(np.nan)
     if n < 2 * w:
         return out
     sums = window_sums(np.where(ok, x, 0.0), w)  # [:, t]: samples t .. t + w - 1
@@ -73,9 +78,11 @@ def window_difference_rows(x: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
     count = cn[w:] - cn[:-w]
     na, nb = count[w:], count[: n - 2 * w + 1]
     enough = (nb >= w / 2) & (na >= w / 2)
+    rows = out[:, w : n - w + 1]
     with np.errstate(invalid="ignore", divide="ignore"):
-        diff = sums[:, w:] / na - sums[:, : n - 2 * w + 1] / nb
-    out[:, w : n - w + 1] = np.where(enough, diff, np.nan)
+        np.divide(sums[:, w:], na, out=rows)
+        rows -= sums[:, : n - 2 * w + 1] / nb
+    rows[:, ~enough] = np.nan
     return out
 
 
@@ -137,23 +144,50 @@ def correlation_times(x: np.ndarray, use: np.ndarray | None = None) -> np.ndarra
     m = np.ascontiguousarray(m[:, cols].T)  # (columns, samples): each FFT over contiguous samples
     xs = np.where(m, x[:, cols].T, 0.0)
     xc = np.where(m, xs - (xs.sum(axis=1) / count[cols])[:, None], 0.0)
+    same = bool((m == m[:1]).all())
     full = next_fast_len(2 * n - 1, real=True)
     for size in dict.fromkeys((min(next_fast_len(n + max(n // LAG_FRACTION, 1), real=True), full), full)):
         lags = min(n, size - n + 1)  # lags 0 .. size - n are exact
-        fx = np.fft.rfft(xc, size)
-        num = np.fft.irfft(fx * np.conj(fx), size)[:, :lags]
-        same = bool((m == m[:1]).all())
-        fm = np.fft.rfft((m[:1] if same else m).astype(float), size)
-        pairs = np.broadcast_to(np.round(np.fft.irfft(fm * np.conj(fm), size)[:, :lags]), num.shape)
+        num = np.empty((cols.size, lags))
+        for c in range(cols.size):  # a column at a time: the transforms' scratch stays small
+            fx = np.fft.rfft(xc[c], size)
+            num[c] = np.fft.irfft(fx * np.conj(fx), size)[:lags]
+        # the sums stop at the first lag whose covariance is not positive: the pairs' counts are
+        # needed only up to there, and are counted from the runs of used samples when few
+        stop = ~(num[:, 1:] > 0)
+        used = num[:, 0] > 0
+        need = (
+            int((np.argmax(stop, axis=1)[used] + 2).max(initial=1)) if stop.any(axis=1)[used].all() else lags
+        )
+        pairs = _pair_counts(m[0], need) if same else None
+        if pairs is None:
+            fm = np.fft.rfft((m[:1] if same else m).astype(float), size)
+            pairs = np.round(np.fft.irfft(fm * np.conj(fm), size)[:, :need])
+        pairs = np.broadcast_to(pairs, (num.shape[0], need))
         with np.errstate(invalid="ignore", divide="ignore"):
-            cov = np.where(pairs > 0, num / np.maximum(pairs, 1.0), np.nan)
-        ended = lags == n or bool((~(cov[:, 1:] > 0)).any(axis=1)[num[:, 0] > 0].all())
-        if ended:
+            cov = np.where(pairs > 0, num[:, :need] / np.maximum(pairs, 1.0), np.nan)
+        if lags == n or bool((~(cov[:, 1:] > 0)).any(axis=1)[used].all()):
             break
     for c, col in enumerate(cols):
         if num[c, 0] > 0:
             out[col] = initial_positive_time(cov[c] / cov[c, 0])
     return out
+
+
+def _pair_counts(m: np.ndarray, lags: int, most_runs: int = 4) -> np.ndarray | None:
+    """``(lags,)`` the number of samples ``t`` with ``m[t]`` and ``m[t + k]`` at each lag ``k``,
+    counted from the runs of ``m`` (``(samples,)`` bool); ``None`` when it has more than
+    ``most_runs`` runs (then a transform is faster)."""
+    edges = np.flatnonzero(np.diff(m.astype(np.int8), prepend=0, append=0))
+    starts, stops = edges[::2], edges[1::2]
+    if starts.size > most_runs:
+        return None
+    k = np.arange(lags)
+    out = np.zeros(lags, dtype=np.int64)
+    for a, b in zip(starts, stops, strict=True):
+        for c, d in zip(starts, stops, strict=True):  # t in [a, b) and t + k in [c, d)
+            out += np.maximum(0, np.minimum(b, d - k) - np.maximum(a, c - k))
+    return out.astype(float)
 
 
 def initial_positive_time(rho: np.ndarray) -> float:
