@@ -126,10 +126,11 @@ _FRAMES = ("parent", "child")
 RESOLUTION_ULPS = 1e3
 
 #: Frames of a joint's series :func:`detect_slip` holds at once: a longer recording is taken a
-#: chunk at a time (2^16: 9 min at 120 Hz, plenty for a noise model; about 1 KB a frame while a
-#: chunk is searched: 2^18 made calibrate's peak 558 MiB on 1,000,000 x 32 frames, 296 MiB without
-#: slip detection).
-CHUNK_FRAMES = 1 << 16
+#: chunk at a time (2^15: 4.5 min at 120 Hz, about 300 independent values of the statistic for a
+#: noise model; about 0.45 KB a frame while a chunk is searched, 15 MiB: 2^18 made calibrate's
+#: peak 558 MiB on 1,000,000 x 32 frames, 2^16 308 MiB, against 296 MiB without slip detection,
+#: whose freed memory the search reuses).
+CHUNK_FRAMES = 1 << 15
 
 #: Frames of poses read at once while a chunk's products are formed (:class:`_Pair`): the poses
 #: (24 numbers a frame) are not held for a whole chunk, only the products (17 a frame).
