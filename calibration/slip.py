@@ -96,15 +96,16 @@ from typing import Any
 import numpy as np
 
 from calibration.errors import CalibrationInputError
-from calibration.joint import MIN_FRAMES, check_pair, joint_residual_vectors
-from calibration.pairs import pair_statistics, solve_pairs
+from calibration.hinge import block_edges
+from calibration.joint import MIN_FRAMES, check_pair
+from calibration.pairs import solve_pairs, statistics_of_blocks
 from calibration.slip_stats import (
     change_point,
-    correlation_frames,
+    correlation_times,
     robust_scale,
     tail_threshold,
     whitened_norm,
-    window_difference,
+    window_difference_rows,
 )
 
 #: Default expected false alarms per hour of joint time (the one default: ``simbench calibrate
@@ -125,10 +126,15 @@ _FRAMES = ("parent", "child")
 RESOLUTION_ULPS = 1e3
 
 #: Frames of a joint's series :func:`detect_slip` holds at once: a longer recording is taken a
-#: chunk at a time (2^16: 9 min at 120 Hz, plenty for a noise model; about 1 KB a frame while a
-#: chunk is searched: 2^18 made calibrate's peak 558 MiB on 1,000,000 x 32 frames, 296 MiB without
-#: slip detection).
-CHUNK_FRAMES = 1 << 16
+#: chunk at a time (2^15: 4.5 min at 120 Hz, about 300 independent values of the statistic for a
+#: noise model; about 0.45 KB a frame while a chunk is searched, 15 MiB: 2^18 made calibrate's
+#: peak 558 MiB on 1,000,000 x 32 frames, 2^16 308 MiB, against 296 MiB without slip detection,
+#: whose freed memory the search reuses).
+CHUNK_FRAMES = 1 << 15
+
+#: Frames of poses read at once while a chunk's products are formed (:class:`_Pair`): the poses
+#: (24 numbers a frame) are not held for a whole chunk, only the products (17 a frame).
+READ_FRAMES = 1 << 14
 
 #: Windows of overlap each side between consecutive chunks (the search ignores a step within a
 #: window of a chunk's ends: every frame is at least this far inside one chunk's core).
@@ -201,80 +207,196 @@ def _check_options(n: int, window: int, rate_hz: float, false_alarms_per_hour: f
 
 @dataclass(frozen=True)
 class _Pair:
-    """The two sensors' poses and the residual series of the joint as fitted.
+    """One joint's frames as the search needs them: the pose products the window differences
+    are affine in, and the joint as fitted.
 
-    The search asks for the same refits many times (each candidate is tested with the events
-    found so far as cuts, and those cuts again at the next step): each piece's refit and each
-    set of cuts' window differences are computed once (``_pieces``, ``_diffs``).
+    Per frame, with ``M = R_p^T R_c``, ``u_p = R_p^T (p_c - p_p)`` and ``u_c = R_c^T (p_c - p_p)``,
+    the residual of a joint ``(l_p, l_c)`` in the two frames is ``e_p = l_p - u_p - M l_c`` and
+    ``e_c = M^T l_p - u_c - l_c``. Window means are linear, so away from the cuts (both windows in
+    one piece) ``d_p = -D(u_p) - D(M) l_c`` and ``d_c = D(M)^T l_p - D(u_c)`` with ``D`` the window
+    difference of those products, taken once (``coupling``); only the ``2 w`` rows around each cut
+    are recomputed from their residuals. The refits come from the same products' sums (O'Brien's
+    normal equations, :func:`_refit`). The search asks for the same refits and window differences
+    many times; each piece's joint is computed once, and the last few sets of cuts' window
+    differences are kept (``_joints``, ``_diffs``).
     """
 
-    poses: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    terms: np.ndarray  # (17, frames): M (9, row-major), u_p, u_c, |p_c - p_p|^2, 1; zeros where not ok
+    coupling: np.ndarray  # (15, frames): the window differences of terms[:15]
     ok: np.ndarray
-    r: np.ndarray
+    joint: tuple[np.ndarray, np.ndarray]
     window: int
     rate_hz: float
     rate: float
     resolution: float = 0.0  # m: the residuals' floating-point resolution: no jump is smaller
-    _pieces: dict[tuple[int, int], np.ndarray | None] = field(default_factory=dict, repr=False, compare=False)
-    _diffs: dict[tuple[int, ...], list[np.ndarray]] = field(default_factory=dict, repr=False, compare=False)
+    _joints: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = field(
+        default_factory=dict, repr=False, compare=False
+    )
+    _diffs: dict[tuple[int, ...], np.ndarray] = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def of(
+        cls,
+        sources: tuple[Any, Any, Any, Any],
+        a: int,
+        b: int,
+        joint: tuple[np.ndarray, np.ndarray],
+        *,
+        window: int,
+        rate_hz: float,
+        rate: float,
+    ) -> _Pair:
+        """Frames ``a:b`` of the poses (``R_w_p``, ``p_w_p``, ``R_w_c``, ``p_w_c`` of
+        :func:`detect_slip`, read :data:`READ_FRAMES` at a time) and the joint as fitted (``(3,)``
+        each)."""
+        jp, jc = (np.asarray(x, dtype=float) for x in joint)
+        n = b - a
+        terms = np.empty((17, n))  # a row per product: sums and window sums run along rows
+        ok = np.zeros(n, dtype=bool)
+        top = 0.0
+        for s in range(a, b, READ_FRAMES):
+            t = min(b, s + READ_FRAMES)
+            R_p, p_p, R_c, p_c = check_pair(*(x[s:t] for x in sources))
+            rel = p_c - p_p
+            cols = terms[:, s - a : t - a]
+            cols[:9] = np.matmul(R_p.transpose(0, 2, 1), R_c).reshape(t - s, 9).T
+            cols[9:12] = np.einsum("fji,fj->if", R_p, rel)
+            cols[12:15] = np.einsum("fji,fj->if", R_c, rel)
+            cols[15] = np.einsum("fi,fi->f", rel, rel)
+            cols[16] = 1.0
+            good = np.isfinite(cols).all(axis=0) & np.isfinite(p_p).all(axis=1) & np.isfinite(p_c).all(axis=1)
+            good &= bool(np.isfinite(jp).all() and np.isfinite(jc).all())
+            ok[s - a : t - a] = good
+            top = max(
+                top,
+                float(np.max(np.abs(p_p[good]), initial=0.0)),
+                float(np.max(np.abs(p_c[good]), initial=0.0)),
+            )
+        if not ok.all():
+            terms[:, ~ok] = 0.0
+        coupling = np.empty((15, n))
+        for k in range(15):  # a row at a time: the sums' scratch stays small
+            window_difference_rows(terms[k : k + 1], ok, window, out=coupling[k : k + 1])
+        resolution = RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
+        return cls(terms, coupling, ok, (jp, jc), window, rate_hz, rate, resolution)
+
+    def residual_frames(self, a: int = 0, b: int | None = None, joint: Any = None) -> list[np.ndarray]:
+        """``[e_p, e_c]``, ``(b - a, 3)`` each: the residual of ``joint`` (default: as fitted) in the
+        parent's and the child's frame over frames ``a:b`` (zeros where not ok)."""
+        jp, jc = self.joint if joint is None else joint
+        e_p, e_c = _affine(self.terms[:15, a:b], jp, jc)
+        e_p += jp[:, None]
+        e_c -= jc[:, None]
+        ok = self.ok[a:b]
+        return [np.where(ok, e_p, 0.0).T, np.where(ok, e_c, 0.0).T]
+
+    def fitted_diff(self, rows: int | slice, i: int) -> np.ndarray:
+        """``d`` of the joint as fitted (no refit) in sensor frame ``i`` at ``rows``: ``(3,)`` or
+        ``(rows, 3)``."""
+        C = self.coupling[:, rows]
+        d = _affine_frame(C if C.ndim == 2 else C[:, None], *self.joint, i).T
+        return d if C.ndim == 2 else d[0]
 
     def diffs(self, cuts: list[int]) -> list[np.ndarray]:
         """``d``, ``(frames, 3)``, of each sensor frame with the joint refitted between ``cuts``
         (the caller must not change them)."""
-        key = tuple(sorted(cuts))
-        if key not in self._diffs:
-            ds = [window_difference(e, self.ok, self.window) for e in self.frames(self.piecewise(list(key)))]
-            for d in ds:
-                d.flags.writeable = False
-            self._diffs[key] = ds
-        return self._diffs[key]
+        return [self.diff(cuts, 0), self.diff(cuts, 1)]
 
-    def frames(self, r: np.ndarray) -> list[np.ndarray]:
-        """``e = R_w_s^T r`` in the parent's and the child's frame, ``(frames, 3)`` each."""
-        rot = (self.poses[0], self.poses[2])
-        okr = np.where(self.ok[:, None], r, 0.0)
-        return [np.einsum("fji,fj->fi", np.where(self.ok[:, None, None], R, 0.0), okr) for R in rot]
+    def diff(self, cuts: list[int], i: int) -> np.ndarray:
+        """``d``, ``(frames, 3)``, of sensor frame ``i`` with the joint refitted between ``cuts``
+        (the caller must not change it)."""
+        key = (*sorted(cuts), -1 - i)
+        if key in self._diffs:
+            return self._diffs[key]
+        n, w = self.ok.size, self.window
+        edges = [0, *key[:-1], n]
+        joints = [self._piece_joint(a, b) for a, b in pairwise(edges)]
+        out = np.empty((3, n))
+        for (a, b), joint in zip(pairwise(edges), joints, strict=True):
+            out[:, a:b] = _affine_frame(self.coupling[:, a:b], *joint, i)
+        for lo, hi in _near(key[:-1], w, n):  # rows whose windows hold two pieces: from their residuals
+            s, t = max(0, lo - w), min(n, hi + w)
+            e = np.zeros((3, t - s))
+            for (a, b), joint in zip(pairwise(edges), joints, strict=True):
+                if a < t and b > s:
+                    e[:, max(a, s) - s : min(b, t) - s] = self.residual_frames(max(a, s), min(b, t), joint)[
+                        i
+                    ].T
+            out[:, lo:hi] = window_difference_rows(e, self.ok[s:t], w)[:, lo - s : hi - s]
+        view = out.T  # (frames, 3)
+        view.flags.writeable = False
+        if len(self._diffs) >= 3:  # the search asks again only for the last few sets of cuts
+            del self._diffs[next(iter(self._diffs))]
+        self._diffs[key] = view
+        return view
 
-    def piecewise(self, cuts: list[int]) -> np.ndarray:
-        """``(frames, 3)`` residuals with the joint refitted on each piece between ``cuts``.
-
-        A piece shorter than the window, or that cannot be fitted, keeps the whole fit's residual.
-        """
-        r = self.r.copy()
-        for a, b in pairwise([0, *sorted(cuts), self.ok.size]):
-            piece = self._piece(a, b)
-            if piece is not None:
-                r[a:b] = piece
-        return r
-
-    def _piece(self, a: int, b: int) -> np.ndarray | None:
-        """``(b - a, 3)`` residuals of the joint refitted on frames ``a:b``; ``None`` when the
-        piece is shorter than the window or cannot be fitted."""
-        if (a, b) not in self._pieces:
-            out = None
-            if b - a >= self.window:
-                sl = [x[a:b] for x in self.poses]
-                fit = _refit(*sl, self.ok[a:b])
-                if fit is not None:
-                    out = joint_residual_vectors(*sl, *fit)
-            self._pieces[(a, b)] = out
-        return self._pieces[(a, b)]
+    def _piece_joint(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """The joint refitted on frames ``a:b``; the whole fit's when the piece is shorter than
+        the window or cannot be fitted."""
+        if (a, b) not in self._joints:
+            fit = _refit(self.terms[:, a:b]) if b - a >= self.window else None
+            self._joints[(a, b)] = self.joint if fit is None else fit
+        return self._joints[(a, b)]
 
 
-def _refit(
-    R_w_p: np.ndarray, p_w_p: np.ndarray, R_w_c: np.ndarray, p_w_c: np.ndarray, ok: np.ndarray
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(joint_in_parent, joint_in_child)`` of the joint refitted on these frames, or ``None``
-    with fewer than :data:`~calibration.joint.MIN_FRAMES` usable: :func:`calibration.joint.fit_joint`'s
-    answer with ``effect_size=False`` (the single-axis verdict's test, not its effect size) from the
-    normal equations of the all-pairs path (:func:`calibration.pairs.solve_pairs`), several times
-    faster on long pieces."""
-    stats = pair_statistics(  # without the third differences: the verdict's test alone, as a short refit
-        np.stack([R_w_p, R_w_c], axis=1),
-        np.stack([p_w_p, p_w_c], axis=1),
-        valid=np.stack([ok, ok], axis=1),
-        third_differences=False,
-    )
+def _affine(x: np.ndarray, jp: np.ndarray, jc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(-x_p - X_M l_c, X_M^T l_p - x_c)``, ``(3, m)`` each, of rows ``x`` ``(15, m)`` laid out as
+    :class:`_Pair`'s ``terms`` (``X_M`` the 3 x 3 of the first nine, ``x_p``, ``x_c`` the next
+    three each): the window differences of the residual from those of the products (module of
+    :class:`_Pair`), or the residual less its constants ``(l_p, -l_c)`` from the products."""
+    return _affine_frame(x, jp, jc, 0), _affine_frame(x, jp, jc, 1)
+
+
+def _affine_frame(x: np.ndarray, jp: np.ndarray, jc: np.ndarray, i: int) -> np.ndarray:
+    """Sensor frame ``i``'s half of :func:`_affine`, ``(3, m)``."""
+    M = x[:9].reshape(3, 3, x.shape[1])
+    if i == 0:
+        out = np.negative(x[9:12])
+        for j in range(3):  # out[i] -= M[i, j] l_c[j]
+            out -= M[:, j] * jc[j]
+    else:
+        out = np.negative(x[12:15])
+        for j in range(3):  # out[i] += l_p[j] M[j, i]
+            out += M[j] * jp[j]
+    return out
+
+
+def _near(cuts: tuple[int, ...], w: int, n: int) -> list[tuple[int, int]]:
+    """``[lo, hi)`` row ranges within ``w`` of a cut (``|t - cut| < w``), merged, inside ``[0, n)``."""
+    out: list[tuple[int, int]] = []
+    for c in cuts:
+        lo, hi = max(0, c - w + 1), min(n, c + w)
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        elif lo < hi:
+            out.append((lo, hi))
+    return out
+
+
+def _refit(terms: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(joint_in_parent, joint_in_child)`` of the joint refitted on these frames (``terms`` of
+    :class:`_Pair`, ``(17, frames)``), or ``None`` with fewer than
+    :data:`~calibration.joint.MIN_FRAMES` usable: :func:`calibration.joint.fit_joint`'s answer with
+    ``effect_size=False`` (the single-axis verdict's test, not its effect size) from the normal
+    equations of the all-pairs path (:func:`calibration.pairs.solve_pairs`), their sums over each
+    block of the verdict's test (:func:`calibration.hinge.block_edges`) taken from the products
+    the search holds. Positions centred on the pair's mean as :func:`calibration.pairs.pair_statistics`
+    centres them: ``p_c - centre = (p_c - p_p) / 2``."""
+    edges = block_edges(terms.shape[1])
+    sums = np.add.reduceat(terms, edges[:-1], axis=1).T  # (B, 17)
+    nb = sums.shape[0]
+    cnt = sums[:, 16]
+    eye = cnt[:, None, None] * np.eye(3)
+    M = sums[:, :9].reshape(nb, 3, 3)
+    gram = np.empty((nb, 2, 2, 3, 3))
+    gram[:, 0, 0], gram[:, 0, 1], gram[:, 1, 0], gram[:, 1, 1] = eye, M, M.transpose(0, 2, 1), eye
+    half_p, half_c = 0.5 * sums[:, 9:12], 0.5 * sums[:, 12:15]
+    cross = np.stack([np.stack([-half_p, half_p], 1), np.stack([-half_c, half_c], 1)], 1)
+    self_cross = np.stack([np.stack([-half_p, -half_p], 1), np.stack([half_c, half_c], 1)], 1)
+    sq = np.zeros((nb, 2, 2))
+    sq[:, 0, 1] = sq[:, 1, 0] = sums[:, 15]
+    count = np.broadcast_to(np.rint(cnt).astype(np.int64)[:, None, None], (nb, 2, 2))
+    stats = statistics_of_blocks(list(zip(gram, cross, self_cross, sq, count, strict=True)), terms.shape[1])
     sol = solve_pairs(stats, np.array([0]), np.array([1]))
     if sol.n_frames[0] < MIN_FRAMES:
         return None
@@ -284,10 +406,10 @@ def _refit(
 def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, float, float]:
     """``(scale, threshold, tests per hour)`` of one sensor frame's ``d``, from the frames ``use``."""
     scale = robust_scale(d, use)
-    z = whitened_norm(d, scale)
-    tau = max(correlation_frames(d[:, k], use) for k in range(3))
+    z = whitened_norm(d[use], scale)
+    tau = float(correlation_times(d, use).max())
     tests_per_hour = len(_FRAMES) * 3600.0 * pair.rate_hz / tau
-    return scale, tail_threshold(z[use], tests_per_hour, pair.rate, tau), tests_per_hour
+    return scale, tail_threshold(z, tests_per_hour, pair.rate, tau), tests_per_hour
 
 
 def _test(
@@ -304,8 +426,8 @@ def _test(
     """
     w = pair.window
     frames = np.arange(free.size)
-    d_k = (pair.diffs(cuts)[i] if d_now is None else d_now)[k : k + 1]
-    d = pair.diffs([*cuts, k])[i]
+    d_k = (pair.diff(cuts, i) if d_now is None else d_now)[k : k + 1]
+    d = pair.diff([*cuts, k], i)
     rest = free & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
     for c in cuts:
         rest &= np.abs(frames - c) > w
@@ -327,14 +449,18 @@ def _excess(z: float, threshold: float) -> float:
     return float("inf") if z > 0.0 else 0.0
 
 
-def _resolution(ok: np.ndarray, *positions: np.ndarray) -> float:
-    """The floating-point resolution of a joint residual, m: :data:`RESOLUTION_ULPS` units in the
-    last place of the largest position coordinate over the frames ``ok``. Noise-free poses leave
-    residuals of rounding alone (about 1e-16 m), whose noise model is that rounding: a rounding
-    blip then passes its test, and is kept out as a jump below the resolution (a 0.0 mm
-    "slip")."""
-    top = max((float(np.max(np.abs(p[ok]), initial=0.0)) for p in positions), default=0.0)
-    return RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
+def _check_sources(sources: tuple[Any, Any, Any, Any], n: int) -> None:
+    """Shapes of :func:`detect_slip`'s poses: ``(frames, 3, 3)``, ``(frames, 3)``, ``(frames, 3, 3)``,
+    ``(frames, 3)``, ``n`` frames each."""
+    names = ("R_w_p", "p_w_p", "R_w_c", "p_w_c")
+    for name, x, tail in zip(names, sources, ((3, 3), (3,), (3, 3), (3,)), strict=True):
+        shape = tuple(np.shape(x))
+        if len(shape) != 1 + len(tail) or shape[1:] != tail:
+            raise CalibrationInputError(
+                f"Expected {name} to have shape (frames, {', '.join(map(str, tail))}), got {shape}"
+            )
+        if shape[0] != n:
+            raise CalibrationInputError(f"Expected {name} to have {n} frames like R_w_p, got {shape[0]}")
 
 
 def _peak(d: np.ndarray, free: np.ndarray) -> int | None:
@@ -348,10 +474,11 @@ def _closer_than_window(pair: _Pair, i: int, k: int, k2: int) -> bool:
     """Whether the steps near ``k`` and ``k2`` (least-squares change points) are closer than ``w``."""
     w = pair.window
     n = pair.ok.size
-    e = pair.frames(pair.r)[i]
-    a = change_point(e, pair.ok, max(0, k - w), min(n, k + w))
-    b = change_point(e, pair.ok, max(0, k2 - w), min(n, k2 + w))
-    return abs(a - b) < w
+    at = []
+    for c in (k, k2):
+        lo, hi = max(0, c - w), min(n, c + w)
+        at.append(lo + change_point(pair.residual_frames(lo, hi)[i], pair.ok[lo:hi], 0, hi - lo))
+    return abs(at[0] - at[1]) < w
 
 
 def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, float]], np.ndarray]:
@@ -387,8 +514,10 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
             if k2 is None:
                 break
             z, thr = _test(pair, free & (np.abs(frames - k2) > w), [*cuts, k2], k, i)
+            if not z > thr:  # the pair cannot stand: its partner's test is not needed
+                break
             z2, thr2 = _test(pair, free & (np.abs(frames - k) > w), [*cuts, k], k2, i)
-            if not (z > thr and z2 > thr2) or _closer_than_window(pair, i, k, k2):
+            if not z2 > thr2 or _closer_than_window(pair, i, k, k2):
                 break
             best = (k, i, z, thr)
         # attribution: the moved sensor's frame holds the step steady, the other's turns it
@@ -443,19 +572,17 @@ def detect_slip(
         CalibrationInputError: shapes that do not match, a window out of range, a rate or a
             false-alarm rate that is not positive and finite.
     """
-    options = {"window": window, "rate_hz": rate_hz, "false_alarms_per_hour": false_alarms_per_hour}
+    options = {"window": window, "rate_hz": float(rate_hz), "rate": float(false_alarms_per_hour)}
     try:
         n = len(R_w_p)
     except TypeError:
         raise CalibrationInputError(
             f"Expected R_w_p of shape (frames, 3, 3), got {np.shape(R_w_p)}"
         ) from None
-    if n <= chunk_frames:
-        rep, _ = _detect_chunk(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child, **options)
-        return rep if series else dataclasses.replace(rep, jump=np.empty(0))
+    _check_sources((R_w_p, p_w_p, R_w_c, p_w_c), n)
     _check_options(n, window, rate_hz, false_alarms_per_hour)
     overlap = OVERLAP_WINDOWS * window
-    if chunk_frames < 2 * overlap + 8 * window:
+    if n > chunk_frames and chunk_frames < 2 * overlap + 8 * window:
         raise CalibrationInputError(
             f"chunk_frames must be at least {2 * overlap + 8 * window} for a window of {window}, got "
             f"{chunk_frames}"
@@ -464,12 +591,9 @@ def detect_slip(
     reports = []
     reference = None  # the first chunk's first piece: every chunk's intervals are judged against it
     for a, b, core_a, core_b in pieces:
-        poses = [np.asarray(x[a:b], dtype=float) for x in (R_w_p, p_w_p, R_w_c, p_w_c)]
-        rep, reference = _detect_chunk(
-            *poses, joint_in_parent, joint_in_child, **options, reference=reference
-        )
-        if not series:
-            rep = dataclasses.replace(rep, jump=np.empty(0))
+        pair = _Pair.of((R_w_p, p_w_p, R_w_c, p_w_c), a, b, (joint_in_parent, joint_in_child), **options)
+        rep, reference = _detect_chunk(pair, reference=reference, series=series)
+        del pair
         reports.append((a, core_a, core_b, rep))
     events, intervals, jumps = [], [], []
     for a, core_a, core_b, rep in reports:
@@ -523,48 +647,24 @@ def _merged(intervals: list[tuple[int, int]], seams: set[int]) -> list[tuple[int
 
 
 def _detect_chunk(
-    R_w_p: np.ndarray,
-    p_w_p: np.ndarray,
-    R_w_c: np.ndarray,
-    p_w_c: np.ndarray,
-    joint_in_parent: np.ndarray,
-    joint_in_child: np.ndarray,
-    *,
-    window: int,
-    rate_hz: float,
-    false_alarms_per_hour: float,
-    reference: list[np.ndarray | None] | None = None,
+    pair: _Pair, reference: list[np.ndarray | None] | None = None, series: bool = True
 ) -> tuple[SlipReport, list[np.ndarray | None]]:
     """:func:`detect_slip` on frames held at once (the whole recording, or one chunk), and the
     mean offsets its intervals were judged against (``reference``: a later chunk's, the first
-    chunk's; :func:`_intervals`)."""
-    R_w_p, p_w_p, R_w_c, p_w_c = check_pair(R_w_p, p_w_p, R_w_c, p_w_c)
-    n = R_w_p.shape[0]
-    _check_options(n, window, rate_hz, false_alarms_per_hour)
-    r = joint_residual_vectors(R_w_p, p_w_p, R_w_c, p_w_c, joint_in_parent, joint_in_child)
-    ok = np.isfinite(r).all(axis=1)
-    pair = _Pair(
-        (R_w_p, p_w_p, R_w_c, p_w_c),
-        ok,
-        r,
-        window,
-        float(rate_hz),
-        float(false_alarms_per_hour),
-        _resolution(ok, p_w_p, p_w_c),
-    )
-    es = pair.frames(r)
-    ds = [window_difference(e, ok, window) for e in es]
-    valid = np.isfinite(ds[0]).all(axis=1) & np.isfinite(ds[1]).all(axis=1)
+    chunk's; :func:`_intervals`). ``series``: compute the report's ``jump`` (else empty)."""
+    n, window, ok = pair.ok.size, pair.window, pair.ok
+    valid = np.isfinite(pair.coupling[0])  # both windows hold enough frames (d is finite)
     found, _ = _search(pair, valid)
     while True:
         events = []
         for k, i, z, thr in found:
-            frame = change_point(es[i], ok, max(0, k - window), min(n, k + window))
-            d_at = ds[i][frame] if np.isfinite(ds[i][frame]).all() else ds[i][k]
-            jump = float(np.linalg.norm(d_at))
+            lo, hi = max(0, k - window), min(n, k + window)
+            frame = lo + change_point(pair.residual_frames(lo, hi)[i], ok[lo:hi], 0, hi - lo)
+            d_at = pair.fitted_diff(frame, i)
+            jump = float(np.linalg.norm(d_at if np.isfinite(d_at).all() else pair.fitted_diff(k, i)))
             events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
         shown = found[0][1] if found else 1
-        d_clean = pair.diffs([f[0] for f in found])[shown]
+        d_clean = pair.diff([f[0] for f in found], shown)
         # the joint refitted on each side of every event absorbs its step: every frame counts
         rest = valid & np.isfinite(d_clean).all(axis=1)
         scale, thr_all, tests_per_hour = _noise_model(pair, d_clean, rest)
@@ -583,44 +683,43 @@ def _detect_chunk(
             break
         found = kept
     events.sort(key=lambda ev: ev.frame)
-    intervals, reference = _intervals(es, ok, events, n, min_jump, reference)
+    intervals, reference = _intervals(pair, events, min_jump, reference)
     report = SlipReport(
         events=tuple(events),
         intervals=intervals,
-        jump=np.linalg.norm(ds[shown], axis=1),
+        jump=np.linalg.norm(pair.fitted_diff(slice(None), shown), axis=-1) if series else np.empty(0),
         noise=noise,
         window=window,
         threshold=thr_all,
         min_jump=min_jump,
-        false_alarms_per_hour=false_alarms_per_hour,
+        false_alarms_per_hour=pair.rate,
         tests_per_hour=tests_per_hour,
     )
     return report, reference
 
 
 def _intervals(
-    es: list[np.ndarray],
-    ok: np.ndarray,
+    pair: _Pair,
     events: list[SlipEvent],
-    n: int,
     min_jump: float,
     reference: list[np.ndarray | None] | None = None,
 ) -> tuple[tuple[tuple[int, int], ...], list[np.ndarray | None]]:
     """Pieces between events whose mean offset (in each sensor frame) differs from the reference
     by more than ``min_jump``, and the reference: the first piece's mean offsets, or those given
     (a later chunk of a recording is judged against the recording's first piece)."""
+    ok, n = pair.ok, pair.ok.size
     cuts = [0, *(ev.frame for ev in events), n]
     pieces = list(pairwise(cuts))
     if reference is None:
-        first = ok[: pieces[0][1]]
-        reference = [np.mean(e[: pieces[0][1]][first], axis=0) if first.any() else None for e in es]
-        pieces = pieces[1:]
+        a, b = pieces.pop(0)
+        first = ok[a:b]
+        reference = [np.mean(e[first], axis=0) if first.any() else None for e in pair.residual_frames(a, b)]
     out = []
     for a, b in pieces:
         seg = ok[a:b]
-        moved = any(
-            seg.any() and ref is not None and np.linalg.norm(np.mean(e[a:b][seg], axis=0) - ref) > min_jump
-            for e, ref in zip(es, reference, strict=True)
+        moved = seg.any() and any(
+            ref is not None and np.linalg.norm(np.mean(e[seg], axis=0) - ref) > min_jump
+            for e, ref in zip(pair.residual_frames(a, b), reference, strict=True)
         )
         if moved:
             out.append((a, b))

@@ -8,8 +8,12 @@ factor scales :func:`window_difference` and :func:`robust_scale` by that factor 
 from __future__ import annotations
 
 import numpy as np
+from scipy.fft import next_fast_len
 
 from calibration.quantiles import MAD_TO_SIGMA, chi2_ppf
+
+#: :func:`correlation_times` first computes the lags up to ``samples / LAG_FRACTION``.
+LAG_FRACTION = 8
 
 #: Quantile of the statistic above which its tail is modelled (the exponential tail's origin).
 TAIL_QUANTILE = 0.75
@@ -19,30 +23,66 @@ TAIL_QUANTILE = 0.75
 TAIL_CONFIDENCE = 0.75
 
 
+def window_sums(x: np.ndarray, w: int) -> np.ndarray:
+    """``(k, samples - w + 1)`` sums of each row of ``x`` (``(k, samples)``) over the ``w`` samples
+    from each sample ``t``.
+
+    Each sum is a block's total less a prefix of it plus a prefix of the next block (blocks of
+    ``w`` samples), so its rounding error is that of sums of ``w`` samples, not of a running sum
+    over the whole series (whose differences lose the digits the series' magnitude takes: the
+    window difference of terms of 1 m that cancel to micrometres, :mod:`calibration.slip`).
+    """
+    k, n = x.shape
+    if n < w:
+        return np.empty((k, 0))
+    nb = -(-n // w)
+    blocks = np.zeros((k, (nb + 1) * w))
+    blocks[:, :n] = x
+    blocks = blocks.reshape(k, nb + 1, w)
+    inclusive = np.cumsum(blocks, axis=2)
+    before = np.subtract(inclusive, blocks, out=blocks)  # the block's samples before each one
+    out = inclusive[:, :-1, -1:] - before[:, :-1]
+    out += before[:, 1:]
+    return out.reshape(k, nb * w)[:, : n - w + 1]
+
+
 def window_difference(e: np.ndarray, ok: np.ndarray, w: int) -> np.ndarray:
-    """``(frames, 3)`` mean of ``e`` over the ``w`` frames from ``t`` minus over the ``w`` before.
+    """``(frames, k)`` mean of ``e`` over the ``w`` frames from ``t`` minus over the ``w`` before.
 
     Args:
-        e: ``(frames, 3)`` a series (any unit); rows where ``ok`` is false are ignored.
+        e: ``(frames, k)`` a series (any unit; ``k`` columns, 3 for a residual vector); rows
+            where ``ok`` is false are ignored.
         ok: ``(frames,)`` valid rows.
         w: window, frames.
 
     Returns NaN within ``w`` of the ends and where fewer than ``w / 2`` valid rows fall in
     either window.
     """
-    n = e.shape[0]
-    cs = np.zeros((n + 1, 3))
-    cs[1:] = np.cumsum(np.where(ok[:, None], e, 0.0), axis=0)
-    cn = np.zeros(n + 1)
+    return window_difference_rows(np.asarray(e, dtype=float).T, ok, w).T.copy()
+
+
+def window_difference_rows(
+    x: np.ndarray, ok: np.ndarray, w: int, out: np.ndarray | None = None
+) -> np.ndarray:
+    """:func:`window_difference` of series laid out as rows: ``x`` ``(k, frames)`` to ``(k, frames)``
+    (into ``out`` when given)."""
+    k, n = x.shape
+    if out is None:
+        out = np.empty((k, n))
+    out.fill(np.nan)
+    if n < 2 * w:
+        return out
+    sums = window_sums(np.where(ok, x, 0.0), w)  # [:, t]: samples t .. t + w - 1
+    cn = np.zeros(n + 1, dtype=np.int64)
     cn[1:] = np.cumsum(ok)
-    out = np.full((n, 3), np.nan)
-    t = np.arange(w, n - w + 1)
-    nb = cn[t] - cn[t - w]
-    na = cn[t + w] - cn[t]
+    count = cn[w:] - cn[:-w]
+    na, nb = count[w:], count[: n - 2 * w + 1]
     enough = (nb >= w / 2) & (na >= w / 2)
+    rows = out[:, w : n - w + 1]
     with np.errstate(invalid="ignore", divide="ignore"):
-        diff = (cs[t + w] - cs[t]) / na[:, None] - (cs[t] - cs[t - w]) / nb[:, None]
-    out[t] = np.where(enough[:, None], diff, np.nan)
+        np.divide(sums[:, w:], na, out=rows)
+        rows -= sums[:, : n - 2 * w + 1] / nb
+    rows[:, ~enough] = np.nan
     return out
 
 
@@ -52,11 +92,14 @@ def robust_scale(d: np.ndarray, use: np.ndarray) -> np.ndarray:
     A component with no spread gets a floor of ``1e-12`` times the largest ``|d|`` (so that an
     exactly constant series yields zeros, not infinities); all zeros when ``d[use]`` is.
     """
-    x = d[use]
-    if x.shape[0] == 0:
+    x = d[use].T.copy()  # (3, samples): each component's median over contiguous samples
+    if x.shape[1] == 0:
         return np.zeros(3)
-    s = MAD_TO_SIGMA * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
-    top = float(np.max(np.abs(x)))
+    top = float(max(x.max(), -x.min()))
+    centre = np.median(x, axis=1, overwrite_input=True)  # reorders x's rows: only their sets matter
+    x -= centre[:, None]
+    np.abs(x, out=x)
+    s = MAD_TO_SIGMA * np.median(x, axis=1, overwrite_input=True)
     return np.maximum(s, 1e-12 * top)
 
 
@@ -75,21 +118,76 @@ def correlation_frames(x: np.ndarray, use: np.ndarray | None = None) -> float:
     not bridged); samples a distance ``tau`` apart count as about independent. At least 1.
     """
     x = np.asarray(x, dtype=float)
-    m = np.isfinite(x) if use is None else (np.asarray(use, dtype=bool) & np.isfinite(x))
-    n = x.size
-    if m.sum() < 3:
-        return 1.0
-    xc = np.where(m, x - x[m].mean(), 0.0)
-    mf = m.astype(float)
-    fx = np.fft.rfft(xc, 2 * n)
-    fm = np.fft.rfft(mf, 2 * n)
-    num = np.fft.irfft(fx * np.conj(fx))[:n]
-    pairs = np.round(np.fft.irfft(fm * np.conj(fm))[:n])
-    if num[0] <= 0:
-        return 1.0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cov = np.where(pairs > 0, num / np.maximum(pairs, 1.0), np.nan)
-    return initial_positive_time(cov / cov[0])
+    return float(correlation_times(x[:, None], use)[0])
+
+
+def correlation_times(x: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
+    """``(k,)`` :func:`correlation_frames` of each column of ``x`` (``(samples, k)``), in one batch
+    of FFTs (the pairs' counts transformed once when every column uses the same samples).
+
+    The sum stops at the first lag that is not positive, which for a window difference comes
+    within a few windows; the FFTs are first zero-padded only to the first length of factors 2,
+    3 and 5 from ``samples + samples / 8`` (:data:`LAG_FRACTION`), which gives every lag up to the
+    padding exactly (a circular correlation wraps only beyond it), and again to ``2 samples - 1``
+    (every lag) for a column whose autocorrelation is still positive there.
+    """
+    x = np.asarray(x, dtype=float)
+    n, k = x.shape
+    m = np.isfinite(x)
+    if use is not None:
+        m &= np.asarray(use, dtype=bool)[:, None]
+    out = np.ones(k)
+    count = m.sum(axis=0)
+    cols = np.flatnonzero(count >= 3)
+    if cols.size == 0:
+        return out
+    m = np.ascontiguousarray(m[:, cols].T)  # (columns, samples): each FFT over contiguous samples
+    xs = np.where(m, x[:, cols].T, 0.0)
+    xc = np.where(m, xs - (xs.sum(axis=1) / count[cols])[:, None], 0.0)
+    same = bool((m == m[:1]).all())
+    full = next_fast_len(2 * n - 1, real=True)
+    for size in dict.fromkeys((min(next_fast_len(n + max(n // LAG_FRACTION, 1), real=True), full), full)):
+        lags = min(n, size - n + 1)  # lags 0 .. size - n are exact
+        num = np.empty((cols.size, lags))
+        for c in range(cols.size):  # a column at a time: the transforms' scratch stays small
+            fx = np.fft.rfft(xc[c], size)
+            num[c] = np.fft.irfft(fx * np.conj(fx), size)[:lags]
+        # the sums stop at the first lag whose covariance is not positive: the pairs' counts are
+        # needed only up to there, and are counted from the runs of used samples when few
+        stop = ~(num[:, 1:] > 0)
+        used = num[:, 0] > 0
+        need = (
+            int((np.argmax(stop, axis=1)[used] + 2).max(initial=1)) if stop.any(axis=1)[used].all() else lags
+        )
+        pairs = _pair_counts(m[0], need) if same else None
+        if pairs is None:
+            fm = np.fft.rfft((m[:1] if same else m).astype(float), size)
+            pairs = np.round(np.fft.irfft(fm * np.conj(fm), size)[:, :need])
+        pairs = np.broadcast_to(pairs, (num.shape[0], need))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cov = np.where(pairs > 0, num[:, :need] / np.maximum(pairs, 1.0), np.nan)
+        if lags == n or bool((~(cov[:, 1:] > 0)).any(axis=1)[used].all()):
+            break
+    for c, col in enumerate(cols):
+        if num[c, 0] > 0:
+            out[col] = initial_positive_time(cov[c] / cov[c, 0])
+    return out
+
+
+def _pair_counts(m: np.ndarray, lags: int, most_runs: int = 4) -> np.ndarray | None:
+    """``(lags,)`` the number of samples ``t`` with ``m[t]`` and ``m[t + k]`` at each lag ``k``,
+    counted from the runs of ``m`` (``(samples,)`` bool); ``None`` when it has more than
+    ``most_runs`` runs (then a transform is faster)."""
+    edges = np.flatnonzero(np.diff(m.astype(np.int8), prepend=0, append=0))
+    starts, stops = edges[::2], edges[1::2]
+    if starts.size > most_runs:
+        return None
+    k = np.arange(lags)
+    out = np.zeros(lags, dtype=np.int64)
+    for a, b in zip(starts, stops, strict=True):
+        for c, d in zip(starts, stops, strict=True):  # t in [a, b) and t + k in [c, d)
+            out += np.maximum(0, np.minimum(b, d - k) - np.maximum(a, c - k))
+    return out.astype(float)
 
 
 def initial_positive_time(rho: np.ndarray) -> float:

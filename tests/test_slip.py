@@ -6,6 +6,10 @@ import numpy as np
 import pytest
 
 from calibration import CalibrationInputError, calibrate, detect_slip
+from calibration.joint import joint_residual_vectors
+from calibration.pairs import pair_statistics, solve_pairs
+from calibration.slip import _Pair
+from calibration.slip_stats import window_difference
 from simbench.sim.synthetic import Slip, linkage, simulate_motion
 from tests.helpers import pair_arrays
 
@@ -201,3 +205,32 @@ def test_steps_within_a_window_of_either_end_are_not_slips(one_slip):
         ].events
         assert len(events) == 1 and abs(events[0].frame - frame) <= TOLERANCE, frame
     assert len(reports(one_slip)["upper_arm_l-forearm_l"].events) == 1
+
+
+def test_search_statistic_equals_the_residual_refitted_on_each_piece(one_slip):
+    """The search's d of a set of cuts (from the window differences of the pose products) is the
+    window difference of the residual refitted on each piece (pair_statistics + solve_pairs on that
+    piece's frames), rotated into each sensor's frame, as written out directly."""
+    cal = calibrate(one_slip.R_w_s, one_slip.p_w_s, one_slip.names)
+    j = next(j for j in cal.joints if j.child == "forearm_l")
+    poses = pair_arrays(one_slip, j.parent, j.child)
+    n = poses[0].shape[0]
+    joint = (j.fit.joint_in_parent, j.fit.joint_in_child)
+    pair = _Pair.of(poses, 0, n, joint, window=WINDOW, rate_hz=RATE_HZ, rate=1.0)
+    cuts = [1700, 1800, 3000]  # pieces of 1700, 100 (shorter than the window: the whole fit), 1200, 600
+    ok = np.ones(n, dtype=bool)
+    r = np.empty((n, 3))
+    for a, b in zip([0, *cuts], [*cuts, n], strict=True):
+        fit = joint
+        if b - a >= WINDOW:
+            R, p = np.stack([poses[0][a:b], poses[2][a:b]], 1), np.stack([poses[1][a:b], poses[3][a:b]], 1)
+            sol = solve_pairs(pair_statistics(R, p, third_differences=False), np.array([0]), np.array([1]))
+            fit = (sol.joint_in_parent[0], sol.joint_in_child[0])
+            np.testing.assert_allclose(pair._piece_joint(a, b), fit, rtol=0, atol=1e-12)
+        r[a:b] = joint_residual_vectors(*(x[a:b] for x in poses), *fit)
+    for i, R in enumerate((poses[0], poses[2])):
+        want = window_difference(np.einsum("fji,fj->fi", R, r), ok, WINDOW)
+        got = pair.diff(cuts, i)
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)  # metres; d is ~1e-3 here
+    assert np.nanmax(np.abs(want)) > 1e-3
