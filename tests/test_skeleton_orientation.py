@@ -645,7 +645,7 @@ def test_normal_equations_equal_those_of_a_finite_difference_jacobian():
     V = rng.normal(size=(f, 1, 3))
     nb = problem.blocks_per_frame
     r, groups = problem.residuals(R, V, jacobian=True)
-    ab, g = _normal_equations(r, groups, f * nb, {})
+    ab, g = _normal_equations(r, groups, f, nb, {})
 
     def perturbed(x: np.ndarray) -> np.ndarray:
         d = x.reshape(f, nb, 3)
@@ -751,7 +751,7 @@ def test_with_clipped_axes_the_gradient_is_that_of_the_cost_with_them_filled():
     V = rng.normal(size=(f, 1, 3))
     nb = problem.blocks_per_frame
     r, groups = problem.residuals(R, V, jacobian=True)
-    _, g = _normal_equations(r, groups, f * nb, {})
+    _, g = _normal_equations(r, groups, f, nb, {})
     filled = problem.filled(R, V)
     assert (np.abs(filled[clipped]) > 0.01).mean() > 0.4  # most above the range: not held there
 
@@ -767,5 +767,5 @@ def test_with_clipped_axes_the_gradient_is_that_of_the_cost_with_them_filled():
     # held at the range instead, the gradient is another
     held = _Problem(acc, mag_dir, use, 0.05, sk, REF, Priors())
     r_held, groups_held = held.residuals(R, V, jacobian=True)
-    _, g_held = _normal_equations(r_held, groups_held, f * nb, {})
+    _, g_held = _normal_equations(r_held, groups_held, f, nb, {})
     assert np.abs(g_held - fd).max() > 1e-2 * np.abs(fd).max()

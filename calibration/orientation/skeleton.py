@@ -118,7 +118,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import LinAlgError, solveh_banded
+from scipy.linalg.lapack import dpbsv
 from scipy.ndimage import maximum_filter1d
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
@@ -748,116 +748,204 @@ def _log_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) - 0.5 * K + c * (K @ K)
 
 
+def _frame_last(v: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A residual block's ``v`` (rows ``shape`` = (frames, K), then its own axes) with the frames
+    last and contiguous: ``(K, ..., frames)``; a scalar stays one."""
+    v = np.asarray(v, dtype=float)
+    if v.ndim == 0:
+        return v
+    v = np.broadcast_to(v, shape + v.shape[len(shape) :])
+    return np.ascontiguousarray(np.moveaxis(v, 0, -1))
+
+
+def _skew_frame_last(v: np.ndarray) -> np.ndarray:
+    """``[v]x`` ``(K, 3, 3, T)`` of vectors ``(K, 3, T)``."""
+    out = np.zeros((v.shape[0], 3, 3, v.shape[-1]))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return out
+
+
+def _as_matrix(v: np.ndarray) -> np.ndarray:
+    """A block ``(K, 3, 3, T)`` whatever its kind: a matrix, a cross product's vector, a
+    multiple of the identity (a scalar, broadcast)."""
+    if v.ndim == 4:
+        return v
+    if v.ndim == 3:
+        return _skew_frame_last(v)
+    return np.eye(3)[None, :, :, None] * v
+
+
+def _band_layout(groups: list[list[tuple[np.ndarray, np.ndarray]]], frames: int, per_frame: int) -> dict:
+    """Where :func:`_normal_equations` puts each product: the residual blocks' columns are
+    ``(t + s) * per_frame + k`` for the group's row ``(t, k)`` (a frame shift ``s`` per block),
+    so each pair of blocks writes, for every frame, the same places of that frame's part of the
+    band (``3 per_frame`` columns of ``u + 1`` entries: LAPACK lower, ``ab[row - col, col]``).
+    Returns the products' rows in the work array (frames last), a sparse matrix summing them
+    into the band's places and the gradient's, those places, and ``u``."""
+    nb = per_frame
+    specs = []  # per group: rows, K, its blocks' (frame shift, sensors)
+    top = 0
+    for blocks in groups:
+        shape = np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))
+        if len(shape) != 2:
+            raise ValueError(f"residual blocks' columns must be (frames, K), got {shape}")
+        cols = []
+        for c, _ in blocks:
+            C = np.broadcast_to(np.asarray(c), shape)
+            shift, k = np.divmod(C[0], nb)
+            if np.any(shift != shift[0]) or np.any(np.diff(C, axis=0) != nb):
+                raise ValueError("residual blocks' columns must be (frame + shift) * per_frame + sensor")
+            cols.append((int(shift[0]), k.astype(int)))
+        specs.append((shape, cols))
+        for a, (sa, ka) in enumerate(cols):
+            for sb, kb in cols[a:]:
+                top = max(top, int(np.abs((sb - sa) * nb + kb - ka).max(initial=0)))
+    u = 3 * top + 2
+    i, j = np.divmod(np.arange(9), 3)
+    slots, qs, weights = [], [], []
+    plan = []  # per group: (pairs [(a, b, q0, first frame)], gradient [(a, q0, first frame)])
+    q = 0
+    n_band = 3 * nb * (u + 1)  # the gradient's places follow the band's
+    for shape, cols in specs:
+        K = shape[1]
+        pairs, grads = [], []
+        for a, (sa, ka) in enumerate(cols):
+            for b in range(a, len(cols)):
+                sb, kb = cols[b]
+                Ca, Cb = sa * nb + ka, sb * nb + kb  # block columns at the group's first row
+                first = min(sa, sb)
+                base = first * nb
+                ii, jj = i[None, :], j[None, :]
+                below = (Ca > Cb)[:, None]  # (K, 1): the product's block is below the diagonal
+                col = np.where(below, 3 * (Cb - base)[:, None] + jj, 3 * (Ca - base)[:, None] + ii)
+                d = 3 * np.abs(Cb - Ca)[:, None] + np.where(below, ii - jj, jj - ii)
+                w = np.ones((K, 9))
+                same = (Ca == Cb)[:, None]
+                if a == b:  # its own product, symmetric: the lower triangle once
+                    keep = ~same | (ii >= jj)
+                    col = np.where(same, 3 * (Ca - base)[:, None] + jj, col)
+                    d = np.where(same, ii - jj, d)
+                else:  # two blocks on one column: P + P^T, its lower triangle
+                    keep = np.ones((K, 9), bool)
+                    lo, hi = np.minimum(ii, jj), np.maximum(ii, jj)
+                    col = np.where(same, 3 * (Ca - base)[:, None] + lo, col)
+                    d = np.where(same, hi - lo, d)
+                    w = np.where(same & (ii == jj), 2.0, w)
+                place = col * (u + 1) + d
+                qq = q + np.arange(9 * K).reshape(K, 9)
+                slots.append(place[keep])
+                qs.append(qq[keep])
+                weights.append(w[keep])
+                pairs.append((a, b, q, first))
+                q += 9 * K
+        for a, (sa, ka) in enumerate(cols):
+            slots.append((n_band + 3 * ka[:, None] + np.arange(3)).ravel())
+            qs.append(q + np.arange(3 * K))
+            weights.append(np.ones(3 * K))
+            grads.append((a, q, sa))
+            q += 3 * K
+        plan.append((shape, pairs, grads))
+    slots_all = np.concatenate(slots) if slots else np.zeros(0, dtype=int)
+    places, row = np.unique(slots_all, return_inverse=True)
+    n_grad = int(np.sum(places >= n_band))
+    S = csr_matrix(
+        (np.concatenate(weights) if weights else np.zeros(0), (row, np.concatenate(qs) if qs else row)),
+        shape=(places.size, q),
+    )
+    return {
+        "plan": plan,
+        "sum": S,
+        "places": places[: places.size - n_grad],
+        "gradient": places[places.size - n_grad :] - n_band,
+        "u": u,
+        "rows": q,
+        "frames": frames,
+        "per_frame": nb,
+    }
+
+
 def _normal_equations(
     r: np.ndarray,
     groups: list[list[tuple[np.ndarray, np.ndarray]]],
-    n_blocks: int,
+    frames: int,
+    per_frame: int,
     cache: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``J^T J`` in LAPACK's lower band layout ``(u + 1, 3 n_blocks)``, Fortran-ordered (the
-    layout ``pbtrf`` reads without a copy; lower is a third faster than upper here), and
-    ``J^T r``, from the
-    residual blocks (:meth:`_Problem.residuals`) without forming ``J``. For cross-product blocks
-    ``[a]x^T [b]x = (a . b) I - b a^T`` and ``[a]x^T r = r x a``; each pair of a group's blocks
-    gives a 3 x 3 product per row, summed (``bincount``) straight into its place in the band.
+    """``J^T J`` in LAPACK's lower band layout ``(u + 1, 3 frames per_frame)``, Fortran-ordered
+    (the layout ``pbtrf`` reads without a copy; lower is a third faster than upper here), and
+    ``J^T r``, from the residual blocks (:meth:`_Problem.residuals`) without forming ``J``. For
+    cross-product blocks ``[a]x^T [b]x = (a . b) I - b a^T`` and ``[a]x^T r = r x a``.
 
-    Where each product's entries go depends only on the blocks' columns, which a problem keeps
-    from one iteration to the next: with ``cache`` (a dict kept with the problem) it is worked
-    out once (:func:`_band_index`) and reused."""
-    build = cache is None or "index" not in cache
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
-    sym: list[np.ndarray | None] = [] if build else cache["sym"]
-    shapes = [np.broadcast_shapes(*(np.shape(c) for c, _ in blocks)) for blocks in groups]
-    sizes = [int(np.prod(shape)) for shape in shapes]
-    # every pair's products written straight into one buffer, in the order of the band index
-    products = np.empty(9 * sum(k * (len(x) * (len(x) + 1) // 2) for k, x in zip(sizes, groups, strict=True)))
-    g = np.zeros(3 * n_blocks)
-    eye = np.eye(3)
+    Every pair of a group's blocks gives a 3 x 3 product per row, written with the frames last
+    (each product entry one row of a work array over the frames); one sparse matrix, the same
+    for every iteration of a problem (:func:`_band_layout`, kept in ``cache``), sums them into
+    the band's places frame by frame. The band returned is the cache's buffer: the next call
+    overwrites it."""
+    nb = per_frame
+    if cache is None:
+        cache = {}
+    if cache.get("frames") != frames or cache.get("per_frame") != nb:
+        cache.clear()
+        cache.update(_band_layout(groups, frames, nb))
+    u = cache["u"]
+    work = cache.get("work")
+    if work is None:  # the products over the frames; columns no row reaches stay zero
+        work = cache["work"] = np.zeros((cache["rows"], frames))
+        cache["band"] = np.zeros((u + 1, 3 * nb * frames), order="F")
     start = 0
-    pair = 0
-    filled = 0
-    for blocks, shape, size in zip(groups, shapes, sizes, strict=True):
-        rg = r[start : start + 3 * size].reshape(size, 3)
+    for blocks, (shape, pairs, grads) in zip(groups, cache["plan"], strict=True):
+        rows, K = shape
+        size = rows * K
+        rg = _frame_last(r[start : start + 3 * size].reshape(rows, K, 3), shape)  # (K, 3, T)
         start += 3 * size
-        flat = []
-        for c, v in blocks:
-            v = np.asarray(v, dtype=float)
-            tail = v.shape[len(shape) :]
-            flat.append((np.broadcast_to(c, shape).reshape(-1), v.reshape(-1, *tail) if v.ndim else v))
-        for a, (ca, va) in enumerate(flat):
-            if va.ndim == 3:
-                ga = np.einsum("rki,rk->ri", va, rg)
+        vs = [_frame_last(v, shape) for _, v in blocks]
+        # the blocks that a pair takes as 3 x 3 matrices (not two vectors, not a scalar's)
+        mats = {
+            x: _as_matrix(vs[x])
+            for a, b, _, _ in pairs
+            if not (vs[a].ndim == 3 and vs[b].ndim == 3)
+            for x in (a, b)
+            if vs[x].ndim
+        }
+        for a, b, q0, first in pairs:
+            P = work[q0 : q0 + 9 * K, first : first + rows].reshape(K, 3, 3, rows)
+            va, vb = vs[a], vs[b]
+            if va.ndim == 3 and vb.ndim == 3:  # -b a^T, then a . b added on its diagonal
+                np.multiply(vb[:, :, None], va[:, None, :], out=P)
+                np.negative(P, out=P)
+                dot = np.einsum("kit,kit->kt", va, vb)
+                for x in range(3):
+                    P[:, x, x] += dot
+            elif va.ndim == 0 and vb.ndim == 0:
+                P[...] = np.eye(3)[None, :, :, None] * (va * vb)
+            elif va.ndim == 0:  # (s I)^T Mb
+                np.multiply(va, mats[b], out=P)
+            elif vb.ndim == 0:  # Ma^T (s I)
+                np.multiply(vb, np.swapaxes(mats[a], 1, 2), out=P)
+            else:  # Ma^T Mb
+                Ma, Mb = mats[a], mats[b]
+                np.multiply(Ma[:, 0, :, None], Mb[:, 0, None, :], out=P)
+                for m in (1, 2):
+                    P += Ma[:, m, :, None] * Mb[:, m, None, :]
+        for a, q0, first in grads:
+            G = work[q0 : q0 + 3 * K, first : first + rows].reshape(K, 3, rows)
+            va = vs[a]
+            if va.ndim == 3:  # [a]x^T r = r x a
+                for x in range(3):
+                    y, z = (x + 1) % 3, (x + 2) % 3
+                    np.subtract(rg[:, y] * va[:, z], rg[:, z] * va[:, y], out=G[:, x])
+            elif va.ndim == 0:
+                np.multiply(va, rg, out=G)
             else:
-                ga = np.cross(rg, va) if va.ndim else va * rg
-            g += np.bincount((3 * ca[:, None] + np.arange(3)).ravel(), ga.ravel(), minlength=g.size)
-            for b in range(a, len(flat)):
-                cb, vb = flat[b]
-                P = products[filled : filled + 9 * size].reshape(size, 3, 3)
-                filled += 9 * size
-                if va.ndim == 3 or vb.ndim == 3:  # general 3 x 3 blocks
-                    Ma = va if va.ndim == 3 else (skew(va) if va.ndim else va * eye)
-                    Mb = vb if vb.ndim == 3 else (skew(vb) if vb.ndim else vb * eye)
-                    np.einsum("rki,rkj->rij", Ma, Mb, out=P)
-                elif va.ndim and vb.ndim:  # -b a^T, then a . b added on its diagonal
-                    np.multiply(-vb[:, :, None], va[:, None, :], out=P)
-                    P.reshape(size, 9)[:, ::4] += np.einsum("ri,ri->r", va, vb)[:, None]
-                elif va.ndim:  # [a]x^T (s I) = -s [a]x
-                    np.multiply(-vb, skew(va), out=P)
-                elif vb.ndim:  # (s I)^T [b]x = s [b]x
-                    np.multiply(va, skew(vb), out=P)
-                else:
-                    P[...] = va * vb * eye
-                if build:
-                    if b == a:
-                        parts.append((ca, np.zeros_like(ca), None))
-                        sym.append(None)
-                    else:  # the block below the diagonal is the transpose; one on it, P + P^T
-                        d = cb - ca
-                        parts.append((np.minimum(ca, cb), np.abs(d), d < 0))
-                        sym.append(np.flatnonzero(d == 0) if np.any(d == 0) else None)
-                both = sym[pair]
-                if both is not None:
-                    P[both] += np.swapaxes(P[both], -1, -2)
-                pair += 1
-    if build:
-        index, u = _band_index(parts, n_blocks)
-        if cache is not None:
-            cache.update(index=index, u=u, sym=sym)
-    else:
-        index, u = cache["index"], cache["u"]
-    size = (u + 1) * 3 * n_blocks
-    ab = np.bincount(index, products, minlength=size + 1)[:size]
-    return ab.reshape(3 * n_blocks, u + 1).T, g
-
-
-def _band_index(
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]], n_blocks: int
-) -> tuple[np.ndarray, int]:
-    """Each product entry's flat place in the band ``(u + 1, 3 n_blocks)``, Fortran order
-    (LAPACK lower: ``ab[row - col, col] = A[row, col]``; a product's entry ``A[i, j]`` above the
-    diagonal goes to ``A[j, i]``), ``parts`` giving per pair of blocks the block row ``(rows,)``,
-    the block offset ``(rows,)`` and which rows' products go in transposed (``None``: none); the
-    lower triangle of diagonal blocks goes to one slot past the band, dropped. Returns the
-    ``(9 * sum rows,)`` places and ``u``."""
-    top = max((int(o.max(initial=0)) for _, o, _ in parts), default=0)
-    u = 3 * top + 2
-    drop = (u + 1) * 3 * n_blocks
-    i, j = np.divmod(np.arange(9), 3)
-    out = []
-    for rows, o, transposed in parts:
-        ii, jj = (
-            (i, j)
-            if transposed is None
-            else (
-                np.where(transposed[:, None], j, i),
-                np.where(transposed[:, None], i, j),
-            )
-        )
-        o = o[:, None]
-        place = (3 * rows[:, None] + ii) * (u + 1) + 3 * o + jj - ii
-        out.append(np.where((o == 0) & (ii > jj), drop, place).ravel())
-    index = np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
-    return index.astype(np.int32 if drop < 2**31 - 1 else np.int64), u
+                np.einsum("kmit,kmt->kit", va, rg, out=G)
+    summed = cache["sum"] @ work  # (places, frames)
+    ab = cache["band"]
+    n_band = cache["places"].size
+    ab.T.reshape(frames, -1)[:, cache["places"]] = summed[:n_band].T
+    g = np.zeros((frames, 3 * nb))
+    g[:, cache["gradient"]] = summed[n_band:].T
+    return ab, g.reshape(-1)
 
 
 def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
@@ -908,39 +996,48 @@ def _levenberg_marquardt(
     problem: _Problem, R: np.ndarray, V: np.ndarray, max_iter: int, rel_tol: float = 1e-6
 ) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Minimise the problem's cost from ``R`` ``(F, N, 3, 3)`` and the roots' velocities ``V``
-    ``(F, n_vel, 3)``; return them, the iterations and the final cost."""
+    ``(F, n_vel, 3)``; return them, the iterations and the final cost. Each try factors a copy
+    of the band (LAPACK ``pbsv`` in place, in one buffer kept over the tries)."""
     f, n = problem.use.shape
     nb = problem.blocks_per_frame
     lam = 1e-3
     r, groups = problem.residuals(R, V, jacobian=True)
     cost = float(r @ r)
     iterations = 0
-    for iterations in range(1, max_iter + 1):
-        ab, g = _normal_equations(r, groups, f * nb, problem.band)
-        diag = ab[0].copy()
-        floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
-        while True:
-            ab[0] = diag * (1 + lam) + floor
-            try:
-                d = solveh_banded(ab, -g, lower=True, check_finite=False).reshape(f, nb, 3)
-            except LinAlgError:
-                d = None
-            if d is not None:
-                R_new = rotvec_to_matrix(d[:, :n]) @ R
-                V_new = V + d[:, n:]
-                r_new = problem.residuals(R_new, V_new)
-                cost_new = float(r_new @ r_new)
-                if cost_new < cost:
-                    break
-            if lam > 1e10:
-                return R, V, iterations, cost
-            lam *= 10
-        gain = (cost - cost_new) / cost
-        R, V, cost = R_new, V_new, cost_new
-        lam = max(lam / 3, 1e-9)
-        if gain < rel_tol:
-            break
-        r, groups = problem.residuals(R, V, jacobian=True)
+    factor = None
+    try:
+        for iterations in range(1, max_iter + 1):
+            ab, g = _normal_equations(r, groups, f, nb, problem.band)
+            diag = ab[0].copy()
+            floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
+            if factor is None:
+                factor = np.empty_like(ab, order="F")
+            while True:
+                np.copyto(factor, ab)
+                factor[0] = diag * (1 + lam) + floor
+                _, x, info = dpbsv(factor, -g[:, None], lower=1, overwrite_ab=1, overwrite_b=1)
+                if info < 0:
+                    raise ValueError(f"LAPACK pbsv: argument {-info} is illegal")
+                if info == 0:
+                    d = x.reshape(f, nb, 3)
+                    R_new = rotvec_to_matrix(d[:, :n]) @ R
+                    V_new = V + d[:, n:]
+                    r_new = problem.residuals(R_new, V_new)
+                    cost_new = float(r_new @ r_new)
+                    if cost_new < cost:
+                        break
+                if lam > 1e10:
+                    return R, V, iterations, cost
+                lam *= 10
+            gain = (cost - cost_new) / cost
+            R, V, cost = R_new, V_new, cost_new
+            lam = max(lam / 3, 1e-9)
+            if gain < rel_tol:
+                break
+            r, groups = problem.residuals(R, V, jacobian=True)
+    finally:  # the work buffers are large: a problem kept for later solves holds only its layout
+        problem.band.pop("work", None)
+        problem.band.pop("band", None)
     return R, V, iterations, cost
 
 
