@@ -793,6 +793,9 @@ def _band_layout(groups: list[list[tuple[np.ndarray, np.ndarray]]], frames: int,
         cols = []
         for c, _ in blocks:
             C = np.broadcast_to(np.asarray(c), shape)
+            if C.size == 0:  # no rows (a tree with no body root, say): nothing to place
+                cols.append((0, np.zeros(shape[1], dtype=int)))
+                continue
             shift, k = np.divmod(C[0], nb)
             if np.any(shift != shift[0]) or np.any(np.diff(C, axis=0) != nb):
                 raise ValueError("residual blocks' columns must be (frame + shift) * per_frame + sensor")
