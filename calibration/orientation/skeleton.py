@@ -1005,15 +1005,16 @@ def _normal_equations(
             for x in (a, b)
             if vs[x].ndim
         }
+        negated = {x: -vs[x] for x in {a for a, b, _, _ in pairs if vs[a].ndim == 3 and vs[b].ndim == 3}}
         for a, b, q0, first in pairs:
             P = work[q0 : q0 + 9 * K, first : first + rows].reshape(K, 3, 3, rows)
             va, vb = vs[a], vs[b]
-            if va.ndim == 3 and vb.ndim == 3:  # -b a^T, then a . b added on its diagonal
-                np.multiply(vb[:, :, None], va[:, None, :], out=P)
-                np.negative(P, out=P)
-                dot = np.einsum("kit,kit->kt", va, vb)
+            if va.ndim == 3 and vb.ndim == 3:  # -b a^T, then a . b (minus its trace) on its diagonal
+                np.multiply(vb[:, :, None], negated[a][:, None, :], out=P)
+                trace = P[:, 0, 0] + P[:, 1, 1]
+                trace += P[:, 2, 2]
                 for x in range(3):
-                    P[:, x, x] += dot
+                    P[:, x, x] -= trace
             elif va.ndim == 0 and vb.ndim == 0:
                 P[...] = np.eye(3)[None, :, :, None] * (va * vb)
             elif va.ndim == 0:  # (s I)^T Mb
@@ -1021,10 +1022,7 @@ def _normal_equations(
             elif vb.ndim == 0:  # Ma^T (s I)
                 np.multiply(vb, np.swapaxes(mats[a], 1, 2), out=P)
             else:  # Ma^T Mb
-                Ma, Mb = mats[a], mats[b]
-                np.multiply(Ma[:, 0, :, None], Mb[:, 0, None, :], out=P)
-                for m in (1, 2):
-                    P += Ma[:, m, :, None] * Mb[:, m, None, :]
+                np.einsum("kmit,kmjt->kijt", mats[a], mats[b], out=P)
         for a, q0, first in grads:
             G = work[q0 : q0 + 3 * K, first : first + rows].reshape(K, 3, rows)
             va = vs[a]
