@@ -1229,12 +1229,13 @@ def _solve_span(data: _Data, setup: _Setup) -> tuple[np.ndarray, int]:
     schedules = [tuple(prefix) + tuple(setup.levels_hz) for prefix in setup.starts]
     solves = []
     total = 0
+    inputs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     for schedule in schedules:
         steps = [max(1, round(rate_hz / h)) for h in schedule]
         steps = [k for k in steps if not (k > 1 and f // k < 3)]
         if not steps or any(steps == s[0] for s in solves):
             continue
-        *solve, it = _solve_levels(acc, mag, steps, carry, setup)
+        *solve, it = _solve_levels(acc, mag, steps, carry, setup, inputs)
         solves.append((steps, *solve))
         total += it
     if not solves:  # too short for any level: the per-sample estimate (not where clipped)
@@ -1264,12 +1265,18 @@ def _level_mask(mask: np.ndarray, k: int) -> np.ndarray:
 
 
 def _solve_levels(
-    acc: np.ndarray, mag: np.ndarray, steps: list[int], carry: np.ndarray | None, setup: _Setup
+    acc: np.ndarray,
+    mag: np.ndarray,
+    steps: list[int],
+    carry: np.ndarray | None,
+    setup: _Setup,
+    inputs: dict[int, tuple[np.ndarray, np.ndarray]],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, _Problem, float, int]:
     """One coarse-to-fine solve, every ``steps[i]``-th sample at level ``i``, the first level
     started from the per-sample estimate: the last level's orientations ``(Fl, N, 3, 3)`` and
     roots' velocities ``(Fl, n_vel, 3)``, its sample indices ``(Fl,)``, its problem, its final
-    cost and the iterations."""
+    cost and the iterations. ``inputs``: each step's low-passed and decimated ``acc`` and
+    ``mag``, filled here as needed and kept for the other starts' solves."""
     f = acc.shape[0]
     rate_hz, ref, skeleton = setup.rate_hz, setup.ref, setup.skeleton
     R = None
@@ -1279,9 +1286,13 @@ def _solve_levels(
     cost = np.inf
     problem = None
     for i, k in enumerate(steps):
-        cut = 0.4 * rate_hz / k
-        a = smooth_vectors(acc, rate_hz, cut)[::k] if k > 1 else acc.copy()
-        m = smooth_vectors(mag, rate_hz, cut)[::k] if k > 1 else mag.copy()
+        if k not in inputs:  # the starts share their levels' inputs (read-only)
+            cut = 0.4 * rate_hz / k
+            a = smooth_vectors(acc, rate_hz, cut)[::k] if k > 1 else acc.copy()
+            m = smooth_vectors(mag, rate_hz, cut)[::k] if k > 1 else mag.copy()
+            a.flags.writeable = m.flags.writeable = False
+            inputs[k] = (a, m)
+        a, m = inputs[k]
         t_level = np.arange(0, f, k, dtype=float)
         _, m_dir, use = measured_directions(a, m, ref, None)
         if R is None:
