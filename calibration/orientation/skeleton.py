@@ -122,7 +122,6 @@ from scipy.linalg.lapack import dpbsv
 from scipy.ndimage import maximum_filter1d
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
-from scipy.spatial.transform import Rotation, Slerp
 from threadpoolctl import threadpool_limits
 
 from calibration.errors import CalibrationInputError
@@ -1139,14 +1138,15 @@ def _levenberg_marquardt(
 
 def _interpolate(R: np.ndarray, t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
     """Slerp each sensor's orientations ``(Fc, N, 3, 3)`` at times ``t_from`` to ``t_to``
-    (held beyond the ends)."""
+    (held beyond the ends): ``R_i exp(s log(R_i^T R_i+1))`` at the fraction ``s`` of the way
+    from ``t_from[i]`` to ``t_from[i + 1]``, every sensor at once."""
     if R.shape[0] == 1:
         return np.broadcast_to(R, (t_to.size, *R.shape[1:])).copy()
-    out = np.empty((t_to.size, *R.shape[1:]))
     t = np.clip(t_to, t_from[0], t_from[-1])
-    for k in range(R.shape[1]):
-        out[:, k] = Slerp(t_from, Rotation.from_matrix(R[:, k]))(t).as_matrix()
-    return out
+    i = np.clip(np.searchsorted(t_from, t, side="right") - 1, 0, t_from.size - 2)
+    s = (t - t_from[i]) / (t_from[i + 1] - t_from[i])
+    turn = _log(np.swapaxes(R[:-1], -1, -2) @ R[1:])  # (Fc - 1, N, 3)
+    return R[i] @ rotvec_to_matrix(s[:, None, None] * turn[i])
 
 
 def _loose(skeleton: Skeleton) -> Skeleton:
