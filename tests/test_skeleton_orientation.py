@@ -645,7 +645,7 @@ def test_normal_equations_equal_those_of_a_finite_difference_jacobian():
     V = rng.normal(size=(f, 1, 3))
     nb = problem.blocks_per_frame
     r, groups = problem.residuals(R, V, jacobian=True)
-    ab, g = _normal_equations(r, groups, f * nb, {})
+    ab, g = _normal_equations(r, groups, f, nb, {})
 
     def perturbed(x: np.ndarray) -> np.ndarray:
         d = x.reshape(f, nb, 3)
@@ -663,6 +663,77 @@ def test_normal_equations_equal_those_of_a_finite_difference_jacobian():
     np.testing.assert_allclose(A, J.T @ J, rtol=0, atol=1e-7 * scale)
     np.testing.assert_allclose(g, J.T @ r, rtol=0, atol=1e-7 * np.abs(J.T @ r).max())
     assert ab.flags.f_contiguous  # what LAPACK reads without a copy
+
+
+def band_to_dense(ab: np.ndarray) -> np.ndarray:
+    """The symmetric matrix of LAPACK's lower band ``ab`` ``(u + 1, n)``."""
+    n = ab.shape[1]
+    A = np.zeros((n, n))
+    for d in range(ab.shape[0]):
+        j = np.arange(n - d)
+        A[j + d, j] = ab[d, : j.size]
+    return np.tril(A) + np.tril(A, -1).T
+
+
+def test_the_humanoid_s_unknowns_are_placed_in_a_narrower_band():
+    """The 16-sensor humanoid's tree in reverse Cuthill-McKee's order joins sensors 4 places
+    apart; the search places every joint's two sensors within 2 (its torso has 4 joints, so 2
+    is the least)."""
+    from calibration.orientation.skeleton import _band_slots
+
+    parent = np.array([-1, 0, 1, 2, 2, 4, 5, 2, 7, 8, 0, 10, 11, 0, 13, 14])
+    sk = Skeleton(parent, np.zeros((16, 3)), np.zeros((16, 3)))
+    (tree,) = sk.trees()
+    own = sk.permuted(tree)
+    c = own.children
+    assert np.abs(c - own.parent[c]).max() == 4
+    slots = _band_slots(own)
+    assert sorted(slots) == list(range(16))
+    assert np.abs(slots[c] - slots[own.parent[c]]).max() == 2
+    assert _band_slots(Skeleton.none(3)).tolist() == [0, 1, 2]  # no joints: nothing to narrow
+
+
+def test_the_unknowns_placed_otherwise_give_the_same_normal_equations_and_steps():
+    """The band's order of the unknowns is the linear algebra's alone: with the sensors placed
+    in reverse, ``J^T J`` and ``J^T r`` are the same entries in other places, and the solver's
+    iterations end where they did (to rounding)."""
+    from calibration.orientation.skeleton import _levenberg_marquardt, _normal_equations
+
+    rng = np.random.default_rng(3)
+    f = 8
+    parent = np.array([-1, 0, 1, -1, 0])
+    lp, lc = rng.normal(scale=0.2, size=(2, 5, 3))
+    use = rng.random((f, 5)) > 0.1
+    mag_dir = rng.normal(size=(f, 5, 3))
+    mag_dir /= np.linalg.norm(mag_dir, axis=-1, keepdims=True)
+    acc = rng.normal(scale=3.0, size=(f, 5, 3)) + np.array([0.0, 0.0, G])
+
+    def problem(slot):
+        args = (np.where(use[..., None], acc, 0.0), np.where(use[..., None], mag_dir, 0.0), use, 0.05)
+        return _Problem(*args, Skeleton(parent, lp, lc), REF, Priors(), slot=slot)
+
+    R = rotvec_to_matrix(rng.normal(scale=0.5, size=(f, 5, 3)))
+    V = rng.normal(size=(f, 1, 3))
+    plain, placed = problem(None), problem(np.array([4, 3, 2, 1, 0]))
+    nb = plain.blocks_per_frame
+    assert placed.slot.tolist() == [4, 3, 2, 1, 0, 5]  # the lone sensor's velocity after them
+    ab, g = _normal_equations(*plain.residuals(R, V, jacobian=True), f, nb, {})
+    A = band_to_dense(ab)
+    ab_p, g_p = _normal_equations(*placed.residuals(R, V, jacobian=True), f, nb, {})
+    A_p = band_to_dense(ab_p)
+    # unknown (t, k, i) sits at (t, slot[k], i)
+    where = (np.arange(f)[:, None, None] * nb + placed.slot[None, :, None]) * 3 + np.arange(3)
+    where = where.reshape(-1)
+    np.testing.assert_array_equal(A_p[np.ix_(where, where)], A)  # the same sums, other places
+    np.testing.assert_array_equal(g_p[where], g)
+    R1, V1, it1, cost1 = _levenberg_marquardt(plain, R, V, 5)
+    R2, V2, it2, cost2 = _levenberg_marquardt(placed, R, V, 5)
+    # a backward-stable solve's relative error is at most about cond(A) eps (here 1.5e-8; measured
+    # 1e-12 in R): the two orders differ by rounding alone
+    tol = np.linalg.cond(A) * np.finfo(float).eps
+    assert it1 == it2 and cost2 == pytest.approx(cost1, rel=tol)
+    np.testing.assert_allclose(R2, R1, rtol=0, atol=tol)
+    np.testing.assert_allclose(V2, V1, rtol=0, atol=tol * np.abs(V1).max())
 
 
 def test_the_starts_are_mixed_sensor_by_sensor_and_the_costs_shared_among_them():
@@ -751,7 +822,7 @@ def test_with_clipped_axes_the_gradient_is_that_of_the_cost_with_them_filled():
     V = rng.normal(size=(f, 1, 3))
     nb = problem.blocks_per_frame
     r, groups = problem.residuals(R, V, jacobian=True)
-    _, g = _normal_equations(r, groups, f * nb, {})
+    _, g = _normal_equations(r, groups, f, nb, {})
     filled = problem.filled(R, V)
     assert (np.abs(filled[clipped]) > 0.01).mean() > 0.4  # most above the range: not held there
 
@@ -767,5 +838,5 @@ def test_with_clipped_axes_the_gradient_is_that_of_the_cost_with_them_filled():
     # held at the range instead, the gradient is another
     held = _Problem(acc, mag_dir, use, 0.05, sk, REF, Priors())
     r_held, groups_held = held.residuals(R, V, jacobian=True)
-    _, g_held = _normal_equations(r_held, groups_held, f * nb, {})
+    _, g_held = _normal_equations(r_held, groups_held, f, nb, {})
     assert np.abs(g_held - fd).max() > 1e-2 * np.abs(fd).max()

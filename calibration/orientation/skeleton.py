@@ -118,11 +118,10 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import LinAlgError, solveh_banded
+from scipy.linalg.lapack import dpbsv
 from scipy.ndimage import maximum_filter1d
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import reverse_cuthill_mckee
-from scipy.spatial.transform import Rotation, Slerp
 from threadpoolctl import threadpool_limits
 
 from calibration.errors import CalibrationInputError
@@ -162,6 +161,11 @@ MIN_SEGMENT_FRAMES = 512
 #: 20 s on the calibrated skeleton 4.0 s and 8.5 s. (The command line and the test suite ran on one
 #: thread already; the Python API's callers did not.)
 BLAS_THREADS = 1
+
+#: Placements the search for a narrower order of the unknowns (:func:`_band_slots`) tries at
+#: most, over all the widths it tries (the 16-sensor humanoid's takes 900; a random tree of 1,000
+#: sensors gives up in 0.1 s).
+NARROW_SEARCH_STEPS = 5000
 
 #: Frames read at once by :meth:`Skeleton.with_ranges`.
 RANGE_CHUNK = 65536
@@ -452,6 +456,85 @@ class Skeleton:
         return np.flatnonzero(np.linalg.norm(np.asarray(self.hinge_in_parent, dtype=float), axis=1) > 0)
 
 
+def _narrowest_layout(neighbours: list[list[int]], width: int, budget: int) -> tuple[list[int] | None, int]:
+    """An order of the graph's vertices in which every edge joins two within ``width`` places
+    of each other, by depth-first search (at most ``budget`` placements; ``None`` if there is
+    none or the search gave up), and the placements made."""
+    n = len(neighbours)
+    place = [-1] * n
+    order: list[int] = []
+    left = [len(x) for x in neighbours]  # each vertex's neighbours not yet placed
+    steps = 0
+
+    def feasible() -> bool:
+        # each placed vertex's unplaced neighbours must fit before its deadline
+        p = len(order)
+        due = sorted(place[v] + width for v in order if left[v])
+        return all(d - p + 1 >= i + 1 for i, d in enumerate(due)) and all(
+            left[v] <= place[v] + width - p + 1 for v in order if left[v]
+        )
+
+    def search() -> bool:
+        nonlocal steps
+        if len(order) == n:
+            return True
+        p = len(order)
+        urgent = [v for v in order if left[v] and place[v] + width == p]
+        if len(urgent) > 1:
+            return False
+        pool = [u for u in neighbours[urgent[0]] if place[u] < 0] if urgent else range(n)
+        for u in pool:
+            if place[u] >= 0:
+                continue
+            steps += 1
+            if steps > budget:
+                return False
+            place[u] = p
+            order.append(u)
+            for w in neighbours[u]:
+                left[w] -= 1
+            if feasible() and search():
+                return True
+            for w in neighbours[u]:
+                left[w] += 1
+            order.pop()
+            place[u] = -1
+        return False
+
+    found = search()
+    return (order if found else None), steps
+
+
+def _band_slots(skeleton: Skeleton) -> np.ndarray:
+    """``(N,)`` each sensor's place among a frame's unknowns: the band of the normal equations
+    is ``2 N`` blocks plus the largest gap between a joint's two places (its solve's cost goes
+    as the band's square). The sensors' own order (reverse Cuthill-McKee's, from
+    :meth:`Skeleton.trees`) unless a search (:func:`_narrowest_layout`) finds one narrower, one
+    gap at a time, down to half the busiest sensor's joints, rounded up: the 16-sensor humanoid
+    37 blocks (a gap of 4) -> 34 (2), the solve 0.9 times as long. Only the linear algebra's
+    order: the sensors keep theirs (the clipped axes' fill goes sensor by sensor in it)."""
+    parent = np.asarray(skeleton.parent)
+    n = parent.size
+    child = np.flatnonzero(parent >= 0)
+    slots = np.arange(n)
+    if child.size == 0:
+        return slots
+    gap = int(np.abs(child - parent[child]).max())
+    neighbours: list[list[int]] = [[] for _ in range(n)]
+    for c in child.tolist():
+        neighbours[c].append(int(parent[c]))
+        neighbours[int(parent[c])].append(c)
+    busiest = max(len(x) for x in neighbours)
+    budget = NARROW_SEARCH_STEPS
+    for width in range(gap - 1, (busiest + 1) // 2 - 1, -1):  # narrower until none is found
+        found, steps = _narrowest_layout(neighbours, width, budget)
+        budget -= steps
+        if found is None:
+            break
+        slots[np.asarray(found, dtype=int)] = np.arange(n)
+    return slots
+
+
 @dataclass
 class _Problem:
     """The residuals of one level (module docstring) and their Jacobian."""
@@ -464,6 +547,7 @@ class _Problem:
     ref: Reference
     priors: Priors
     clipped: np.ndarray | None = None  # (F, N, 3) accelerometer axes at their range (filled)
+    slot: np.ndarray | None = None  # (N,) each sensor's place among a frame's unknowns (default: its index)
     mag_weight: np.ndarray = field(init=False)
     root_sigma: np.ndarray = field(init=False)
     lone: np.ndarray = field(init=False)  # sensors on their own: a motion of their own
@@ -479,6 +563,13 @@ class _Problem:
             self.lone = self.lone[:0]
         self.body_roots = roots[~np.isin(roots, self.lone)]
         self.n_vel = self.lone.size
+        n = self.use.shape[1]
+        self.slot = np.concatenate(
+            [
+                np.arange(n) if self.slot is None else np.asarray(self.slot, dtype=int),
+                n + np.arange(self.n_vel),
+            ]
+        )
         # a root's acceleration prior: at least the RMS of |f| - g, its acceleration along the
         # vertical as its own samples show it (per axis, if the acceleration is isotropic)
         roots = self.body_roots
@@ -599,8 +690,10 @@ class _Problem:
         res: list[np.ndarray] = []
         groups: list[list[tuple[np.ndarray, np.ndarray]]] = []
 
+        slot = self.slot
+
         def col(t: np.ndarray, k: np.ndarray) -> np.ndarray:
-            return t * nb + k
+            return t * nb + slot[k]
 
         frames = np.arange(f)[:, None]
         joints = self.joints(R)
@@ -748,116 +841,205 @@ def _log_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) - 0.5 * K + c * (K @ K)
 
 
+def _frame_last(v: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A residual block's ``v`` (rows ``shape`` = (frames, K), then its own axes) with the frames
+    last and contiguous: ``(K, ..., frames)``; a scalar stays one."""
+    v = np.asarray(v, dtype=float)
+    if v.ndim == 0:
+        return v
+    v = np.broadcast_to(v, shape + v.shape[len(shape) :])
+    return np.ascontiguousarray(np.moveaxis(v, 0, -1))
+
+
+def _skew_frame_last(v: np.ndarray) -> np.ndarray:
+    """``[v]x`` ``(K, 3, 3, T)`` of vectors ``(K, 3, T)``."""
+    out = np.zeros((v.shape[0], 3, 3, v.shape[-1]))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    out[:, 1, 0], out[:, 2, 0], out[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return out
+
+
+def _as_matrix(v: np.ndarray) -> np.ndarray:
+    """A block ``(K, 3, 3, T)`` whatever its kind: a matrix, a cross product's vector, a
+    multiple of the identity (a scalar, broadcast)."""
+    if v.ndim == 4:
+        return v
+    if v.ndim == 3:
+        return _skew_frame_last(v)
+    return np.eye(3)[None, :, :, None] * v
+
+
+def _band_layout(groups: list[list[tuple[np.ndarray, np.ndarray]]], frames: int, per_frame: int) -> dict:
+    """Where :func:`_normal_equations` puts each product: the residual blocks' columns are
+    ``(t + s) * per_frame + k`` for the group's row ``(t, k)`` (a frame shift ``s`` per block),
+    so each pair of blocks writes, for every frame, the same places of that frame's part of the
+    band (``3 per_frame`` columns of ``u + 1`` entries: LAPACK lower, ``ab[row - col, col]``).
+    Returns the products' rows in the work array (frames last), a sparse matrix summing them
+    into the band's places and the gradient's, those places, and ``u``."""
+    nb = per_frame
+    specs = []  # per group: rows, K, its blocks' (frame shift, sensors)
+    top = 0
+    for blocks in groups:
+        shape = np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))
+        if len(shape) != 2:
+            raise ValueError(f"residual blocks' columns must be (frames, K), got {shape}")
+        cols = []
+        for c, _ in blocks:
+            C = np.broadcast_to(np.asarray(c), shape)
+            if C.size == 0:  # no rows (a tree with no body root, say): nothing to place
+                cols.append((0, np.zeros(shape[1], dtype=int)))
+                continue
+            shift, k = np.divmod(C[0], nb)
+            if np.any(shift != shift[0]) or np.any(np.diff(C, axis=0) != nb):
+                raise ValueError("residual blocks' columns must be (frame + shift) * per_frame + sensor")
+            cols.append((int(shift[0]), k.astype(int)))
+        specs.append((shape, cols))
+        for a, (sa, ka) in enumerate(cols):
+            for sb, kb in cols[a:]:
+                top = max(top, int(np.abs((sb - sa) * nb + kb - ka).max(initial=0)))
+    u = 3 * top + 2
+    i, j = np.divmod(np.arange(9), 3)
+    slots, qs, weights = [], [], []
+    plan = []  # per group: (pairs [(a, b, q0, first frame)], gradient [(a, q0, first frame)])
+    q = 0
+    n_band = 3 * nb * (u + 1)  # the gradient's places follow the band's
+    for shape, cols in specs:
+        K = shape[1]
+        pairs, grads = [], []
+        for a, (sa, ka) in enumerate(cols):
+            for b in range(a, len(cols)):
+                sb, kb = cols[b]
+                Ca, Cb = sa * nb + ka, sb * nb + kb  # block columns at the group's first row
+                first = min(sa, sb)
+                base = first * nb
+                ii, jj = i[None, :], j[None, :]
+                below = (Ca > Cb)[:, None]  # (K, 1): the product's block is below the diagonal
+                col = np.where(below, 3 * (Cb - base)[:, None] + jj, 3 * (Ca - base)[:, None] + ii)
+                d = 3 * np.abs(Cb - Ca)[:, None] + np.where(below, ii - jj, jj - ii)
+                w = np.ones((K, 9))
+                same = (Ca == Cb)[:, None]
+                if a == b:  # its own product, symmetric: the lower triangle once
+                    keep = ~same | (ii >= jj)
+                    col = np.where(same, 3 * (Ca - base)[:, None] + jj, col)
+                    d = np.where(same, ii - jj, d)
+                else:  # two blocks on one column: P + P^T, its lower triangle
+                    keep = np.ones((K, 9), bool)
+                    lo, hi = np.minimum(ii, jj), np.maximum(ii, jj)
+                    col = np.where(same, 3 * (Ca - base)[:, None] + lo, col)
+                    d = np.where(same, hi - lo, d)
+                    w = np.where(same & (ii == jj), 2.0, w)
+                place = col * (u + 1) + d
+                qq = q + np.arange(9 * K).reshape(K, 9)
+                slots.append(place[keep])
+                qs.append(qq[keep])
+                weights.append(w[keep])
+                pairs.append((a, b, q, first))
+                q += 9 * K
+        for a, (sa, ka) in enumerate(cols):
+            slots.append((n_band + 3 * ka[:, None] + np.arange(3)).ravel())
+            qs.append(q + np.arange(3 * K))
+            weights.append(np.ones(3 * K))
+            grads.append((a, q, sa))
+            q += 3 * K
+        plan.append((shape, pairs, grads))
+    slots_all = np.concatenate(slots) if slots else np.zeros(0, dtype=int)
+    places, row = np.unique(slots_all, return_inverse=True)
+    n_grad = int(np.sum(places >= n_band))
+    S = csr_matrix(
+        (np.concatenate(weights) if weights else np.zeros(0), (row, np.concatenate(qs) if qs else row)),
+        shape=(places.size, q),
+    )
+    return {
+        "plan": plan,
+        "sum": S,
+        "places": places[: places.size - n_grad],
+        "gradient": places[places.size - n_grad :] - n_band,
+        "u": u,
+        "rows": q,
+        "frames": frames,
+        "per_frame": nb,
+    }
+
+
 def _normal_equations(
     r: np.ndarray,
     groups: list[list[tuple[np.ndarray, np.ndarray]]],
-    n_blocks: int,
+    frames: int,
+    per_frame: int,
     cache: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``J^T J`` in LAPACK's lower band layout ``(u + 1, 3 n_blocks)``, Fortran-ordered (the
-    layout ``pbtrf`` reads without a copy; lower is a third faster than upper here), and
-    ``J^T r``, from the
-    residual blocks (:meth:`_Problem.residuals`) without forming ``J``. For cross-product blocks
-    ``[a]x^T [b]x = (a . b) I - b a^T`` and ``[a]x^T r = r x a``; each pair of a group's blocks
-    gives a 3 x 3 product per row, summed (``bincount``) straight into its place in the band.
+    """``J^T J`` in LAPACK's lower band layout ``(u + 1, 3 frames per_frame)``, Fortran-ordered
+    (the layout ``pbtrf`` reads without a copy; lower is a third faster than upper here), and
+    ``J^T r``, from the residual blocks (:meth:`_Problem.residuals`) without forming ``J``. For
+    cross-product blocks ``[a]x^T [b]x = (a . b) I - b a^T`` and ``[a]x^T r = r x a``.
 
-    Where each product's entries go depends only on the blocks' columns, which a problem keeps
-    from one iteration to the next: with ``cache`` (a dict kept with the problem) it is worked
-    out once (:func:`_band_index`) and reused."""
-    build = cache is None or "index" not in cache
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]] = []
-    sym: list[np.ndarray | None] = [] if build else cache["sym"]
-    shapes = [np.broadcast_shapes(*(np.shape(c) for c, _ in blocks)) for blocks in groups]
-    sizes = [int(np.prod(shape)) for shape in shapes]
-    # every pair's products written straight into one buffer, in the order of the band index
-    products = np.empty(9 * sum(k * (len(x) * (len(x) + 1) // 2) for k, x in zip(sizes, groups, strict=True)))
-    g = np.zeros(3 * n_blocks)
-    eye = np.eye(3)
+    Every pair of a group's blocks gives a 3 x 3 product per row, written with the frames last
+    (each product entry one row of a work array over the frames); one sparse matrix, the same
+    for every iteration of a problem (:func:`_band_layout`, kept in ``cache``), sums them into
+    the band's places frame by frame. The band returned is the cache's buffer: the next call
+    overwrites it."""
+    nb = per_frame
+    if cache is None:
+        cache = {}
+    if cache.get("frames") != frames or cache.get("per_frame") != nb:
+        cache.clear()
+        cache.update(_band_layout(groups, frames, nb))
+    u = cache["u"]
+    work = cache.get("work")
+    if work is None:  # the products over the frames; columns no row reaches stay zero
+        work = cache["work"] = np.zeros((cache["rows"], frames))
+        cache["band"] = np.zeros((u + 1, 3 * nb * frames), order="F")
     start = 0
-    pair = 0
-    filled = 0
-    for blocks, shape, size in zip(groups, shapes, sizes, strict=True):
-        rg = r[start : start + 3 * size].reshape(size, 3)
+    for blocks, (shape, pairs, grads) in zip(groups, cache["plan"], strict=True):
+        rows, K = shape
+        size = rows * K
+        rg = _frame_last(r[start : start + 3 * size].reshape(rows, K, 3), shape)  # (K, 3, T)
         start += 3 * size
-        flat = []
-        for c, v in blocks:
-            v = np.asarray(v, dtype=float)
-            tail = v.shape[len(shape) :]
-            flat.append((np.broadcast_to(c, shape).reshape(-1), v.reshape(-1, *tail) if v.ndim else v))
-        for a, (ca, va) in enumerate(flat):
-            if va.ndim == 3:
-                ga = np.einsum("rki,rk->ri", va, rg)
+        vs = [_frame_last(v, shape) for _, v in blocks]
+        # the blocks that a pair takes as 3 x 3 matrices (not two vectors, not a scalar's)
+        mats = {
+            x: _as_matrix(vs[x])
+            for a, b, _, _ in pairs
+            if not (vs[a].ndim == 3 and vs[b].ndim == 3)
+            for x in (a, b)
+            if vs[x].ndim
+        }
+        negated = {x: -vs[x] for x in {a for a, b, _, _ in pairs if vs[a].ndim == 3 and vs[b].ndim == 3}}
+        for a, b, q0, first in pairs:
+            P = work[q0 : q0 + 9 * K, first : first + rows].reshape(K, 3, 3, rows)
+            va, vb = vs[a], vs[b]
+            if va.ndim == 3 and vb.ndim == 3:  # -b a^T, then a . b (minus its trace) on its diagonal
+                np.multiply(vb[:, :, None], negated[a][:, None, :], out=P)
+                trace = P[:, 0, 0] + P[:, 1, 1]
+                trace += P[:, 2, 2]
+                for x in range(3):
+                    P[:, x, x] -= trace
+            elif va.ndim == 0 and vb.ndim == 0:
+                P[...] = np.eye(3)[None, :, :, None] * (va * vb)
+            elif va.ndim == 0:  # (s I)^T Mb
+                np.multiply(va, mats[b], out=P)
+            elif vb.ndim == 0:  # Ma^T (s I)
+                np.multiply(vb, np.swapaxes(mats[a], 1, 2), out=P)
+            else:  # Ma^T Mb
+                np.einsum("kmit,kmjt->kijt", mats[a], mats[b], out=P)
+        for a, q0, first in grads:
+            G = work[q0 : q0 + 3 * K, first : first + rows].reshape(K, 3, rows)
+            va = vs[a]
+            if va.ndim == 3:  # [a]x^T r = r x a
+                for x in range(3):
+                    y, z = (x + 1) % 3, (x + 2) % 3
+                    np.subtract(rg[:, y] * va[:, z], rg[:, z] * va[:, y], out=G[:, x])
+            elif va.ndim == 0:
+                np.multiply(va, rg, out=G)
             else:
-                ga = np.cross(rg, va) if va.ndim else va * rg
-            g += np.bincount((3 * ca[:, None] + np.arange(3)).ravel(), ga.ravel(), minlength=g.size)
-            for b in range(a, len(flat)):
-                cb, vb = flat[b]
-                P = products[filled : filled + 9 * size].reshape(size, 3, 3)
-                filled += 9 * size
-                if va.ndim == 3 or vb.ndim == 3:  # general 3 x 3 blocks
-                    Ma = va if va.ndim == 3 else (skew(va) if va.ndim else va * eye)
-                    Mb = vb if vb.ndim == 3 else (skew(vb) if vb.ndim else vb * eye)
-                    np.einsum("rki,rkj->rij", Ma, Mb, out=P)
-                elif va.ndim and vb.ndim:  # -b a^T, then a . b added on its diagonal
-                    np.multiply(-vb[:, :, None], va[:, None, :], out=P)
-                    P.reshape(size, 9)[:, ::4] += np.einsum("ri,ri->r", va, vb)[:, None]
-                elif va.ndim:  # [a]x^T (s I) = -s [a]x
-                    np.multiply(-vb, skew(va), out=P)
-                elif vb.ndim:  # (s I)^T [b]x = s [b]x
-                    np.multiply(va, skew(vb), out=P)
-                else:
-                    P[...] = va * vb * eye
-                if build:
-                    if b == a:
-                        parts.append((ca, np.zeros_like(ca), None))
-                        sym.append(None)
-                    else:  # the block below the diagonal is the transpose; one on it, P + P^T
-                        d = cb - ca
-                        parts.append((np.minimum(ca, cb), np.abs(d), d < 0))
-                        sym.append(np.flatnonzero(d == 0) if np.any(d == 0) else None)
-                both = sym[pair]
-                if both is not None:
-                    P[both] += np.swapaxes(P[both], -1, -2)
-                pair += 1
-    if build:
-        index, u = _band_index(parts, n_blocks)
-        if cache is not None:
-            cache.update(index=index, u=u, sym=sym)
-    else:
-        index, u = cache["index"], cache["u"]
-    size = (u + 1) * 3 * n_blocks
-    ab = np.bincount(index, products, minlength=size + 1)[:size]
-    return ab.reshape(3 * n_blocks, u + 1).T, g
-
-
-def _band_index(
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]], n_blocks: int
-) -> tuple[np.ndarray, int]:
-    """Each product entry's flat place in the band ``(u + 1, 3 n_blocks)``, Fortran order
-    (LAPACK lower: ``ab[row - col, col] = A[row, col]``; a product's entry ``A[i, j]`` above the
-    diagonal goes to ``A[j, i]``), ``parts`` giving per pair of blocks the block row ``(rows,)``,
-    the block offset ``(rows,)`` and which rows' products go in transposed (``None``: none); the
-    lower triangle of diagonal blocks goes to one slot past the band, dropped. Returns the
-    ``(9 * sum rows,)`` places and ``u``."""
-    top = max((int(o.max(initial=0)) for _, o, _ in parts), default=0)
-    u = 3 * top + 2
-    drop = (u + 1) * 3 * n_blocks
-    i, j = np.divmod(np.arange(9), 3)
-    out = []
-    for rows, o, transposed in parts:
-        ii, jj = (
-            (i, j)
-            if transposed is None
-            else (
-                np.where(transposed[:, None], j, i),
-                np.where(transposed[:, None], i, j),
-            )
-        )
-        o = o[:, None]
-        place = (3 * rows[:, None] + ii) * (u + 1) + 3 * o + jj - ii
-        out.append(np.where((o == 0) & (ii > jj), drop, place).ravel())
-    index = np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
-    return index.astype(np.int32 if drop < 2**31 - 1 else np.int64), u
+                np.einsum("kmit,kmt->kit", va, rg, out=G)
+    summed = cache["sum"] @ work  # (places, frames)
+    ab = cache["band"]
+    n_band = cache["places"].size
+    ab.T.reshape(frames, -1)[:, cache["places"]] = summed[:n_band].T
+    g = np.zeros((frames, 3 * nb))
+    g[:, cache["gradient"]] = summed[n_band:].T
+    return ab, g.reshape(-1)
 
 
 def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
@@ -871,6 +1053,7 @@ def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray
     r, groups = problem.residuals(R, V, jacobian=True)
     rows = np.sum(r.reshape(-1, 3) ** 2, axis=1)
     out = np.zeros(f * nb)
+    block_of = np.argsort(problem.slot)  # the unknown at each place of a frame
     start = 0
     for blocks in groups:
         shape = np.broadcast_shapes(*(np.shape(c) for c, _ in blocks))
@@ -879,7 +1062,7 @@ def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray
         start += size
         frame = np.broadcast_to(blocks[0][0], shape).reshape(-1) // nb
         for c, _ in blocks:
-            place = frame * nb + np.broadcast_to(c, shape).reshape(-1) % nb
+            place = frame * nb + block_of[np.broadcast_to(c, shape).reshape(-1) % nb]
             out += np.bincount(place, share, minlength=out.size)
     out = out.reshape(f, nb)
     costs = out[:, :n].copy()
@@ -908,52 +1091,62 @@ def _levenberg_marquardt(
     problem: _Problem, R: np.ndarray, V: np.ndarray, max_iter: int, rel_tol: float = 1e-6
 ) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Minimise the problem's cost from ``R`` ``(F, N, 3, 3)`` and the roots' velocities ``V``
-    ``(F, n_vel, 3)``; return them, the iterations and the final cost."""
+    ``(F, n_vel, 3)``; return them, the iterations and the final cost. Each try factors a copy
+    of the band (LAPACK ``pbsv`` in place, in one buffer kept over the tries)."""
     f, n = problem.use.shape
     nb = problem.blocks_per_frame
     lam = 1e-3
     r, groups = problem.residuals(R, V, jacobian=True)
     cost = float(r @ r)
     iterations = 0
-    for iterations in range(1, max_iter + 1):
-        ab, g = _normal_equations(r, groups, f * nb, problem.band)
-        diag = ab[0].copy()
-        floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
-        while True:
-            ab[0] = diag * (1 + lam) + floor
-            try:
-                d = solveh_banded(ab, -g, lower=True, check_finite=False).reshape(f, nb, 3)
-            except LinAlgError:
-                d = None
-            if d is not None:
-                R_new = rotvec_to_matrix(d[:, :n]) @ R
-                V_new = V + d[:, n:]
-                r_new = problem.residuals(R_new, V_new)
-                cost_new = float(r_new @ r_new)
-                if cost_new < cost:
-                    break
-            if lam > 1e10:
-                return R, V, iterations, cost
-            lam *= 10
-        gain = (cost - cost_new) / cost
-        R, V, cost = R_new, V_new, cost_new
-        lam = max(lam / 3, 1e-9)
-        if gain < rel_tol:
-            break
-        r, groups = problem.residuals(R, V, jacobian=True)
+    factor = None
+    try:
+        for iterations in range(1, max_iter + 1):
+            ab, g = _normal_equations(r, groups, f, nb, problem.band)
+            diag = ab[0].copy()
+            floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
+            if factor is None:
+                factor = np.empty_like(ab, order="F")
+            while True:
+                np.copyto(factor, ab)
+                factor[0] = diag * (1 + lam) + floor
+                _, x, info = dpbsv(factor, -g[:, None], lower=1, overwrite_ab=1, overwrite_b=1)
+                if info < 0:
+                    raise ValueError(f"LAPACK pbsv: argument {-info} is illegal")
+                if info == 0:
+                    d = x.reshape(f, nb, 3)[:, problem.slot]
+                    R_new = rotvec_to_matrix(d[:, :n]) @ R
+                    V_new = V + d[:, n:]
+                    r_new = problem.residuals(R_new, V_new)
+                    cost_new = float(r_new @ r_new)
+                    if cost_new < cost:
+                        break
+                if lam > 1e10:
+                    return R, V, iterations, cost
+                lam *= 10
+            gain = (cost - cost_new) / cost
+            R, V, cost = R_new, V_new, cost_new
+            lam = max(lam / 3, 1e-9)
+            if gain < rel_tol:
+                break
+            r, groups = problem.residuals(R, V, jacobian=True)
+    finally:  # the work buffers are large: a problem kept for later solves holds only its layout
+        problem.band.pop("work", None)
+        problem.band.pop("band", None)
     return R, V, iterations, cost
 
 
 def _interpolate(R: np.ndarray, t_from: np.ndarray, t_to: np.ndarray) -> np.ndarray:
     """Slerp each sensor's orientations ``(Fc, N, 3, 3)`` at times ``t_from`` to ``t_to``
-    (held beyond the ends)."""
+    (held beyond the ends): ``R_i exp(s log(R_i^T R_i+1))`` at the fraction ``s`` of the way
+    from ``t_from[i]`` to ``t_from[i + 1]``, every sensor at once."""
     if R.shape[0] == 1:
         return np.broadcast_to(R, (t_to.size, *R.shape[1:])).copy()
-    out = np.empty((t_to.size, *R.shape[1:]))
     t = np.clip(t_to, t_from[0], t_from[-1])
-    for k in range(R.shape[1]):
-        out[:, k] = Slerp(t_from, Rotation.from_matrix(R[:, k]))(t).as_matrix()
-    return out
+    i = np.clip(np.searchsorted(t_from, t, side="right") - 1, 0, t_from.size - 2)
+    s = (t - t_from[i]) / (t_from[i + 1] - t_from[i])
+    turn = _log(np.swapaxes(R[:-1], -1, -2) @ R[1:])  # (Fc - 1, N, 3)
+    return R[i] @ rotvec_to_matrix(s[:, None, None] * turn[i])
 
 
 def _loose(skeleton: Skeleton) -> Skeleton:
@@ -1000,6 +1193,7 @@ class _Setup:
     fine_iter: int
     weigh_disturbance: bool
     starts: tuple[tuple[float, ...], ...]
+    slot: np.ndarray  # (N,) each sensor's place among a frame's unknowns (:func:`_band_slots`)
 
 
 @dataclass(frozen=True)
@@ -1035,12 +1229,13 @@ def _solve_span(data: _Data, setup: _Setup) -> tuple[np.ndarray, int]:
     schedules = [tuple(prefix) + tuple(setup.levels_hz) for prefix in setup.starts]
     solves = []
     total = 0
+    inputs: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     for schedule in schedules:
         steps = [max(1, round(rate_hz / h)) for h in schedule]
         steps = [k for k in steps if not (k > 1 and f // k < 3)]
         if not steps or any(steps == s[0] for s in solves):
             continue
-        *solve, it = _solve_levels(acc, mag, steps, carry, setup)
+        *solve, it = _solve_levels(acc, mag, steps, carry, setup, inputs)
         solves.append((steps, *solve))
         total += it
     if not solves:  # too short for any level: the per-sample estimate (not where clipped)
@@ -1070,12 +1265,18 @@ def _level_mask(mask: np.ndarray, k: int) -> np.ndarray:
 
 
 def _solve_levels(
-    acc: np.ndarray, mag: np.ndarray, steps: list[int], carry: np.ndarray | None, setup: _Setup
+    acc: np.ndarray,
+    mag: np.ndarray,
+    steps: list[int],
+    carry: np.ndarray | None,
+    setup: _Setup,
+    inputs: dict[int, tuple[np.ndarray, np.ndarray]],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, _Problem, float, int]:
     """One coarse-to-fine solve, every ``steps[i]``-th sample at level ``i``, the first level
     started from the per-sample estimate: the last level's orientations ``(Fl, N, 3, 3)`` and
     roots' velocities ``(Fl, n_vel, 3)``, its sample indices ``(Fl,)``, its problem, its final
-    cost and the iterations."""
+    cost and the iterations. ``inputs``: each step's low-passed and decimated ``acc`` and
+    ``mag``, filled here as needed and kept for the other starts' solves."""
     f = acc.shape[0]
     rate_hz, ref, skeleton = setup.rate_hz, setup.ref, setup.skeleton
     R = None
@@ -1085,9 +1286,13 @@ def _solve_levels(
     cost = np.inf
     problem = None
     for i, k in enumerate(steps):
-        cut = 0.4 * rate_hz / k
-        a = smooth_vectors(acc, rate_hz, cut)[::k] if k > 1 else acc.copy()
-        m = smooth_vectors(mag, rate_hz, cut)[::k] if k > 1 else mag.copy()
+        if k not in inputs:  # the starts share their levels' inputs (read-only)
+            cut = 0.4 * rate_hz / k
+            a = smooth_vectors(acc, rate_hz, cut)[::k] if k > 1 else acc.copy()
+            m = smooth_vectors(mag, rate_hz, cut)[::k] if k > 1 else mag.copy()
+            a.flags.writeable = m.flags.writeable = False
+            inputs[k] = (a, m)
+        a, m = inputs[k]
         t_level = np.arange(0, f, k, dtype=float)
         _, m_dir, use = measured_directions(a, m, ref, None)
         if R is None:
@@ -1109,6 +1314,7 @@ def _solve_levels(
             skeleton if last else _loose(skeleton),
             ref,
             setup.priors,
+            slot=setup.slot,
         )
         if setup.weigh_disturbance:
             problem.weigh_disturbance(np.nan_to_num(m))
@@ -1245,9 +1451,10 @@ def skeleton_orientation(
     iterations = 0
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
         for tree in skeleton.trees():
+            tree_skeleton = skeleton.permuted(tree)
             setup = _Setup(
                 rate_hz,
-                skeleton.permuted(tree),
+                tree_skeleton,
                 ref,
                 priors,
                 tuple(levels_hz),
@@ -1255,6 +1462,7 @@ def skeleton_orientation(
                 fine_iter,
                 weigh_disturbance,
                 tuple(tuple(p) for p in starts) or ((),),
+                _band_slots(tree_skeleton),
             )
             R[:, tree], it = _solve_tree(data.take(tree, axis=1), setup, segment_s)
             iterations += it
