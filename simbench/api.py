@@ -77,6 +77,7 @@ from simbench.io.orientation_csv import read_orientation_csv, write_orientation_
 from simbench.io.poses import PoseRecording, sample_rate, write_pose_csv
 from simbench.io.read import POSE_INPUTS, pose_inputs_text, read, read_imu, read_poses, refuse_unlocated
 from simbench.orient import (
+    OrientationRun,
     calibrate_magnetometers,
     describe_fit,
     disturbed_fraction,
@@ -420,7 +421,8 @@ class Orientations:
             recording, uT and degrees (NaN for other estimators).
         notes: the recording's notes, with what the magnetometer calibration did.
         warnings: inputs that cannot be trusted (:func:`simbench.orient.input_warnings`): an
-            axis held at its range, a field strength that drifts, no rest.
+            axis held at its range, a field strength that drifts, no rest; and what a built-in
+            method found and did about it (:attr:`simbench.orient.OrientationRun.warnings`).
     """
 
     q_w_s: np.ndarray
@@ -544,7 +546,7 @@ def orient(
         field_strength_ut=float(run.field_strength_ut),
         inclination_deg=float(run.inclination_deg),
         notes=tuple(rec.notes),
-        warnings=warned,
+        warnings=(*warned, *(run.warnings if isinstance(run, OrientationRun) else ())),
     )
 
 

@@ -49,12 +49,15 @@ from calibration.orientation import (
     longest_rest,
     mahony,
     reference_from_data,
+    rotation_acceleration,
     saturated_axes,
     skeleton_orientation,
     smooth_vectors,
     triad,
     wahba,
 )
+from calibration.orientation.rotation_acc import FALSE_ALARM as ROTATION_FALSE_ALARM
+from calibration.orientation.rotation_acc import WINDOW_S as ROTATION_WINDOW_S
 from calibration.orientation.trust import DRIFT_SPREADS
 from calibration.rotations import quat_to_matrix
 from simbench.errors import InputError
@@ -76,6 +79,9 @@ class OrientationRun:
         ok: ``(F, N)`` estimated.
         method: the method.
         field_strength_ut, inclination_deg: the reference field used.
+        warnings: what the method found in the data and did about it, one line each (e.g. a
+            sustained acceleration of a sensor away from the centre of rotation,
+            :func:`rotation_corrected`).
     """
 
     q_enu: np.ndarray
@@ -83,6 +89,7 @@ class OrientationRun:
     method: str
     field_strength_ut: float
     inclination_deg: float
+    warnings: tuple[str, ...] = ()
 
 
 def check_recording(rec: ImuRecording) -> None:
@@ -153,14 +160,16 @@ def estimate(
             "low-passes its inputs level by level itself"
         )
     if method == "skeleton":
+        # a sensor on its own away from the centre of a fast rotation: that acceleration removed
+        acc, warned = rotation_corrected(rec, skeleton or Skeleton.none(len(rec.names)))
         # the reference from the roots' samples, as skeleton_orientation would take it
         roots = (skeleton or Skeleton.none(len(rec.names))).roots
-        ref = reference_from_data(rec.acc[:, roots], rec.mag[:, roots], "enu", valid=rec.valid[:, roots])
+        ref = reference_from_data(acc[:, roots], rec.mag[:, roots], "enu", valid=rec.valid[:, roots])
         # samples with an accelerometer axis at its range: the axis filled from the joints
         # (skeleton_orientation's acc_clipped), the rest of the sample used as measured
         valid = magnetometer_valid(rec)
         est = skeleton_orientation(
-            rec.acc,
+            acc,
             rec.mag,
             rec.rate_hz,
             skeleton,
@@ -170,7 +179,12 @@ def estimate(
             acc_clipped=rec.saturated,
         )
         return OrientationRun(
-            est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
+            est.q_w_s,
+            est.ok,
+            method,
+            float(np.linalg.norm(ref.field_w)),
+            float(np.rad2deg(ref.inclination)),
+            warned,
         )
     acc, mag = rec.acc, rec.mag
     if smooth_hz and method != "fontaine":  # Fontaine's estimator smooths with its weights
@@ -197,6 +211,32 @@ def estimate(
     return OrientationRun(
         est.q_w_s, est.ok, method, float(np.linalg.norm(ref.field_w)), float(np.rad2deg(ref.inclination))
     )
+
+
+def rotation_corrected(rec: ImuRecording, skeleton: Skeleton) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The accelerometers with the sustained sensor-frame acceleration of each sensor on its own
+    (:attr:`calibration.orientation.Skeleton.lone`) removed where the data show one
+    (:func:`calibration.orientation.rotation_acceleration`: a sensor away from the centre of a
+    fast rotation), and a warning per sensor where they do.
+
+    Returns:
+        ``(F, N, 3)`` the accelerometers, m/s^2, and the warnings.
+    """
+    acc = np.array(rec.acc, dtype=float)
+    warned = []
+    for k in skeleton.lone:
+        found = rotation_acceleration(rec.acc[:, k], rec.mag[:, k], rec.rate_hz, rec.valid[:, k])
+        if not found.fired:
+            continue
+        acc[:, k] -= found.offset
+        warned.append(
+            f"{rec.names[k]}: a sustained acceleration in the sensor frame (a sensor away from the centre "
+            f"of a fast rotation) in {found.fired} of {found.windows} windows of {ROTATION_WINDOW_S:g} s "
+            f"({100 * found.detected.mean():.2g} % of the samples; false alarm {ROTATION_FALSE_ALARM:g} "
+            f"per window), median {found.median_m_s2:.2g} m/s^2: subtracted from the accelerometer there "
+            "before the estimate"
+        )
+    return acc, tuple(warned)
 
 
 def vqf_offline(

@@ -31,6 +31,9 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
   recording, on the calibrated skeleton (:class:`Skeleton`): each sensor's linear acceleration
   predicted from the chain's motion instead of ignored, heading carried across spans the data do
   not determine; without a skeleton, a smoother with priors on acceleration (:class:`Priors`).
+- :mod:`.rotation_acc`: :func:`rotation_acceleration`, the acceleration that rotation itself
+  makes at a sensor away from the centre of rotation, sustained in the sensor frame, where the
+  data show one (a test with a stated false-alarm rate per window), for the caller to remove.
 - :mod:`.trust`: inputs that cannot be trusted: an axis held at its range
   (:func:`saturated_axes`), a field strength that drifts (:func:`field_drift`), no rest
   (:func:`longest_rest`).
@@ -55,6 +58,7 @@ from calibration.orientation.magnetometer import (
     fit_magnetometer,
     follow_fits,
 )
+from calibration.orientation.rotation_acc import RotationAcceleration, rotation_acceleration
 from calibration.orientation.skeleton import Priors, Skeleton, skeleton_orientation
 from calibration.orientation.trust import REST_S, Saturation, field_drift, longest_rest, saturated_axes
 from calibration.orientation.two_vector import MIN_SIN_ANGLE, triad, wahba
@@ -82,6 +86,7 @@ __all__ = [
     "MagnetometerCalibration",
     "Priors",
     "Reference",
+    "RotationAcceleration",
     "Saturation",
     "Skeleton",
     "SpanCalibration",
@@ -99,6 +104,7 @@ __all__ = [
     "orientation_errors",
     "reference",
     "reference_from_data",
+    "rotation_acceleration",
     "saturated_axes",
     "skeleton_orientation",
     "smooth_vectors",
