@@ -13,13 +13,11 @@ from simbench.experiments.validate import STEPS, run_validation
 from simbench.report.validation import write_report
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``validate`` subcommand to ``simbench``'s subparsers."""
-    val = sub.add_parser(
-        "validate",
-        help="the main job: the paper's experiments reproduced in simulation, scored; writes the report",
-        description="Reproduce O'Brien et al.'s linkage and human experiments and Fontaine et al.'s "
-        "sourceless orientation in simulation, score them against the truth and write the report.",
+def add_arguments(val: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench validate``."""
+    val.description = (
+        "Reproduce O'Brien et al.'s linkage and human experiments and Fontaine et al.'s "
+        "sourceless orientation in simulation, score them against the truth and write the report."
     )
     val.add_argument("--quick", action="store_true", help="fewer, shorter sessions (under a minute)")
     val.add_argument("--out", default="reports", metavar="DIR", help="report folder (default reports)")
