@@ -1,0 +1,131 @@
+"""Progress by work done (issue 44): a run's steps weighted by their expected cost and credited as
+their jobs end, and ``simbench validate``'s bar counted in those units."""
+
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+from simbench.cli import main
+from simbench.experiments.validate import STEPS, expected_cost
+from simbench.experiments.work import Work
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def _fail() -> None:
+    raise RuntimeError("broken job")
+
+
+def test_steps_are_credited_by_their_cost_as_their_jobs_end():
+    seen: list[float] = []
+    with ThreadPoolExecutor(1) as pool:
+        work = Work(pool, {"long": 9.0, "short": 1.0}, seen.append)
+        assert work.total == 10.0 and work.done == 0.0
+        assert list(work.map("long")(_square, [1, 2, 3])) == [1, 4, 9]
+        assert work.done == pytest.approx(9.0)  # three jobs of the long step: 3 each
+        assert seen == pytest.approx([3.0, 6.0, 9.0])
+        assert work.submit("short", _square, 4).result() == 16
+    assert work.done == pytest.approx(10.0)
+    # one job of a step of cost 1 moved the bar by 1, one of a step of cost 9 by 3: weighted, not
+    # counted (three steps' worth of jobs is not 3/4 of the way)
+    assert [b - a for a, b in zip([0.0, *seen], seen, strict=False)] == pytest.approx([3, 3, 3, 1])
+    assert [j.step for j in work.jobs] == ["long"] * 3 + ["short"]
+    assert all(j.pid == os.getpid() and j.end >= j.start and j.cpu_s >= 0 for j in work.jobs)
+
+
+def test_credit_never_goes_back_and_close_gives_the_whole_cost():
+    with ThreadPoolExecutor(1) as pool:
+        work = Work(pool, {"a": 4.0, "b": 2.0})
+        assert work.call("a", _square, 3) == 9  # 1 of 1 handed out: the whole of a
+        assert work.done == pytest.approx(4.0)
+        list(work.map("a")(_square, [1, 2, 3]))  # 3 more handed out later: a keeps its 4
+        assert work.done == pytest.approx(4.0)
+        work.close("b")
+        assert work.done == pytest.approx(work.total) == 6.0
+
+
+def test_a_failing_job_raises_where_its_result_is_asked_for_and_still_ends():
+    with ThreadPoolExecutor(1) as pool:
+        work = Work(pool, {"a": 1.0})
+        future = work.submit("a", _fail)
+        with pytest.raises(RuntimeError, match="broken job"):
+            future.result()
+    assert work.done == pytest.approx(1.0) and work.jobs == []
+
+
+def test_waiting_jobs_go_to_the_pool_critical_first_then_costliest_first():
+    gate, order = threading.Event(), []
+
+    def job(name: str) -> None:
+        if name == "blocker":
+            gate.wait(10)
+        order.append(name)
+
+    with ThreadPoolExecutor(2) as pool:  # two threads, one slot: the order is Work's, not the pool's
+        work = Work(pool, {"cheap": 1.0, "dear": 5.0, "urgent": 0.5}, slots=1, first=["urgent"])
+        blocker = work.submit("cheap", job, "blocker")  # holds the one slot
+        futures = [work.submit(step, job, step) for step in ("cheap", "dear", "urgent", "dear")]
+        gate.set()
+        for f in (blocker, *futures):
+            f.result(timeout=10)
+    assert order == ["blocker", "urgent", "dear", "dear", "cheap"]
+    with pytest.raises(ValueError, match="slots to be None or at least 1, got 0"):
+        Work(pool, {"a": 1.0}, slots=0)
+    with pytest.raises(ValueError, match="steps of first"):
+        Work(pool, {"a": 1.0}, first=["b"])
+
+
+def test_bad_costs_and_unknown_steps_are_refused():
+    with ThreadPoolExecutor(1) as pool:
+        with pytest.raises(ValueError, match=r"positive number, got \{'b': 0\.0\}"):
+            Work(pool, {"a": 1.0, "b": 0.0})
+        with pytest.raises(KeyError, match="no step 'c'"):
+            Work(pool, {"a": 1.0}).submit("c", _square, 1)
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_every_step_of_validate_and_its_report_have_a_cost(quick):
+    cost = expected_cost(quick)
+    assert list(cost) == [*STEPS, "report"]
+    assert all(c > 0 for c in cost.values())
+    # weighted: the steps' costs differ (a table of equal costs would count steps again)
+    assert max(cost.values()) > 5 * min(cost.values())
+
+
+def test_validate_bar_counts_the_work_to_its_total(tmp_path, monkeypatch):
+    """The bar's total is the run's expected cost; the run's reports move it, and the report's cost
+    is the last stretch (a run stand-in: the bar, not the experiments, is under test)."""
+    bars: list = []
+
+    class Bar:
+        def __init__(self, *, total, **kwargs):
+            self.total, self.n, self.updates = total, 0, []
+            bars.append(self)
+
+        def update(self, n):
+            self.n += n
+            self.updates.append(self.n)
+
+        def close(self):
+            pass
+
+    cost = expected_cost(True)
+    steps = sum(cost.values()) - cost["report"]
+
+    def run(*, quick, progress, physics_folder):
+        for k in range(1, 5):
+            progress(steps * k / 4)
+        raise KeyboardInterrupt  # no report to write
+
+    monkeypatch.setattr("simbench.cli.validate.tqdm", Bar)
+    monkeypatch.setattr("simbench.cli.validate.run_validation", run)
+    assert main(["validate", "--quick", "--out", str(tmp_path / "r")]) == 130
+    (bar,) = bars
+    assert bar.total == round(sum(cost.values()))
+    assert bar.updates == [round(steps * k / 4) for k in range(1, 5)]
