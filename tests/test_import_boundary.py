@@ -48,7 +48,8 @@ PACKAGE_INIT = "simbench"
 #: ``dm_control:NAME`` models), and the tables of ``Dataset.to_pandas``/``to_xarray`` (the
 #: ``export`` extra); and scipy's subpackages that one function each needs and that cost a large part
 #: of every start of the command line (``simbench --help``): signal and stats (0.6 s, stats is
-#: imported by signal), integrate. A name allows its submodules.
+#: imported by signal), integrate; and matplotlib (0.6 s), which only the reports need, where a
+#: figure is made (:func:`simbench.report.plots.new_figure`). A name allows its submodules.
 LAZY_ALLOWED = {
     "pyarrow",
     "dask",
@@ -61,6 +62,7 @@ LAZY_ALLOWED = {
     "scipy.signal",
     "scipy.stats",
     "scipy.integrate",
+    "matplotlib",
 }
 
 #: The modules that load their parts when first asked for, inside a function, by

@@ -1,5 +1,6 @@
 """The light start (issue 44): ``simbench --help`` and ``import calibration`` load no numerical
-library; a command's module, and the library it runs, are loaded when the command is named.
+library; a command's module, and the library it runs, are loaded when the command is named; and
+the library loads matplotlib only when a report draws.
 
 Each case runs in a fresh interpreter (this process has loaded everything already) and lists what
 it imported; the times themselves are measured in ``benchmarks/bench_startup.py``, not here.
@@ -60,6 +61,12 @@ def test_a_command_loads_its_own_module_not_the_others(command):
     )
     commands = {module for module, _ in COMMANDS.values()}
     assert commands & got == {COMMANDS[command][0]}
+
+
+def test_the_library_loads_no_plotting_until_a_report_draws():
+    """``simbench.api`` (every command's door) leaves matplotlib to the reports' figures."""
+    got = loaded("import simbench.api")
+    assert "simbench.report.twin" in got and not any(m.split(".")[0] == "matplotlib" for m in got)
 
 
 def test_import_calibration_loads_nothing_until_a_name_is_asked_for():
