@@ -10,7 +10,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 from simbench.cli import main
-from simbench.experiments.validate import STEPS, expected_cost
+from simbench.experiments.validate import STEPS, expected_cost, expected_jobs
 from simbench.experiments.work import Work
 
 
@@ -50,6 +50,29 @@ def test_credit_never_goes_back_and_close_gives_the_whole_cost():
         assert work.done == pytest.approx(work.total) == 6.0
 
 
+def test_expected_jobs_share_a_steps_cost_and_rank_its_jobs():
+    gate, order = threading.Event(), []
+
+    def job(name: str) -> None:
+        if name == "blocker":
+            gate.wait(10)
+        order.append(name)
+
+    with ThreadPoolExecutor(2) as pool:
+        # "many": 6 s over 6 jobs (1 s a job); "few": 4 s in 2 jobs (2 s a job): its jobs go first
+        work = Work(pool, {"many": 6.0, "few": 4.0}, slots=1, jobs={"many": 6, "few": 2})
+        blocker = work.submit("many", job, "blocker")
+        futures = [work.submit(step, job, step) for step in ("many", "few")]
+        gate.set()
+        for f in (blocker, *futures):
+            f.result(timeout=10)
+        # 2 of many's 6 expected jobs ended (the blocker and one more), 1 of few's 2
+        assert work.done == pytest.approx(6.0 * 2 / 6 + 4.0 / 2)
+    assert order == ["blocker", "few", "many"]
+    with pytest.raises(ValueError, match="at least 1 job"):
+        Work(pool, {"a": 1.0}, jobs={"a": 0})
+
+
 def test_a_failing_job_raises_where_its_result_is_asked_for_and_still_ends():
     with ThreadPoolExecutor(1) as pool:
         work = Work(pool, {"a": 1.0})
@@ -77,7 +100,7 @@ def test_waiting_jobs_go_to_the_pool_critical_first_then_costliest_first():
     assert order == ["blocker", "urgent", "dear", "dear", "cheap"]
     with pytest.raises(ValueError, match="slots to be None or at least 1, got 0"):
         Work(pool, {"a": 1.0}, slots=0)
-    with pytest.raises(ValueError, match="steps of first"):
+    with pytest.raises(ValueError, match="steps of first and jobs"):
         Work(pool, {"a": 1.0}, first=["b"])
 
 
@@ -96,6 +119,8 @@ def test_every_step_of_validate_and_its_report_have_a_cost(quick):
     assert all(c > 0 for c in cost.values())
     # weighted: the steps' costs differ (a table of equal costs would count steps again)
     assert max(cost.values()) > 5 * min(cost.values())
+    jobs = expected_jobs(quick)
+    assert list(jobs) == list(STEPS) and all(isinstance(n, int) and n >= 1 for n in jobs.values())
 
 
 def test_validate_bar_counts_the_work_to_its_total(tmp_path, monkeypatch):

@@ -73,7 +73,7 @@ from simbench.twin import BASELINE as TWIN_BASELINE
 from simbench.twin import METHODS as TWIN_METHODS
 from simbench.twin import REFERENCE as TWIN_REFERENCE
 
-__all__ = ["PAPER", "STEPS", "Plan", "expected_cost", "run_validation"]
+__all__ = ["PAPER", "STEPS", "Plan", "expected_cost", "expected_jobs", "run_validation"]
 
 #: The steps :func:`run_validation` announces through ``progress``, in order.
 STEPS = (
@@ -89,23 +89,48 @@ STEPS = (
     "joint-centre methods side by side, and O'Brien's 95 % regions",
 )
 
-#: The expected cost of each step, CPU seconds (on all processes) of a reference run, full and
-#: ``quick``, and of writing the report (``"report"``): the units of the progress bar
-#: (:class:`simbench.experiments.work.Work`) and the order the pool takes the jobs in. Measured by
-#: ``benchmarks/bench_validate.py [--quick]`` (its ``steps``: the jobs' CPU seconds; 0.1 for a step
-#: that took less), rounded; only the shares matter (the bar's rate is the machine's).
-COST_S: dict[bool, dict[str, float]] = {
+#: The expected cost of each step, CPU seconds (on all processes) of a reference run, and its number
+#: of jobs, full and ``quick``; and of writing the report (``"report"``): the units of the progress
+#: bar (:class:`simbench.experiments.work.Work`) and the order the pool takes the jobs in (the
+#: longest first). Measured by ``benchmarks/bench_validate.py [--quick]`` (its ``steps``: the jobs'
+#: CPU seconds; 0.1 for a step that took less), rounded; only the shares matter (the bar's rate is
+#: the machine's).
+COST_S: dict[bool, dict[str, tuple[float, int]]] = {
     False: dict(
         zip(
             (*STEPS, "report"),
-            (0.1, 9.4, 50.3, 1.0, 17.7, 25.9, 31.9, 21.7, 22.8, 31.5, 2.2),
+            (
+                (0.1, 1),
+                (9.4, 6),
+                (50.3, 10),
+                (1.0, 1),
+                (17.7, 2),
+                (25.9, 14),
+                (31.9, 44),
+                (21.7, 6),
+                (22.8, 4),
+                (31.5, 13),
+                (2.2, 1),
+            ),
             strict=True,
         )
     ),
     True: dict(
         zip(
             (*STEPS, "report"),
-            (0.1, 1.0, 5.3, 0.3, 9.7, 6.9, 2.8, 1.0, 9.1, 3.7, 2.1),
+            (
+                (0.1, 1),
+                (1.0, 2),
+                (5.3, 4),
+                (0.3, 1),
+                (9.7, 2),
+                (6.9, 5),
+                (2.8, 16),
+                (1.0, 2),
+                (9.1, 4),
+                (3.7, 4),
+                (2.1, 1),
+            ),
             strict=True,
         )
     ),
@@ -114,7 +139,12 @@ COST_S: dict[bool, dict[str, float]] = {
 
 def expected_cost(quick: bool) -> dict[str, float]:
     """``{step: expected CPU seconds}`` of a run, the report's (``"report"``) last."""
-    return dict(COST_S[quick])
+    return {step: cpu_s for step, (cpu_s, _) in COST_S[quick].items()}
+
+
+def expected_jobs(quick: bool) -> dict[str, int]:
+    """``{step: expected number of jobs}`` of a run (:data:`COST_S`)."""
+    return {step: jobs for step, (_, jobs) in COST_S[quick].items() if step in STEPS}
 
 
 @dataclass(frozen=True)
@@ -399,6 +429,7 @@ def run_validation(
             progress,
             slots=workers if workers > 1 else None,
             first=(STEPS[1], STEPS[2], STEPS[5], STEPS[6]),
+            jobs=expected_jobs(quick),
         )
         pair_s = 20.0 if quick else PAIR_S
         scale = work.call(STEPS[0], rigid_pair_scale, duration_s=pair_s)

@@ -2,18 +2,19 @@
 
 A step of a run (``simbench validate``'s :data:`~simbench.experiments.validate.STEPS`) hands jobs
 to a process pool (:meth:`Work.map`, :meth:`Work.submit`) or does some of its work in this process
-(:meth:`Work.call`). Each step has an expected cost (CPU seconds of a reference run); the work
-done is, over the steps, ``cost * (jobs ended / jobs handed out)``, never decreasing (a step that
-hands out more jobs later keeps what it was credited), and the whole cost when the step is
-:meth:`Work.closed <Work.close>`. A progress bar fed with it moves as the CPU is spent, so that its
+(:meth:`Work.call`). Each step has an expected cost (CPU seconds of a reference run) and an
+expected number of jobs; the work done is, over the steps, ``cost * jobs ended / max(jobs
+expected, jobs handed out)``, never decreasing, and the whole cost when the step is
+:meth:`closed <Work.close>`. A progress bar fed with it moves as the CPU is spent, so that its
 rate, and the time left it shows, mean something; counting the steps announced would show half of
 them "done" in the first second, as they are handed to the pool, and the ETA minutes off.
 
 With ``slots`` the jobs wait here and go to the pool ``slots`` at a time (its workers), in an order
 of their own rather than the order they came in: the jobs of the steps the run waits on to go on
-(``first``) before the others, then those of the costliest steps. A pool alone runs its jobs first
-come, first served: a run that hands out its independent work first, so that it fills the cores
-while the run waits, would starve the steps it waits on, and end on a tail of one long job.
+(``first``) before the others, then the longest jobs first (a step's cost over its jobs). A pool
+alone runs its jobs first come, first served: a run that hands out its independent work first, so
+that it fills the cores while the run waits, would starve the steps it waits on, and end on a tail
+of one long job.
 
 Every job's process, start and end (wall clock, s since the epoch) and CPU seconds are kept
 (:attr:`Work.jobs`): where a run's time goes, step by step and process by process.
@@ -70,10 +71,12 @@ class Work:
             in the order of ``first`` and the costs (module docstring); ``None``: every job goes
             to the pool when it is handed out.
         first: steps whose jobs go before any other's (those the run waits on).
+        jobs: ``{step: expected number of jobs}`` (1 for a step not named): a job's expected
+            cost is its step's over it, and a step's jobs are credited as fractions of it.
 
     Raises:
         ValueError: a cost that is not a positive finite number, ``slots`` below 1, a step of
-            ``first`` that has no cost.
+            ``first`` or ``jobs`` that has no cost, an expected number of jobs below 1.
     """
 
     def __init__(
@@ -84,14 +87,21 @@ class Work:
         *,
         slots: int | None = None,
         first: Collection[str] = (),
+        jobs: Mapping[str, int] | None = None,
     ) -> None:
         bad = {s: c for s, c in cost.items() if not (isinstance(c, int | float) and 0 < c < float("inf"))}
         if bad:
             raise ValueError(f"Expected every step's cost to be a positive number, got {bad}")
         if slots is not None and slots < 1:
             raise ValueError(f"Expected slots to be None or at least 1, got {slots}")
-        if set(first) - set(cost):
-            raise ValueError(f"Expected the steps of first among the costs' {list(cost)}, got {list(first)}")
+        if set(first) - set(cost) or set(jobs or {}) - set(cost):
+            raise ValueError(
+                f"Expected the steps of first and jobs among the costs' {list(cost)}, got {list(first)} "
+                f"and {list(jobs or {})}"
+            )
+        if any(n < 1 for n in (jobs or {}).values()):
+            raise ValueError(f"Expected at least 1 job for each step, got {dict(jobs or {})}")
+        self._expected = {s: (jobs or {}).get(s, 1) for s in cost}
         self._slots = slots
         self._first = frozenset(first)
         self._queue: list[tuple[tuple[int, float, int], Callable[[], None]]] = []
@@ -124,7 +134,7 @@ class Work:
             if timing is not None:
                 self.jobs.append(Job(step, *timing))
             self._ended[step] += 1
-            share = self.cost[step] * self._ended[step] / self._handed[step]
+            share = self.cost[step] * self._ended[step] / max(self._handed[step], self._expected[step])
             self._credit[step] = max(self._credit[step], share)
             done = sum(self._credit.values())
         self._report(done)
@@ -169,7 +179,7 @@ class Work:
         if self._slots is None:
             start()
             return outer
-        rank = (0 if step in self._first else 1, -self.cost[step], next(self._order))
+        rank = (0 if step in self._first else 1, -self.cost[step] / self._expected[step], next(self._order))
         with self._lock:
             heapq.heappush(self._queue, (rank, start))
         self._dispatch()
