@@ -5,7 +5,7 @@ unchanged. Arrays are ``(frames, sensors, ...)``, SI units, rotations ``R_w_s`` 
 vectors into world, quaternions are scalar-first ``(w, x, y, z)``.
 """
 
-import importlib
+import importlib as _importlib
 
 #: ``{public name: the module that defines it}``: imported when first used (PEP 562), so that
 #: ``import calibration`` (and any light submodule, such as :mod:`calibration.errors`) costs nothing
@@ -48,7 +48,7 @@ _LAZY = {
 def __getattr__(name: str) -> object:
     """A public name, imported from its module the first time it is asked for (PEP 562)."""
     if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
+        value = getattr(_importlib.import_module(_LAZY[name]), name)
         globals()[name] = value  # asked once
         return value
     raise AttributeError(f"module 'calibration' has no attribute {name!r}")

@@ -8,9 +8,11 @@ it imported; the times themselves are measured in ``benchmarks/bench_startup.py`
 
 from __future__ import annotations
 
+import importlib
 import json
 import subprocess
 import sys
+import types
 
 import pytest
 
@@ -84,3 +86,19 @@ def test_calibration_gives_its_public_names_and_only_them():
     assert dir(calibration) == sorted(calibration.__all__)
     with pytest.raises(AttributeError, match="module 'calibration' has no attribute 'nothing'"):
         _ = calibration.nothing
+
+
+@pytest.mark.parametrize("package", ["simbench", "calibration"])
+def test_no_stray_names_in_the_packages_namespace(package):
+    """A public name of the package is in its ``__all__`` or is one of its own submodules (the
+    modules the lazy loaders use are kept under private names)."""
+    module = importlib.import_module(package)
+    stray = [
+        name
+        for name, value in vars(module).items()
+        if name.isidentifier()  # pytest's assertion rewriting adds '@py_builtins' to a plugin's package
+        and not name.startswith("_")
+        and name not in module.__all__
+        and not (isinstance(value, types.ModuleType) and value.__name__ == f"{package}.{name}")
+    ]
+    assert stray == []
