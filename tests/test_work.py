@@ -3,9 +3,10 @@ their jobs end, and ``simbench validate``'s bar counted in those units."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import CancelledError, ThreadPoolExecutor
 
 import pytest
 
@@ -51,10 +52,11 @@ def test_credit_never_goes_back_and_close_gives_the_whole_cost():
 
 
 def test_expected_jobs_share_a_steps_cost_and_rank_its_jobs():
-    gate, order = threading.Event(), []
+    gate, started, order = threading.Event(), threading.Event(), []
 
     def job(name: str) -> None:
         if name == "blocker":
+            started.set()
             gate.wait(10)
         order.append(name)
 
@@ -62,6 +64,7 @@ def test_expected_jobs_share_a_steps_cost_and_rank_its_jobs():
         # "many": 6 s over 6 jobs (1 s a job); "few": 4 s in 2 jobs (2 s a job): its jobs go first
         work = Work(pool, {"many": 6.0, "few": 4.0}, slots=1, jobs={"many": 6, "few": 2})
         blocker = work.submit("many", job, "blocker")
+        assert started.wait(10)
         futures = [work.submit(step, job, step) for step in ("many", "few")]
         gate.set()
         for f in (blocker, *futures):
@@ -83,16 +86,18 @@ def test_a_failing_job_raises_where_its_result_is_asked_for_and_still_ends():
 
 
 def test_waiting_jobs_go_to_the_pool_critical_first_then_costliest_first():
-    gate, order = threading.Event(), []
+    gate, started, order = threading.Event(), threading.Event(), []
 
     def job(name: str) -> None:
         if name == "blocker":
+            started.set()
             gate.wait(10)
         order.append(name)
 
     with ThreadPoolExecutor(2) as pool:  # two threads, one slot: the order is Work's, not the pool's
         work = Work(pool, {"cheap": 1.0, "dear": 5.0, "urgent": 0.5}, slots=1, first=["urgent"])
         blocker = work.submit("cheap", job, "blocker")  # holds the one slot
+        assert started.wait(10)
         futures = [work.submit(step, job, step) for step in ("cheap", "dear", "urgent", "dear")]
         gate.set()
         for f in (blocker, *futures):
@@ -102,6 +107,31 @@ def test_waiting_jobs_go_to_the_pool_critical_first_then_costliest_first():
         Work(pool, {"a": 1.0}, slots=0)
     with pytest.raises(ValueError, match="steps of first and jobs"):
         Work(pool, {"a": 1.0}, first=["b"])
+
+
+def test_a_stopped_pool_ends_every_waiting_job_so_nothing_hangs():
+    """An interrupt stops the pool (cancelling what it had not started): the jobs it held and those
+    still waiting here all end, cancelled or failed, so that the threads waiting on them end too."""
+    gate, started = threading.Event(), threading.Event()
+
+    def job() -> None:
+        started.set()
+        gate.wait(10)
+
+    pool = ThreadPoolExecutor(1)
+    work = Work(pool, {"a": 1.0}, slots=2)
+    futures = [work.submit("a", job) for _ in range(5)]  # up to 2 in the pool, the others here
+    assert started.wait(10)
+    pool.shutdown(wait=False, cancel_futures=True)  # the one running goes on; the other is cancelled
+    gate.set()
+    ends = []
+    for f in futures:
+        with contextlib.suppress(CancelledError, RuntimeError):
+            f.result(timeout=10)  # raises TimeoutError if the job were left waiting
+        ends.append("cancelled" if f.cancelled() else type(f.exception()).__name__)
+    # the one the pool ran ends, the others were cancelled or found no pool to go to
+    assert ends[0] == "NoneType" and set(ends[1:]) <= {"cancelled", "RuntimeError"}
+    assert work.done == pytest.approx(1.0)
 
 
 def test_bad_costs_and_unknown_steps_are_refused():

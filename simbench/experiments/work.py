@@ -104,7 +104,7 @@ class Work:
         self._expected = {s: (jobs or {}).get(s, 1) for s in cost}
         self._slots = slots
         self._first = frozenset(first)
-        self._queue: list[tuple[tuple[int, float, int], Callable[[], None]]] = []
+        self._queue: list[tuple[tuple[int, float, int], Callable[[], bool]]] = []
         self._order = itertools.count()
         self._running = 0
         self._pool = pool
@@ -112,6 +112,8 @@ class Work:
         self.total = float(sum(self.cost.values()))
         self._report = report or (lambda _: None)
         self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)  # a slot freed or a job queued
+        self._dispatcher: threading.Thread | None = None
         self._handed = dict.fromkeys(self.cost, 0)
         self._ended = dict.fromkeys(self.cost, 0)
         self._credit = dict.fromkeys(self.cost, 0.0)
@@ -156,9 +158,13 @@ class Work:
 
         def ended(f: Future) -> None:
             if self._slots is not None:
-                with self._lock:
+                with self._wake:
                     self._running -= 1
-                self._dispatch()
+                    self._wake.notify()
+            if f.cancelled():  # the pool was stopped (an interrupt) before the job started
+                self._end(step, None)
+                outer.cancel()
+                return
             exc = f.exception()
             if exc is not None:
                 self._end(step, None)
@@ -168,32 +174,46 @@ class Work:
             self._end(step, timing)
             outer.set_result(out)
 
-        def start() -> None:
+        def start() -> bool:
             try:
                 inner = self._pool.submit(_timed, fn, *args, **kwargs)
             except RuntimeError as exc:  # the pool was shut down (the run is being stopped)
+                self._end(step, None)
                 outer.set_exception(exc)
-                return
+                return False
             inner.add_done_callback(ended)
+            return True
 
         if self._slots is None:
             start()
             return outer
         rank = (0 if step in self._first else 1, -self.cost[step] / self._expected[step], next(self._order))
-        with self._lock:
+        with self._wake:
             heapq.heappush(self._queue, (rank, start))
-        self._dispatch()
+            if self._dispatcher is None:
+                self._dispatcher = threading.Thread(target=self._dispatch, name="work-dispatch", daemon=True)
+                self._dispatcher.start()
+            self._wake.notify()
         return outer
 
     def _dispatch(self) -> None:
-        """Hand the waiting jobs to the pool, first in order, while it has a free slot."""
+        """The dispatcher thread: hand the waiting jobs to the pool, first in order, while it has a
+        free slot; end when none has been waiting for a second (the next job starts another).
+
+        A thread of its own, not the callbacks of the jobs that end: a pool calls those with its
+        own lock held when it is shut down (cancelling what it had not started), and handing it a
+        job there would wait on that lock for ever."""
         while True:
-            with self._lock:
-                if not self._queue or self._running >= (self._slots or 0):
-                    return
+            with self._wake:
+                while not (self._queue and self._running < (self._slots or 0)):
+                    if not self._wake.wait(timeout=1.0) and not self._queue:
+                        self._dispatcher = None
+                        return
                 _, start = heapq.heappop(self._queue)
                 self._running += 1
-            start()
+            if not start():  # no pool to go to: the slot is free again for the next (to fail too)
+                with self._wake:
+                    self._running -= 1
 
     def map(self, step: str) -> Callable[..., Iterator[Any]]:
         """An executor's ``map`` whose calls are jobs of ``step``: every call handed out at once,
