@@ -422,6 +422,11 @@ def run_validation(
         # trials, which Tables 2-4's causes and the decisions need; the linkage sets and the slip
         # trials, which the decisions need; the tables' sessions), then the costliest steps' jobs:
         # the rest of the work fills the cores while this process works on what came back
+        if workers > 1:
+            # the workers are forked now, while this thread is the only one at work: forked later
+            # (on the first job the dispatcher hands out) beside threads running MuJoCo or BLAS, a
+            # worker can inherit a lock held mid-call and die (BrokenProcessPool under xdist)
+            pool.submit(int).result()
         cost = expected_cost(quick)
         work = Work(
             pool,
