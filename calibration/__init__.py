@@ -5,60 +5,57 @@ unchanged. Arrays are ``(frames, sensors, ...)``, SI units, rotations ``R_w_s`` 
 vectors into world, quaternions are scalar-first ``(w, x, y, z)``.
 """
 
-from calibration.errors import CalibrationError, CalibrationInputError
-from calibration.hierarchy import (
-    HIERARCHY_METHODS,
-    Hierarchy,
-    hierarchy_from_parents,
-    loop_candidates,
-    misfit_weights,
-    spanning_tree,
-)
-from calibration.joint import SINGLE_AXIS_RATIO, JointFit, fit_joint, joint_residual_vectors
-from calibration.pair_noise import pair_noise_variance
-from calibration.pairs import (
-    PairStatistics,
-    frame_residuals,
-    pair_residual_matrix,
-    pair_statistics,
-    solve_pairs,
-)
-from calibration.pipeline import Calibration, Joint, calibrate
-from calibration.replay import remove_residual
-from calibration.scale import ScaleEstimate, unit_scale
-from calibration.skeleton import SegmentLength, SensorPlacement, segment_lengths, sensor_placements
-from calibration.slip import SlipEvent, SlipReport, detect_slip
+import importlib as _importlib
 
-__all__ = [
-    "HIERARCHY_METHODS",
-    "SINGLE_AXIS_RATIO",
-    "Calibration",
-    "CalibrationError",
-    "CalibrationInputError",
-    "Hierarchy",
-    "Joint",
-    "JointFit",
-    "PairStatistics",
-    "ScaleEstimate",
-    "SegmentLength",
-    "SensorPlacement",
-    "SlipEvent",
-    "SlipReport",
-    "calibrate",
-    "detect_slip",
-    "fit_joint",
-    "frame_residuals",
-    "hierarchy_from_parents",
-    "joint_residual_vectors",
-    "loop_candidates",
-    "misfit_weights",
-    "pair_noise_variance",
-    "pair_residual_matrix",
-    "pair_statistics",
-    "remove_residual",
-    "segment_lengths",
-    "sensor_placements",
-    "solve_pairs",
-    "spanning_tree",
-    "unit_scale",
-]
+#: ``{public name: the module that defines it}``: imported when first used (PEP 562), so that
+#: ``import calibration`` (and any light submodule, such as :mod:`calibration.errors`) costs nothing
+#: until something is asked of it: the command line's ``--help`` reads no numpy or scipy.
+_LAZY = {
+    "CalibrationError": "calibration.errors",
+    "CalibrationInputError": "calibration.errors",
+    "HIERARCHY_METHODS": "calibration.hierarchy",
+    "Hierarchy": "calibration.hierarchy",
+    "hierarchy_from_parents": "calibration.hierarchy",
+    "loop_candidates": "calibration.hierarchy",
+    "misfit_weights": "calibration.hierarchy",
+    "spanning_tree": "calibration.hierarchy",
+    "SINGLE_AXIS_RATIO": "calibration.joint",
+    "JointFit": "calibration.joint",
+    "fit_joint": "calibration.joint",
+    "joint_residual_vectors": "calibration.joint",
+    "pair_noise_variance": "calibration.pair_noise",
+    "PairStatistics": "calibration.pairs",
+    "frame_residuals": "calibration.pairs",
+    "pair_residual_matrix": "calibration.pairs",
+    "pair_statistics": "calibration.pairs",
+    "solve_pairs": "calibration.pairs",
+    "Calibration": "calibration.pipeline",
+    "Joint": "calibration.pipeline",
+    "calibrate": "calibration.pipeline",
+    "remove_residual": "calibration.replay",
+    "ScaleEstimate": "calibration.scale",
+    "unit_scale": "calibration.scale",
+    "SegmentLength": "calibration.skeleton",
+    "SensorPlacement": "calibration.skeleton",
+    "segment_lengths": "calibration.skeleton",
+    "sensor_placements": "calibration.skeleton",
+    "SlipEvent": "calibration.slip",
+    "SlipReport": "calibration.slip",
+    "detect_slip": "calibration.slip",
+}
+
+
+def __getattr__(name: str) -> object:
+    """A public name, imported from its module the first time it is asked for (PEP 562)."""
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value  # asked once
+        return value
+    raise AttributeError(f"module 'calibration' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+__all__ = sorted(_LAZY)

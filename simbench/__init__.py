@@ -18,10 +18,10 @@ Whatever the command line does goes through :mod:`simbench.api`, so a Python use
 The layers and the import rule between them are in ARCHITECTURE.md.
 """
 
-import importlib
+import importlib as _importlib
 import os
-import sys
-import types
+import sys as _sys
+import types as _types
 
 # MuJoCo picks its OpenGL backend when it is first imported: without a display, offscreen EGL
 # (Mesa) renders the report's pictures; a caller's own MUJOCO_GL choice (e.g. osmesa) wins.
@@ -89,24 +89,24 @@ _LAZY = {
 _SHADOWING = frozenset({"score", "orient"})
 
 
-class _Package(types.ModuleType):
+class _Package(_types.ModuleType):
     def __setattr__(self, name: str, value: object) -> None:
-        if name in _SHADOWING and isinstance(value, types.ModuleType):
+        if name in _SHADOWING and isinstance(value, _types.ModuleType):
             return  # the import system naming the submodule: the function keeps the name
         super().__setattr__(name, value)
 
 
-sys.modules[__name__].__class__ = _Package
+_sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str) -> object:
     """A public name, imported from its module the first time it is asked for (PEP 562)."""
     if name in _LAZY:
-        value = getattr(importlib.import_module(_LAZY[name]), name)
+        value = getattr(_importlib.import_module(_LAZY[name]), name)
         globals()[name] = value  # asked once
         return value
     if name == "estimators":
-        return importlib.import_module("simbench.estimators")
+        return _importlib.import_module("simbench.estimators")
     raise AttributeError(f"module 'simbench' has no attribute {name!r}")
 
 

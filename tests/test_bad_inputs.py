@@ -104,8 +104,7 @@ def test_internal_errors_are_one_line_and_debug_shows_them(capsys, monkeypatch):
 
 def _with_func(parser, command, func):
     """The parser with ``command``'s function replaced."""
-    sub = next(a for a in parser._actions if a.dest == "command")
-    sub.choices[command].set_defaults(func=func)
+    cli.command_parser(parser, command).set_defaults(func=func)
     return parser
 
 

@@ -17,10 +17,8 @@ from simbench.api import (
     estimator_names,
     preset_names,
 )
-from simbench.cli import build_parser
+from simbench.cli import COMMANDS, build_parser
 from simbench.cli.help_examples import EXAMPLES
-
-COMMANDS = tuple(build_parser()._subparsers._group_actions[0].choices)
 
 
 def _help(monkeypatch, *argv: str) -> str:
@@ -28,14 +26,14 @@ def _help(monkeypatch, *argv: str) -> str:
     monkeypatch.setenv("COLUMNS", "2000")
     out = io.StringIO()
     with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
-        build_parser().parse_args([*argv, "--help"])
+        build_parser().parse_args([*argv, "--help"])  # the command's options added as it is named
     return out.getvalue()
 
 
 @pytest.mark.parametrize("command", COMMANDS)
 def test_every_command_has_a_description_and_examples_that_parse(command, monkeypatch):
     text = _help(monkeypatch, command)
-    parser = build_parser()._subparsers._group_actions[0].choices[command]
+    parser = build_parser(COMMANDS)._subparsers._group_actions[0].choices[command]
     assert parser.description and len(parser.description) > 20, command
     assert "\nexamples:\n  simbench " + command in text
     assert EXAMPLES.get(command)
@@ -46,7 +44,7 @@ def test_every_command_has_a_description_and_examples_that_parse(command, monkey
 
 
 def test_every_option_has_help(monkeypatch):
-    for command, parser in build_parser()._subparsers._group_actions[0].choices.items():
+    for command, parser in build_parser(COMMANDS)._subparsers._group_actions[0].choices.items():
         for action in parser._actions:
             if action.dest != "help":
                 assert action.help, f"simbench {command} {'/'.join(action.option_strings) or action.dest}"

@@ -16,6 +16,7 @@ import pytest
 
 import calibration
 import simbench
+from simbench import cli
 
 ROOT = Path(simbench.__file__).resolve().parent.parent
 
@@ -47,7 +48,8 @@ PACKAGE_INIT = "simbench"
 #: ``dm_control:NAME`` models), and the tables of ``Dataset.to_pandas``/``to_xarray`` (the
 #: ``export`` extra); and scipy's subpackages that one function each needs and that cost a large part
 #: of every start of the command line (``simbench --help``): signal and stats (0.6 s, stats is
-#: imported by signal), integrate. A name allows its submodules.
+#: imported by signal), integrate; and matplotlib (0.6 s), which only the reports need, where a
+#: figure is made (:func:`simbench.report.plots.new_figure`). A name allows its submodules.
 LAZY_ALLOWED = {
     "pyarrow",
     "dask",
@@ -60,7 +62,15 @@ LAZY_ALLOWED = {
     "scipy.signal",
     "scipy.stats",
     "scipy.integrate",
+    "matplotlib",
 }
+
+#: The modules that load their parts when first asked for, inside a function, by
+#: ``importlib.import_module`` (PEP 562; the command table): the packages' public names, the command
+#: line's commands and the library a command runs. Such an import, when it names its module, is
+#: checked against the layers as any other (:func:`imports` reads it);
+#: ``test_lazy_tables_name_their_own_layers`` checks the tables they read names from.
+LAZY_LOADERS = {"simbench", "simbench.cli", "calibration"}
 
 FORBIDDEN_IN_CALIBRATION = {"mujoco", "dm_control", "simbench"}
 
@@ -102,9 +112,14 @@ def imports(path: Path) -> list[tuple[str, int, bool]]:
                     out.extend((f"simbench.{alias.name}", child.lineno, in_function) for alias in child.names)
                 else:
                     out.append((child.module, child.lineno, in_function))
-            elif isinstance(child, ast.Call) and getattr(child.func, "id", None) == "__import__":
+            elif isinstance(child, ast.Call) and (
+                getattr(child.func, "id", None) in ("__import__", "import_module")
+                or getattr(child.func, "attr", None) == "import_module"
+            ):
                 out.extend(
-                    (a.value, child.lineno, in_function) for a in child.args if isinstance(a, ast.Constant)
+                    (a.value, child.lineno, in_function)
+                    for a in child.args[:1]
+                    if isinstance(a, ast.Constant) and isinstance(a.value, str)
                 )
             visit(child, inner)
 
@@ -121,7 +136,8 @@ def violations(path: Path) -> list[str]:
         where = f"{path.relative_to(ROOT)}:{line}"
         if me.split(".")[0] == "calibration" and root in FORBIDDEN_IN_CALIBRATION:
             problems.append(f"{where}: calibration imports {target}")
-        if in_function and not any(target == a or target.startswith(a + ".") for a in LAZY_ALLOWED):
+        heavy = any(target == a or target.startswith(a + ".") for a in LAZY_ALLOWED)
+        if in_function and not heavy and me not in LAZY_LOADERS:
             problems.append(f"{where}: function-local import of {target} (not an optional heavy dependency)")
         their_layer = layer_of(target)
         if me != PACKAGE_INIT and their_layer is not None and my_layer is not None and their_layer > my_layer:
@@ -172,6 +188,33 @@ def test_checker_rejects_local_and_forbidden_imports(tmp_path, monkeypatch):
     assert violations(up) == [
         "simbench/score.py:1: simbench.score imports the package root (import the module that defines it)"
     ]
+
+
+def test_checker_reads_import_module_and_allows_it_lazily_only_in_loaders(tmp_path, monkeypatch):
+    monkeypatch.setattr(f"{__name__}.ROOT", tmp_path)
+    probe = write(
+        tmp_path,
+        "simbench/io/probe.py",
+        "import importlib\n\n\ndef f():\n    return importlib.import_module('simbench.api')\n",
+    )
+    assert violations(probe) == [
+        "simbench/io/probe.py:5: function-local import of simbench.api (not an optional heavy dependency)",
+        "simbench/io/probe.py:5: simbench.io.probe (layer 2) imports simbench.api (layer 7)",
+    ]
+    loader = write(
+        tmp_path,
+        "simbench/cli/__init__.py",
+        "import importlib\n\n\ndef f():\n    importlib.import_module('json')\n",
+    )
+    assert violations(loader) == []
+
+
+def test_lazy_tables_name_their_own_layers():
+    """What the loaders import by a name from a table: the command line its own modules, the
+    calibration core its own (``simbench``'s init may import every layer)."""
+    assert all(layer_of(module) == LAYERS["simbench.cli"] for module, _ in cli.COMMANDS.values())
+    assert all(module.startswith("calibration.") for module in calibration._LAZY.values())
+    assert set(calibration._LAZY) == set(calibration.__all__)
 
 
 def test_calibration_package_is_importable_alone():

@@ -8,69 +8,121 @@ ends with exit status 130. A traceback is shown only with ``--debug``.
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import signal
 import sys
 import warnings
-from collections.abc import Sequence
+import weakref
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from types import ModuleType
 
-from simbench.api import one_blas_thread, output_set
-from simbench.cli import (
-    baseline,
-    bench,
-    calibrate,
-    export,
-    orient,
-    replay,
-    report,
-    scale,
-    simulate,
-    starter,
-    sweep,
-    twin,
-    validate,
-)
 from simbench.cli.help_examples import epilog
 from simbench.errors import CalibrationError, InputError
 from simbench.versions import __version__
 
-#: The subcommands in the order ``simbench --help`` lists them; each module adds its parser.
-COMMANDS = (
-    calibrate,
-    replay,
-    scale,
-    simulate,
-    export,
-    orient,
-    twin,
-    validate,
-    report,
-    baseline,
-    sweep,
-    bench,
-    starter,
-)
+#: The subcommands in the order ``simbench --help`` lists them: ``{command: (module, summary)}``.
+#: A command's module adds its options (``add_arguments(parser)``) and runs it; it is imported only
+#: when the command is named (:func:`command_parser`), so that ``simbench --help`` reads no module
+#: of the library, and ``simbench CMD`` only the one it runs (issue 44: the light start).
+COMMANDS: dict[str, tuple[str, str]] = {
+    "calibrate": (
+        "simbench.cli.calibrate",
+        "joint centres, hierarchy, limb lengths and sensor offsets from sensor poses",
+    ),
+    "replay": (
+        "simbench.cli.replay",
+        "feed a recorded or simulated session through the live (streaming) calibration",
+    ),
+    "scale": ("simbench.cli.scale", "unit scale factor of a capture system from two rigidly mounted sensors"),
+    "simulate": ("simbench.cli.simulate", "a physics-simulated capture session with exact ground truth"),
+    "export": (
+        "simbench.cli.export",
+        "a dataset into TRC, C3D, OpenSense .sto, IMU CSV, MJCF and .osim files",
+    ),
+    "orient": ("simbench.cli.orient", "sensor orientations from accelerometer and magnetometer (sourceless)"),
+    "twin": (
+        "simbench.cli.twin",
+        "a real IMU recording's digital twin: its readings simulated from the optical pose",
+    ),
+    "validate": (
+        "simbench.cli.validate",
+        "the main job: the paper's experiments reproduced in simulation, scored; writes the report",
+    ),
+    "report": ("simbench.cli.report", "the report of one dataset (scored against its truth when it has one)"),
+    "baseline": (
+        "simbench.cli.baseline",
+        "accuracy regression check against reports/baseline.json (or --update it)",
+    ),
+    "sweep": ("simbench.cli.sweep", "a study of seeded trials (noise, slip, placement...), local or on Dask"),
+    "bench": (
+        "simbench.cli.bench",
+        "the benchmark suite: every built-in estimator and yours, a scorecard with significance",
+    ),
+    "examples": (
+        "simbench.cli.starter",
+        "write the example recordings, studies, estimators and baseline into a folder",
+    ),
+}
+
+#: The subparsers whose options their module has added (each is filled once).
+_FILLED: weakref.WeakSet[argparse.ArgumentParser] = weakref.WeakSet()
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``simbench`` command."""
+def command_module(command: str) -> ModuleType:
+    """The module of one of :data:`COMMANDS`, imported now if it was not."""
+    return importlib.import_module(COMMANDS[command][0])
+
+
+class _Commands(argparse._SubParsersAction):
+    """argparse's subcommands, each one's options added by its module when it is named."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        if values and values[0] in self._name_parser_map:
+            _fill(values[0], self._name_parser_map[values[0]])
+        super().__call__(parser, namespace, values, option_string)
+
+
+def _fill(command: str, parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """``parser`` with the options of ``command``, its description and its examples."""
+    if parser not in _FILLED:
+        command_module(command).add_arguments(parser)
+        if not parser.description:  # the one-line summary, as the command list gives it
+            parser.description = COMMANDS[command][1].capitalize() + "."
+        parser.epilog = epilog(command)
+        _FILLED.add(parser)
+    return parser
+
+
+def build_parser(commands: Iterable[str] = ()) -> argparse.ArgumentParser:
+    """The argument parser of the ``simbench`` command. The options of the ``commands`` named are
+    added now (``COMMANDS`` for all, as the tests that read every option want); any other
+    command's when the command line names it."""
     parser = argparse.ArgumentParser(
         prog="simbench",
         description="Physics-simulation validation testbed for motion-capture skeleton calibration.",
     )
     parser.add_argument("--version", action="version", version=f"simbench {__version__}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of any error")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in COMMANDS:
-        command.add_parser(sub)
-    summaries = {action.dest: action.help for action in sub._choices_actions}
-    for name, command_parser in sub.choices.items():
-        if not command_parser.description:  # the one-line summary, as the command list gives it
-            command_parser.description = (summaries.get(name) or "").capitalize() + "."
-        command_parser.epilog = epilog(name)
-        command_parser.formatter_class = _Formatter
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", action=_Commands)
+    for name, (_module, summary) in COMMANDS.items():
+        sub.add_parser(name, help=summary, formatter_class=_Formatter)
+    for name in commands:
+        command_parser(parser, name)
     return parser
+
+
+def command_parser(parser: argparse.ArgumentParser, command: str) -> argparse.ArgumentParser:
+    """The subparser of ``command`` in ``parser`` (:func:`build_parser`'s), its options added.
+
+    Raises:
+        KeyError: ``command`` is not one of :data:`COMMANDS`.
+    """
+    sub = next(a for a in parser._actions if isinstance(a, _Commands))
+    if command not in COMMANDS:
+        raise KeyError(f"no command {command!r}: expected one of {', '.join(COMMANDS)}")
+    return _fill(command, sub.choices[command])
 
 
 class _Formatter(argparse.HelpFormatter):
@@ -187,13 +239,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         # where BLAS's threads cost more than they give (1M x 32 poses from HDF5: 4.5 s on one
         # thread, 7.2 s on two; benchmarks/results/calibration*.json)
         if args.command == "simulate" and args.output is None:
-            args.output = simulate.default_output(args)
+            args.output = command_module("simulate").default_output(args)
         check_outputs(args)
-        with one_blas_thread(), warnings.catch_warnings():
+        api = importlib.import_module("simbench.api")  # the library: loaded once a command runs
+        with api.one_blas_thread(), warnings.catch_warnings():
             if not args.debug:  # one line a note, as the errors; --debug keeps Python's form
                 warnings.showwarning = _note
             if args.command in OUTPUT_SETS:
-                with output_set():
+                with api.output_set():
                     return int(args.func(args))
             return int(args.func(args))
     except Terminated:
@@ -223,4 +276,4 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(sig, handler)
 
 
-__all__ = ["build_parser", "main"]
+__all__ = ["COMMANDS", "build_parser", "command_module", "command_parser", "main"]

@@ -20,14 +20,12 @@ from simbench.experiments.baseline import (
 )
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``baseline`` subcommand to ``simbench``'s subparsers."""
-    bas = sub.add_parser(
-        "baseline",
-        help="accuracy regression check against reports/baseline.json (or --update it)",
-        description="Recompute fixed seeded scenarios' accuracy figures and compare them with the accepted "
+def add_arguments(bas: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench baseline``."""
+    bas.description = (
+        "Recompute fixed seeded scenarios' accuracy figures and compare them with the accepted "
         "ones (exit 1 if any got worse than the tolerance), or --update them. simbench's own scenarios by "
-        "default; --scenarios FILE runs yours, with your estimators (joint:SPEC, orientation:SPEC).",
+        "default; --scenarios FILE runs yours, with your estimators (joint:SPEC, orientation:SPEC)."
     )
     bas.add_argument(
         "--scenarios",

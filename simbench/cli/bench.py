@@ -17,12 +17,8 @@ from simbench.experiments.bench import KIND_CHOICES, check_out, run_bench, write
 from simbench.experiments.sweep import dask_executor
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``bench`` subcommand to ``simbench``'s subparsers."""
-    b = sub.add_parser(
-        "bench",
-        help="the benchmark suite: every built-in estimator and yours, a scorecard with significance",
-    )
+def add_arguments(b: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench bench``."""
     b.add_argument(
         "--estimator",
         action="append",

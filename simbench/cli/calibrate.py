@@ -37,18 +37,16 @@ DROP_NOISY_FRAMES_HELP = (
 )
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``calibrate`` subcommand to ``simbench``'s subparsers; O'Brien's options take their
+def add_arguments(cal: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench calibrate``; O'Brien's options take their
     defaults and choices from the estimator registry (``obrien``, ``obrien-robust``)."""
     obrien = resolve_estimator(DEFAULT_JOINTS)
     hierarchy_method = obrien.param("hierarchy_method")
     single_axis_ratio = obrien.param("single_axis_ratio").default
     losses = resolve_estimator("obrien-robust").param("robust").choices or ()
-    cal = sub.add_parser(
-        "calibrate",
-        help="joint centres, hierarchy, limb lengths and sensor offsets from sensor poses",
-        description="Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
-        "6-DoF sensor poses (O'Brien et al. 2000).",
+    cal.description = (
+        "Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
+        "6-DoF sensor poses (O'Brien et al. 2000)."
     )
     cal.add_argument("input", help=f"the poses: {pose_inputs_text()}")
     cal.add_argument(
@@ -304,9 +302,9 @@ def _other_method(args: argparse.Namespace, est: Estimator) -> int:
 
 def parser_defaults() -> dict:
     """The defaults of ``calibrate``'s options, by argparse dest."""
-    sub = argparse.ArgumentParser().add_subparsers()
-    add_parser(sub)
-    return vars(sub.choices["calibrate"].parse_args(["input"]))
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return vars(parser.parse_args(["input"]))
 
 
 def _follow(args: argparse.Namespace) -> int:

@@ -9,17 +9,15 @@ from simbench.errors import InputError
 from simbench.units import LENGTH_UNITS
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``export`` subcommand to ``simbench``'s subparsers."""
-    exp = sub.add_parser(
-        "export",
-        help="a dataset into TRC, C3D, OpenSense .sto, IMU CSV, MJCF and .osim files",
-        description="Write a simbench dataset (.h5), or a real recording of poses, into the files other "
+def add_arguments(exp: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench export``."""
+    exp.description = (
+        "Write a simbench dataset (.h5), or a real recording of poses, into the files other "
         "tools read: markers (TRC, "
         "C3D), sensor orientations in OpenSense's .sto layout, raw accelerometer, gyroscope and "
         "magnetometer readings (CSV), the skeleton of a calibration or of the truth (MJCF, OpenSim .osim). "
         "Every "
-        "output is checked before the first file is written; each is written atomically.",
+        "output is checked before the first file is written; each is written atomically."
     )
     exp.add_argument(
         "dataset",

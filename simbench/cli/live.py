@@ -38,13 +38,11 @@ from simbench.errors import InputError
 PRINT: Callable[..., None] = functools.partial(print, flush=True)
 
 
-def add_replay_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``replay`` subcommand to ``simbench``'s subparsers."""
-    rep = sub.add_parser(
-        "replay",
-        help="feed a recorded or simulated session through the live (streaming) calibration",
-        description="Replay a pose file (dataset .h5 or pose CSV) frame by frame through the "
-        "incremental calibration, printing a refreshing table and slip alerts as they are raised.",
+def add_replay_arguments(rep: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench replay``."""
+    rep.description = (
+        "Replay a pose file (dataset .h5 or pose CSV) frame by frame through the "
+        "incremental calibration, printing a refreshing table and slip alerts as they are raised."
     )
     rep.add_argument("input", help=f"the poses: {pose_inputs_text(without=('wide',))}")
     rep.add_argument(

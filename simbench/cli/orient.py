@@ -21,15 +21,13 @@ from simbench.cli.types import positive_float
 from simbench.errors import CalibrationInputError, InputError
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``orient`` subcommand to ``simbench``'s subparsers."""
+def add_arguments(ori: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench orient``."""
     lone_speed = resolve_estimator("skeleton").param("lone_speed_m_per_s").default
-    ori = sub.add_parser(
-        "orient",
-        help="sensor orientations from accelerometer and magnetometer (sourceless)",
-        description="Estimate sensor orientations from accelerometer and magnetometer readings; with a "
+    ori.description = (
+        "Estimate sensor orientations from accelerometer and magnetometer readings; with a "
         "reference in the input, print BROAD's error figures. The default method estimates every sensor "
-        "over the whole recording at once, on the skeleton of --skeleton when given.",
+        "over the whole recording at once, on the skeleton of --skeleton when given."
     )
     ori.add_argument("input", help="a simbench dataset (.h5) or a BROAD trial (.hdf5)")
     ori.add_argument(

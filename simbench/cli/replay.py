@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import argparse
 
-from simbench.cli.live import add_replay_parser
+from simbench.cli.live import add_replay_arguments
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``replay`` subcommand to ``simbench``'s subparsers."""
-    add_replay_parser(sub)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench replay``."""
+    add_replay_arguments(parser)

@@ -13,11 +13,8 @@ from simbench.report.dataset import dataset_report
 from simbench.units import LENGTH_UNITS
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``report`` subcommand to ``simbench``'s subparsers."""
-    rep = sub.add_parser(
-        "report", help="the report of one dataset (scored against its truth when it has one)"
-    )
+def add_arguments(rep: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench report``."""
     rep.add_argument("dataset", help=f"the recording: {pose_inputs_text()}")
     rep.add_argument(
         "--units",

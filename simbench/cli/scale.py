@@ -10,13 +10,11 @@ from simbench.errors import CalibrationError, InputError
 from simbench.units import LENGTH_UNITS, metres_per_unit
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``scale`` subcommand to ``simbench``'s subparsers."""
-    scale = sub.add_parser(
-        "scale",
-        help="unit scale factor of a capture system from two rigidly mounted sensors",
-        description="Estimate the unit scale factor of a capture system from two sensors mounted "
-        "rigidly a known distance apart (O'Brien et al. 2000, section 4).",
+def add_arguments(scale: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench scale``."""
+    scale.description = (
+        "Estimate the unit scale factor of a capture system from two sensors mounted "
+        "rigidly a known distance apart (O'Brien et al. 2000, section 4)."
     )
     scale.add_argument("input", help=f"the poses: {pose_inputs_text(without=('wide',))}")
     scale.add_argument("--sensors", nargs=2, required=True, metavar=("A", "B"), help="the two sensors")

@@ -22,13 +22,11 @@ from simbench.errors import InputError
 from simbench.units import BVH_LENGTH_UNITS
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``simulate`` subcommand to ``simbench``'s subparsers."""
-    sim = sub.add_parser(
-        "simulate",
-        help="a physics-simulated capture session with exact ground truth",
-        description="Move a MuJoCo model through a capture session by physics and record ideal sensor "
-        "data with exact ground truth.",
+def add_arguments(sim: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench simulate``."""
+    sim.description = (
+        "Move a MuJoCo model through a capture session by physics and record ideal sensor "
+        "data with exact ground truth."
     )
     sim.add_argument(
         "--model",

@@ -8,14 +8,12 @@ import argparse
 from simbench.api import write_examples
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``examples`` subcommand to ``simbench``'s subparsers."""
-    ex = sub.add_parser(
-        "examples",
-        help="write the example recordings, studies, estimators and baseline into a folder",
-        description="Write the files the README's steps use (a pose recording and its truth, studies, a "
+def add_arguments(ex: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench examples``."""
+    ex.description = (
+        "Write the files the README's steps use (a pose recording and its truth, studies, a "
         "cluster spec, two example estimators, the accepted baseline) into DIR, laid out as in the "
-        "repository: examples/, studies/, reports/. Run the steps from DIR.",
+        "repository: examples/, studies/, reports/. Run the steps from DIR."
     )
     ex.add_argument("folder", metavar="DIR", help="where to write them (made if missing)")
     ex.add_argument("--force", action="store_true", help="replace files of the same names already there")

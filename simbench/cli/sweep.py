@@ -17,11 +17,8 @@ from simbench.experiments.sweep import check_scheduler, dask_executor, dask_secu
 from simbench.report.study import plot_study, write_summary
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``sweep`` subcommand to ``simbench``'s subparsers."""
-    swp = sub.add_parser(
-        "sweep", help="a study of seeded trials (noise, slip, placement...), local or on Dask"
-    )
+def add_arguments(swp: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench sweep``."""
     swp.add_argument("study", help="the study TOML (see studies/ and simbench/experiments/study.py)")
     swp.add_argument(
         "--workers", type=positive_int, default=os.cpu_count() or 1, help="local worker processes"

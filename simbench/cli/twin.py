@@ -34,23 +34,17 @@ def _window(text: str) -> tuple[float, float]:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("--window: ")) from None
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``twin`` subcommand to ``simbench``'s subparsers."""
-    p = sub.add_parser(
-        "twin",
-        help="a real IMU recording's digital twin: its readings simulated from the optical pose",
-        description=textwrap.fill(
-            "For a BROAD-layout trial (IMU readings beside the optical pose of the housing, opt_pos "
-            "and opt_quat), simulate the IMU's readings from the pose, identify what the real sensor adds "
-            "(accelerometer and gyroscope bias and noise from the still phases, magnetometer hard and soft "
-            "iron, the local field and its gradient, each sensor's time offset against the optical clock, "
-            "the axis misalignment, the accelerometer's lever arm), compare real and twin sample by sample "
-            "over the motion phase (R^2, rms, the difference's spectrum), and score the orientation methods "
-            f"({', '.join(TWIN_METHODS)}) on the real recording and on the twin.",
-            width=96,
-        ),
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench twin``."""
+    p.description = textwrap.fill(
+        "For a BROAD-layout trial (IMU readings beside the optical pose of the housing, opt_pos "
+        "and opt_quat), simulate the IMU's readings from the pose, identify what the real sensor adds "
+        "(accelerometer and gyroscope bias and noise from the still phases, magnetometer hard and soft "
+        "iron, the local field and its gradient, each sensor's time offset against the optical clock, "
+        "the axis misalignment, the accelerometer's lever arm), compare real and twin sample by sample "
+        "over the motion phase (R^2, rms, the difference's spectrum), and score the orientation methods "
+        f"({', '.join(TWIN_METHODS)}) on the real recording and on the twin.",
+        width=96,
     )
     p.add_argument("recording", help="a BROAD trial (.hdf5) with opt_pos and opt_quat")
     p.add_argument("--json", metavar="OUT", help="write the figures as JSON")

@@ -4,22 +4,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+import threading
 from pathlib import Path
 
 from tqdm import tqdm
 
 from simbench.errors import InputError
-from simbench.experiments.validate import STEPS, run_validation
+from simbench.experiments.validate import expected_cost, run_validation
 from simbench.report.validation import write_report
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add the ``validate`` subcommand to ``simbench``'s subparsers."""
-    val = sub.add_parser(
-        "validate",
-        help="the main job: the paper's experiments reproduced in simulation, scored; writes the report",
-        description="Reproduce O'Brien et al.'s linkage and human experiments and Fontaine et al.'s "
-        "sourceless orientation in simulation, score them against the truth and write the report.",
+def add_arguments(val: argparse.ArgumentParser) -> None:
+    """The arguments of ``simbench validate``."""
+    val.description = (
+        "Reproduce O'Brien et al.'s linkage and human experiments and Fontaine et al.'s "
+        "sourceless orientation in simulation, score them against the truth and write the report."
     )
     val.add_argument("--quick", action="store_true", help="fewer, shorter sessions (under a minute)")
     val.add_argument("--out", default="reports", metavar="DIR", help="report folder (default reports)")
@@ -49,20 +48,28 @@ def cmd_validate(args: argparse.Namespace) -> int:
             physics.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise InputError(f"--physics-cache {physics}: cannot make the folder ({exc.strerror})") from exc
-    bar = tqdm(total=len(STEPS) + 1, desc="validate", unit="step", file=sys.stderr, disable=args.no_progress)
-    seen: list[str] = []
+    # the bar's units are the work: each step's expected CPU seconds, credited as its jobs end, so
+    # that its rate and the time it says is left mean something (issue 44)
+    cost = expected_cost(args.quick)
+    bar = tqdm(
+        total=round(sum(cost.values())),
+        desc="validate",
+        unit="cpu-s",
+        file=sys.stderr,
+        disable=args.no_progress,
+        bar_format="{l_bar}{bar}| {percentage:3.0f}% [{elapsed}<{remaining}]",
+    )
 
-    def progress(step: str) -> None:
-        if seen:
-            bar.update(1)
-        seen.append(step)
-        bar.set_postfix_str(step)
+    lock = threading.Lock()  # the pool's threads report the jobs they see end
+
+    def progress(done: float) -> None:
+        with lock:
+            bar.update(max(0, round(done) - bar.n))
 
     results, keep = run_validation(quick=args.quick, progress=progress, physics_folder=physics)
-    bar.update(1)
-    bar.set_postfix_str("report")
+    progress(sum(cost.values()) - cost["report"])
     paths = write_report(results, keep, out)
-    bar.update(1)
+    progress(sum(cost.values()))
     bar.close()
     s = results["summary"]
     print(f"simbench validate{' --quick' if args.quick else ''}: {results['run_time_s']:.0f} s")

@@ -62,6 +62,7 @@ from simbench.experiments.obrien import (
 from simbench.experiments.pool import one_blas_thread, worker_pool
 from simbench.experiments.realism import DEFAULT_DATA_DIR, run_realism, run_twins
 from simbench.experiments.walk_hierarchy import walk_trial
+from simbench.experiments.work import Job, Work
 from simbench.io.imu import read_broad
 from simbench.orient import estimate, skeleton_of
 from simbench.score import score_orientation
@@ -72,7 +73,7 @@ from simbench.twin import BASELINE as TWIN_BASELINE
 from simbench.twin import METHODS as TWIN_METHODS
 from simbench.twin import REFERENCE as TWIN_REFERENCE
 
-__all__ = ["PAPER", "STEPS", "Plan", "run_validation"]
+__all__ = ["PAPER", "STEPS", "Plan", "expected_cost", "expected_jobs", "run_validation"]
 
 #: The steps :func:`run_validation` announces through ``progress``, in order.
 STEPS = (
@@ -87,6 +88,63 @@ STEPS = (
     "realism: real recordings beside simulated ones",
     "joint-centre methods side by side, and O'Brien's 95 % regions",
 )
+
+#: The expected cost of each step, CPU seconds (on all processes) of a reference run, and its number
+#: of jobs, full and ``quick``; and of writing the report (``"report"``): the units of the progress
+#: bar (:class:`simbench.experiments.work.Work`) and the order the pool takes the jobs in (the
+#: longest first). Measured by ``benchmarks/bench_validate.py [--quick]`` (its ``steps``: the jobs'
+#: CPU seconds; 0.1 for a step that took less), rounded; only the shares matter (the bar's rate is
+#: the machine's).
+COST_S: dict[bool, dict[str, tuple[float, int]]] = {
+    False: dict(
+        zip(
+            (*STEPS, "report"),
+            (
+                (0.1, 1),
+                (9.4, 6),
+                (50.3, 10),
+                (1.0, 1),
+                (17.7, 2),
+                (25.9, 14),
+                (31.9, 44),
+                (21.7, 6),
+                (22.8, 4),
+                (31.5, 13),
+                (2.2, 1),
+            ),
+            strict=True,
+        )
+    ),
+    True: dict(
+        zip(
+            (*STEPS, "report"),
+            (
+                (0.1, 1),
+                (1.0, 2),
+                (5.3, 4),
+                (0.3, 1),
+                (9.7, 2),
+                (6.9, 5),
+                (2.8, 16),
+                (1.0, 2),
+                (9.1, 4),
+                (3.7, 4),
+                (2.1, 1),
+            ),
+            strict=True,
+        )
+    ),
+}
+
+
+def expected_cost(quick: bool) -> dict[str, float]:
+    """``{step: expected CPU seconds}`` of a run, the report's (``"report"``) last."""
+    return {step: cpu_s for step, (cpu_s, _) in COST_S[quick].items()}
+
+
+def expected_jobs(quick: bool) -> dict[str, int]:
+    """``{step: expected number of jobs}`` of a run (:data:`COST_S`)."""
+    return {step: jobs for step, (_, jobs) in COST_S[quick].items() if step in STEPS}
 
 
 @dataclass(frozen=True)
@@ -323,25 +381,28 @@ def _walk_failures(plan: Plan, run: Callable) -> dict[str, Any]:
 def run_validation(
     *,
     quick: bool = False,
-    progress: Callable[[str], None] | None = None,
+    progress: Callable[[float], None] | None = None,
     workers: int = 2,
     physics_folder: Path | None = None,
+    jobs: list[Job] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:
     """Run every experiment; returns ``(results, keep)``: JSON-ready figures, and the objects
     the report draws from (datasets, calibrations).
 
     Args:
         quick: the short variant (CI).
-        progress: called with the name of each step as it starts.
+        progress: called with the work done, in the units of :func:`expected_cost` (the steps'
+            costs credited as their jobs end: :class:`simbench.experiments.work.Work`), each
+            time it grows; it reaches the total of the steps' costs (the report's is the caller's).
         workers: processes for the human trials (1: run them here); the figures do not depend
             on it.
         physics_folder: keep the physics runs there (:mod:`simbench.sim.physics_cache`) and read
             back those it holds from an earlier run: the same figures, without the physics (a
             full run's are about 830 MiB); ``None``: a temporary folder (or the one the
             environment names).
+        jobs: if given, receives every job's step, process, start, end and CPU seconds.
     """
     plan = Plan.of(quick)
-    say = progress or (lambda _: None)
     keep: dict[str, Any] = {}
     t0 = time.perf_counter()
     # the cache shares the physics of sessions that differ only in their sensors (each effect
@@ -353,57 +414,84 @@ def run_validation(
     with (
         physics_cache(physics_folder),
         one_blas_thread(),
-        ThreadPoolExecutor(2) if workers > 1 else _Here() as helper,
+        ThreadPoolExecutor(8) if workers > 1 else _Here() as helper,
         worker_pool(workers) if workers > 1 else _Here() as pool,
     ):
-        # the experiments that need nothing from the others go to the pool first: they run while
-        # this process waits on the trials, instead of one after another with a core idle
-        # each BROAD trial's digital twin (the realism section's), a job each, the longest first
-        twins_run = helper.submit(run_twins, DEFAULT_DATA_DIR, run=pool.map, methods=_twin_methods(quick))
-        say(STEPS[3])
-        slip_run = pool.submit(_slip, plan)
-        say(STEPS[4])
-        orientation_run = pool.submit(_orientation, plan)
-        broad_run = pool.submit(_broad_orientation)  # the real recordings: a job of their own
-        say(STEPS[8])
-        realism_run = pool.submit(run_realism, quick=quick)
-        say(STEPS[9])
-        # sessions that need nothing from the others, a job each, queued behind those
-        methods_run = helper.submit(_joint_methods, plan, pool.map)
-        slips_run = helper.submit(slip_trials, quick, pool.map)
-        say(STEPS[0])
-        pair_s = 20.0 if quick else PAIR_S
-        scale = rigid_pair_scale(duration_s=pair_s)
-        say(STEPS[1])
-        linkage = linkage_experiment(plan.linkage_sets, plan.linkage_s, scale["scale"], keep, run=pool.map)
-        say(STEPS[2])
-        trials = human_trials(plan.exercise_trials, plan.walk_trials, plan.female_walk_trials)
-        humanoid = {
-            "preset": HUMAN_PRESET,
-            "duration_s": plan.humanoid_s,
-            "trials": list(
-                pool.map(
-                    human_trial,
-                    *zip(*trials, strict=True),
-                    *[[x] * len(trials) for x in (plan.humanoid_s, scale["scale"])],
-                )
-            ),
-        }
-        say(STEPS[5])
-        decisions_run = helper.submit(
-            lambda: run_decisions(quick, _clean_sessions(linkage, humanoid), slips_run.result())
+        # every job is handed out as soon as what it needs is there, and the pool takes them in
+        # the order of :class:`Work`: first the jobs this process waits on to go on (the humanoid
+        # trials, which Tables 2-4's causes and the decisions need; the linkage sets and the slip
+        # trials, which the decisions need; the tables' sessions), then the costliest steps' jobs:
+        # the rest of the work fills the cores while this process works on what came back
+        if workers > 1:
+            # the workers are forked now, while this thread is the only one at work: forked later
+            # (on the first job the dispatcher hands out) beside threads running MuJoCo or BLAS, a
+            # worker can inherit a lock held mid-call and die (BrokenProcessPool under xdist)
+            pool.submit(int).result()
+        cost = expected_cost(quick)
+        work = Work(
+            pool,
+            {s: cost[s] for s in STEPS},
+            progress,
+            slots=workers if workers > 1 else None,
+            first=(STEPS[1], STEPS[2], STEPS[5], STEPS[6]),
+            jobs=expected_jobs(quick),
         )
-        say(STEPS[6])
-        causes = {
-            "table_1": linkage_causes(plan.linkage_sets, plan.linkage_s, run=pool.map, pair_s=pair_s),
-            **_human_causes(plan, humanoid["trials"], pool.map, pair_s),
-        }
-        tables = paper_tables(linkage, humanoid, causes)
-        say(STEPS[7])
-        walks = _walk_failures(plan, pool.map)
+        pair_s = 20.0 if quick else PAIR_S
+        scale = work.call(STEPS[0], rigid_pair_scale, duration_s=pair_s)
+        work.close(STEPS[0])
+        trials = human_trials(plan.exercise_trials, plan.walk_trials, plan.female_walk_trials)
+        human_runs = work.map(STEPS[2])(
+            human_trial,
+            *zip(*trials, strict=True),
+            *[[x] * len(trials) for x in (plan.humanoid_s, scale["scale"])],
+        )
+        linkage_run = helper.submit(
+            work.bound(STEPS[1], linkage_experiment),
+            plan.linkage_sets,
+            plan.linkage_s,
+            scale["scale"],
+            keep,
+            run=work.map(STEPS[1]),
+        )
+        slips_run = helper.submit(work.bound(STEPS[5], slip_trials), quick, work.map(STEPS[5]))
+        # each BROAD trial's digital twin (the realism section's), a job each
+        twins_run = helper.submit(
+            work.bound(STEPS[8], run_twins),
+            DEFAULT_DATA_DIR,
+            run=work.map(STEPS[8]),
+            methods=_twin_methods(quick),
+        )
+        slip_run = work.submit(STEPS[3], _slip, plan)
+        orientation_run = work.submit(STEPS[4], _orientation, plan)
+        broad_run = work.submit(STEPS[4], _broad_orientation)  # the real recordings: a job of their own
+        realism_run = work.submit(STEPS[8], run_realism, quick=quick)
+        methods_run = helper.submit(work.bound(STEPS[9], _joint_methods), plan, work.map(STEPS[9]))
+        walks_run = helper.submit(work.bound(STEPS[7], _walk_failures), plan, work.map(STEPS[7]))
+        table_1_run = helper.submit(
+            work.bound(STEPS[6], linkage_causes),
+            plan.linkage_sets,
+            plan.linkage_s,
+            run=work.map(STEPS[6]),
+            pair_s=pair_s,
+        )
+        humanoid = {"preset": HUMAN_PRESET, "duration_s": plan.humanoid_s, "trials": list(human_runs)}
+        tables_2_4 = _human_causes(plan, humanoid["trials"], work.map(STEPS[6]), pair_s)
+        linkage = linkage_run.result()
+        decisions_run = helper.submit(
+            work.bound(
+                STEPS[5], lambda: run_decisions(quick, _clean_sessions(linkage, humanoid), slips_run.result())
+            )
+        )
+        causes = {"table_1": table_1_run.result(), **tables_2_4}
+        tables = work.call(STEPS[6], paper_tables, linkage, humanoid, causes)
+        walks = walks_run.result()
         slip, orientation = slip_run.result(), {**orientation_run.result(), "broad": broad_run.result()}
         decisions, realism = decisions_run.result(), {**realism_run.result(), "twins": twins_run.result()}
         methods = methods_run.result()
+        for step in STEPS:
+            work.close(step)
+        if jobs is not None:
+            jobs.extend(work.jobs)
     results = {
         "quick": quick,
         "plan": plan.__dict__,

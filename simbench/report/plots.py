@@ -12,16 +12,17 @@ import io
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
-from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from calibration.pipeline import Joint
 from simbench.io.atomic import atomic_open
+
+if TYPE_CHECKING:  # matplotlib is imported where a figure is made (:func:`new_figure`)
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
 #: Okabe and Ito (2008), "Color Universal Design": eight colours told apart with every common
 #: colour-vision deficiency. The one place the reports' colours come from.
@@ -89,12 +90,28 @@ def use_palette(axes: Iterable[Axes]) -> None:
         ax.set_prop_cycle(color=PALETTE)
 
 
+def new_figure(width_in: float, height_in: float) -> Figure:
+    """An empty figure of ``width_in x height_in`` inches. matplotlib is imported here, the first
+    time a report draws (0.6 s, a third of a command's start): the commands that draw nothing
+    (``calibrate``, ``simulate``, ``--help``) do not load it."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width_in, height_in))
+
+
+def legend_mark(**style: Any) -> Line2D:
+    """A legend entry drawn as a line or marker of ``style`` (matplotlib's ``Line2D`` keywords)."""
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], **style)
+
+
 def figure_axes(
     width_in: float, height_in: float, *, width_ratios: Sequence[float] = (1.0,)
 ) -> tuple[np.ndarray, Figure]:
     """``(axes, figure)``: one row of ``len(width_ratios)`` panels in a ``width_in x height_in``
     inch figure, coloured from :data:`PALETTE`."""
-    fig = Figure(figsize=(width_in, height_in))
+    fig = new_figure(width_in, height_in)
     axes = fig.subplots(1, len(width_ratios), squeeze=False, width_ratios=list(width_ratios)).ravel()
     use_palette(axes)
     return axes, fig
@@ -106,7 +123,7 @@ def panel_grid(n: int, width_in: float, height_in: float) -> tuple[np.ndarray, F
     :data:`PALETTE`."""
     cols = max(1, min(PANELS_PER_ROW, n))
     rows = max(1, -(-n // cols))
-    fig = Figure(figsize=(width_in * cols, height_in * rows))
+    fig = new_figure(width_in * cols, height_in * rows)
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
     use_palette(axes)
     for ax in axes[n:]:
@@ -270,15 +287,15 @@ def limb_spread(humanoid: dict[str, Any]) -> list[LimbSpread]:
 def _limb_legend(subjects: dict[str, str]) -> list[Line2D]:
     """Legend handles of the limb-length scatter: subjects by colour, motions by marker."""
     handles = [
-        Line2D([], [], color=colour, marker="s", ls="none", label=subject)
+        legend_mark(color=colour, marker="s", ls="none", label=subject)
         for subject, colour in subjects.items()
     ]
     handles += [
-        Line2D([], [], color=INK, marker=marker, ls="none", mfc="none", label=f"one {motion} trial")
+        legend_mark(color=INK, marker=marker, ls="none", mfc="none", label=f"one {motion} trial")
         for motion, marker in MOTION_MARKERS.items()
     ]
-    handles.append(Line2D([], [], color=INK, marker="_", ms=12, label="mean +/- 1 s.d. over trials"))
-    handles.append(Line2D([], [], color=INK, ls="--", lw=0.8, label="estimate = truth"))
+    handles.append(legend_mark(color=INK, marker="_", ms=12, label="mean +/- 1 s.d. over trials"))
+    handles.append(legend_mark(color=INK, ls="--", lw=0.8, label="estimate = truth"))
     return handles
 
 
@@ -397,6 +414,8 @@ def orientation_figure(orientation: dict[str, Any]) -> Figure:
         box.set(facecolor=PALETTE[k % len(PALETTE)], edgecolor=INK, alpha=0.8)
     ax_box.invert_yaxis()  # the first method on top
     ax_box.set_xscale("log")
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter  # where a figure is made
+
     ax_box.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
     ax_box.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax_box.xaxis.set_minor_formatter(NullFormatter())
@@ -456,7 +475,7 @@ def pictures_figure(
         ax.axis("off")
     if legend:
         handles = [
-            Line2D([], [], ls="none", marker=m.marker, ms=10, color=m.colour, mec=INK, label=m.label)
+            legend_mark(ls="none", marker=m.marker, ms=10, color=m.colour, mec=INK, label=m.label)
             for m in legend
         ]
         fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9, frameon=False)

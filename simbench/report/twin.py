@@ -13,15 +13,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
-
-from matplotlib.figure import Figure
+from typing import TYPE_CHECKING, Any
 
 from simbench.report.markdown import markdown_table
 from simbench.report.output import write_report_files
-from simbench.report.plots import INK, PALETTE, save_figure, use_palette
+from simbench.report.plots import INK, PALETTE, new_figure, save_figure, use_palette
 from simbench.twin import compare
 from simbench.twin.run import KINDS, RATIO_FACTOR, TwinResult
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: Each kind's label and unit on the figures.
 KIND_LABELS = {
@@ -38,7 +39,7 @@ def traces_figure(result: TwinResult) -> Figure:
     start, end = result.window_s
     t = result.time_s
     inside = (t >= start) & (t <= end)
-    fig = Figure(figsize=(14.4, 8.4))
+    fig = new_figure(14.4, 8.4)
     axes = fig.subplots(3, 3, sharex=True, squeeze=False)
     use_palette(axes.ravel())
     for row, kind in enumerate(KINDS):
@@ -67,7 +68,7 @@ def traces_figure(result: TwinResult) -> Figure:
 def spectra_figure(result: TwinResult) -> Figure:
     """Power spectral density of the real reading, the twin's and their difference, per kind
     (log-log), over the compared samples."""
-    fig = Figure(figsize=(14.4, 4.0))
+    fig = new_figure(14.4, 4.0)
     axes = fig.subplots(1, 3, squeeze=False).ravel()
     use_palette(axes)
     for ax, kind in zip(axes, KINDS, strict=True):
