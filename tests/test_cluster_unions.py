@@ -391,19 +391,20 @@ def humanoid():
 def test_a_joint_turning_part_of_the_time_separates_its_segments(humanoid):
     """The exercise turns each joint during its own 1.3 s of the 20: the median frame's misfit is
     one body's, the distance spread diluted, and shank and foot were one cluster (31 of 50
-    sessions; here the right side, its ankle turning 12 degrees at the 95th percentile). The
+    sessions; here the right side, its ankle turning 13 degrees at the 95th percentile; and the right
+    wrist, 11 degrees, since the hands follow their set-points). The
     frames where the joint turns misfit far beyond the recording's other stretches
     (``burst_excess``, blocks of twice the skin motion's correlation length): refused, and the
     segments found."""
     ds, segment = humanoid
     found = find_clusters(ds.markers.xyz)
-    for name in ("shank_r", "foot_r", "abdomen", "chest"):
+    for name in ("shank_r", "foot_r", "abdomen", "chest", "forearm_r", "hand_r"):
         assert np.flatnonzero(segment == name).tolist() in found.clusters
     bursts = [r for r in found.splits if r.test == "burst"]
     assert bursts and all(r.value > r.limit for r in bursts)
-    assert frozenset(("shank_r", "foot_r")) in {
-        frozenset(segment[r.part]) | frozenset(segment[r.other]) for r in bursts
-    }
+    refused = {frozenset(segment[r.part]) | frozenset(segment[r.other]) for r in bursts}
+    assert frozenset(("shank_r", "foot_r")) in refused
+    assert frozenset(("forearm_r", "hand_r")) in refused  # the wrist follows its set-point now
     assert all(len(set(segment[r.part]) | set(segment[r.other])) > 1 for r in bursts)  # never one body
 
 
@@ -423,3 +424,17 @@ def test_the_burst_test_keeps_one_body_whole():
         z, limit = burst_excess(burst, parts)
         assert z > limit
     assert burst_excess(np.ones(100), np.ones(100)) is None  # no scale
+
+
+@pytest.mark.slow
+def test_the_humanoid_at_the_relative_noise_of_real_clusters_is_grouped_right():
+    """What limits the humanoid's sessions at 2 mm skin motion is how noisy its clusters are for
+    their size: 4 markers 56 mm apart, each sliding 2 mm, a distance spread 4.0-5.4 % of the
+    distance, where the clusters found on the real recordings at hand lie at 0.1-2.7 % (one plate
+    at 4.6 %; ``studies/cluster_evidence.py``). At 1 mm (2.2 %) every segment is found: 16
+    clusters of its own 4 markers, nothing left out, no union across a joint."""
+    ds = sb.simulate("humanoid", duration_s=20.0, seed=0, markers=MarkerConfig(skin_sd_m=0.001))
+    segment = np.array(ds.markers.segment)
+    found = find_clusters(ds.markers.xyz)
+    assert sorted(found.clusters) == sorted(np.flatnonzero(segment == s).tolist() for s in ds.sensors)
+    assert not found.left_out and not found.still
