@@ -78,7 +78,7 @@ def test_api_reference_is_generated_from_the_docstrings(site):
     for name in ("simulate", "calibrate", "score", "orient", "export", "follow", "replay"):
         assert f'id="simbench.api.{name}"' in api, name
     core = (site / "reference" / "calibration" / "index.html").read_text(encoding="utf-8")
-    assert 'id="calibration.calibrate"' in core and 'id="calibration.fit_joint"' in core
+    assert 'id="calibration.pipeline.calibrate"' in core and 'id="calibration.joint.fit_joint"' in core
     streaming = (site / "reference" / "calibration-streaming" / "index.html").read_text(encoding="utf-8")
     assert 'id="calibration.streaming.StreamingCalibrator"' in streaming
 
