@@ -11,7 +11,7 @@ from simbench.api import write_examples
 def add_arguments(ex: argparse.ArgumentParser) -> None:
     """The arguments of ``simbench examples``."""
     ex.description = (
-        "Write the files the README's steps use (a pose recording and its truth, studies, a "
+        "Write the files the getting-started steps use (a pose recording and its truth, studies, a "
         "cluster spec, two example estimators, the accepted baseline) into DIR, laid out as in the "
         "repository: examples/, studies/, reports/. Run the steps from DIR."
     )
