@@ -40,6 +40,20 @@ def test_steps_are_credited_by_their_cost_as_their_jobs_end():
     assert all(j.pid == os.getpid() and j.end >= j.start and j.cpu_s >= 0 for j in work.jobs)
 
 
+def _gated_jobs():
+    """``(gate, started, order, job)``: ``job(name)`` appends ``name`` to ``order``; the job named
+    "blocker" first sets ``started`` and waits for ``gate``, holding its pool slot until then."""
+    gate, started, order = threading.Event(), threading.Event(), []
+
+    def job(name: str) -> None:
+        if name == "blocker":
+            started.set()
+            gate.wait(10)
+        order.append(name)
+
+    return gate, started, order, job
+
+
 def test_credit_never_goes_back_and_close_gives_the_whole_cost():
     with ThreadPoolExecutor(1) as pool:
         work = Work(pool, {"a": 4.0, "b": 2.0})
@@ -52,13 +66,7 @@ def test_credit_never_goes_back_and_close_gives_the_whole_cost():
 
 
 def test_expected_jobs_share_a_steps_cost_and_rank_its_jobs():
-    gate, started, order = threading.Event(), threading.Event(), []
-
-    def job(name: str) -> None:
-        if name == "blocker":
-            started.set()
-            gate.wait(10)
-        order.append(name)
+    gate, started, order, job = _gated_jobs()
 
     with ThreadPoolExecutor(2) as pool:
         # "many": 6 s over 6 jobs (1 s a job); "few": 4 s in 2 jobs (2 s a job): its jobs go first
@@ -86,13 +94,7 @@ def test_a_failing_job_raises_where_its_result_is_asked_for_and_still_ends():
 
 
 def test_waiting_jobs_go_to_the_pool_critical_first_then_costliest_first():
-    gate, started, order = threading.Event(), threading.Event(), []
-
-    def job(name: str) -> None:
-        if name == "blocker":
-            started.set()
-            gate.wait(10)
-        order.append(name)
+    gate, started, order, job = _gated_jobs()
 
     with ThreadPoolExecutor(2) as pool:  # two threads, one slot: the order is Work's, not the pool's
         work = Work(pool, {"cheap": 1.0, "dear": 5.0, "urgent": 0.5}, slots=1, first=["urgent"])
