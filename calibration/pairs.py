@@ -147,7 +147,7 @@ def pair_statistics(
             sums[k].add(R[lo:hi], p[lo:hi], ok[lo:hi], buf[: hi - lo])
         if d3 is not None:
             d3.add(R, p, ok)
-    stats = _statistics_of_stacked(block_results(sums, np.searchsorted(cuts_all, edges)), n_frames)
+    stats = statistics_of_stacked(block_results(sums, np.searchsorted(cuts_all, edges)), n_frames)
     extra: dict[str, Any] = {"third_differences": d3}
     if jackknife_blocks:
         gram, cross, self_cross, _, count = block_results(sums, np.searchsorted(cuts_all, jack))
@@ -169,10 +169,10 @@ def statistics_of_blocks(blocks: list[tuple[np.ndarray, ...]], n_frames: int) ->
     :meth:`calibration.pair_sums.PairSums.result` ``(gram, cross, self_cross, sq_dist, count)``
     (shared with :mod:`calibration.streaming`); ``n_frames`` frames in all."""
     stacked = tuple(np.stack(x) for x in zip(*blocks, strict=True))
-    return _statistics_of_stacked(stacked, n_frames)
+    return statistics_of_stacked(stacked, n_frames)
 
 
-def _statistics_of_stacked(blocks: tuple[np.ndarray, ...], n_frames: int) -> PairStatistics:
+def statistics_of_stacked(blocks: tuple[np.ndarray, ...], n_frames: int) -> PairStatistics:
     """:func:`statistics_of_blocks` from the blocks' sums stacked, each ``(B, ...)``."""
     gram, cross, self_cross, sq_dist, count = blocks
     return PairStatistics(

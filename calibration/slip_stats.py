@@ -65,23 +65,27 @@ def window_difference_rows(
     x: np.ndarray, ok: np.ndarray, w: int, out: np.ndarray | None = None
 ) -> np.ndarray:
     """:func:`window_difference` of series laid out as rows: ``x`` ``(k, frames)`` to ``(k, frames)``
-    (into ``out`` when given)."""
+    (into ``out`` when given). The rows are taken one at a time (the window sums' scratch is one
+    row's), the windows' counts of valid rows once."""
     k, n = x.shape
     if out is None:
         out = np.empty((k, n))
     out.fill(np.nan)
     if n < 2 * w:
         return out
-    sums = window_sums(np.where(ok, x, 0.0), w)  # [:, t]: samples t .. t + w - 1
     cn = np.zeros(n + 1, dtype=np.int64)
     cn[1:] = np.cumsum(ok)
     count = cn[w:] - cn[:-w]
     na, nb = count[w:], count[: n - 2 * w + 1]
     enough = (nb >= w / 2) & (na >= w / 2)
+    every = bool(cn[-1] == n)
     rows = out[:, w : n - w + 1]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        np.divide(sums[:, w:], na, out=rows)
-        rows -= sums[:, : n - 2 * w + 1] / nb
+    for r in range(k):
+        sums = window_sums(x[r : r + 1] if every else np.where(ok, x[r : r + 1], 0.0), w)[0]
+        row = rows[r]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            np.divide(sums[w:], na, out=row)
+            row -= sums[: n - 2 * w + 1] / nb
     rows[:, ~enough] = np.nan
     return out
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from calibration import CalibrationInputError, calibrate, detect_slip
+from calibration import slip as slip_module
 from calibration.slip import OVERLAP_WINDOWS, _chunks
 from simbench.io.poses import PoseRecording
 from simbench.sim.synthetic import Slip, linkage, simulate_motion
@@ -135,3 +136,20 @@ def test_memory_is_a_chunk_s_and_the_frames_are_read_a_slice_at_a_time(long_capt
             tracemalloc.stop()
             assert [abs(e.frame - t) <= 12 for e, t in zip(rep.events, truth, strict=True)] == [True, True]
     assert peaks[CHUNK] < 0.5 * peaks[N_FRAMES], peaks
+
+
+def test_a_long_noise_model_from_every_few_frames_decides_as_every_frame(long_capture, monkeypatch):
+    """d is a difference of window means, smooth over the window: its noise model from every
+    ``window / 16``-th frame (at least 4,096 samples) finds the same slips, sensors and thresholds
+    as from every frame (the long recordings' cost, issue 45)."""
+    cap, truth = long_capture
+    strided = _detect(cap, JOINT, chunk_frames=N_FRAMES)
+    assert slip_module._noise_stride(WINDOW, N_FRAMES) == 3
+    monkeypatch.setattr(slip_module, "NOISE_MIN_SAMPLES", 10**12)
+    every = _detect(cap, JOINT, chunk_frames=N_FRAMES)
+    assert slip_module._noise_stride(WINDOW, N_FRAMES) == 1
+    key = [(e.frame, e.sensor_frame) for e in every.events]
+    assert [(e.frame, e.sensor_frame) for e in strided.events] == key and len(key) == len(truth)
+    assert strided.threshold == pytest.approx(every.threshold, rel=0.02)
+    assert strided.noise == pytest.approx(every.noise, rel=0.02)
+    assert strided.tests_per_hour == pytest.approx(every.tests_per_hour, rel=0.02)

@@ -256,7 +256,9 @@ class SensorFrames:
         return (len(self), *self.data.shape[2:])
 
     def __getitem__(self, frames: slice) -> np.ndarray:
-        x = np.array(self.data[frames, self.sensor], dtype=float)
+        x = self.data[frames, self.sensor]
+        if isinstance(self.data, np.ndarray) or x.dtype != np.float64:  # a view of the caller's array
+            x = np.array(x, dtype=float)
         if self.drop is not None:
             x[self.drop[frames]] = np.nan
         return x
