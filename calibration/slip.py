@@ -316,19 +316,28 @@ class _Pair:
         (the caller must not change them)."""
         return [self.diff(cuts, 0), self.diff(cuts, 1)]
 
-    def diff(self, cuts: list[int], i: int) -> np.ndarray:
-        """``d``, ``(frames, 3)``, of sensor frame ``i`` with the joint refitted between ``cuts``
-        (the caller must not change it)."""
-        key = (*sorted(cuts), -1 - i)
+    def diff(self, cuts: list[int], i: int, stride: int = 1) -> np.ndarray:
+        """``d``, ``(frames, 3)``, of sensor frame ``i`` with the joint refitted between ``cuts``, at
+        every ``stride``-th frame (``(ceil(frames / stride), 3)``; the caller must not change it)."""
+        key = (*sorted(cuts), -1 - i, stride)
         if key in self._diffs:
             return self._diffs[key]
         n, w = self.ok.size, self.window
-        edges = [0, *key[:-1], n]
+        cut = key[:-2]
+        edges = [0, *cut, n]
         joints = [self._piece_joint(a, b) for a, b in pairwise(edges)]
-        out = np.empty((3, n))
+        out = np.empty((3, -(-n // stride)))
+
+        def rows(a: int, b: int) -> slice:  # the output rows of frames a:b
+            return slice(-(-a // stride), -(-b // stride))
+
         for (a, b), joint in zip(pairwise(edges), joints, strict=True):
-            out[:, a:b] = _affine_frame(self.coupling[:, a:b], *joint, i)
-        for lo, hi in _near(key[:-1], w, n):  # rows whose windows hold two pieces: from their residuals
+            r = rows(a, b)
+            out[:, r] = _affine_frame(self.coupling[:, r.start * stride : b : stride], *joint, i)
+        for lo, hi in _near(cut, w, n):  # rows whose windows hold two pieces: from their residuals
+            r = rows(lo, hi)
+            if r.start >= r.stop:
+                continue
             s, t = max(0, lo - w), min(n, hi + w)
             e = np.zeros((3, t - s))
             for (a, b), joint in zip(pairwise(edges), joints, strict=True):
@@ -336,8 +345,8 @@ class _Pair:
                     e[:, max(a, s) - s : min(b, t) - s] = self.residual_frames(max(a, s), min(b, t), joint)[
                         i
                     ].T
-            out[:, lo:hi] = window_difference_rows(e, self.ok[s:t], w)[:, lo - s : hi - s]
-        view = out.T  # (frames, 3)
+            out[:, r] = window_difference_rows(e, self.ok[s:t], w)[:, r.start * stride - s : hi - s : stride]
+        view = out.T  # (rows, 3)
         view.flags.writeable = False
         if len(self._diffs) >= 3:  # the search asks again only for the last few sets of cuts
             del self._diffs[next(iter(self._diffs))]
@@ -423,15 +432,13 @@ def _noise_stride(window: int, frames: int) -> int:
     return max(1, min(window // NOISE_SAMPLES_PER_WINDOW, frames // NOISE_MIN_SAMPLES))
 
 
-def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """``(scale, threshold, tests per hour)`` of one sensor frame's ``d``, from the frames ``use``
-    (every :func:`_noise_stride`-th: ``d`` is a difference of window means, smooth over the window)."""
-    s = _noise_stride(pair.window, d.shape[0])
-    ds, us = d[::s], use[::s]
-    scale = robust_scale(ds, us)
-    z = whitened_norm(ds[us], scale)
-    tau_samples = float(correlation_times(ds, us).max())
-    tests_per_hour = len(_FRAMES) * 3600.0 * pair.rate_hz / (s * tau_samples)
+def _noise_model(pair: _Pair, d: np.ndarray, use: np.ndarray, stride: int) -> tuple[np.ndarray, float, float]:
+    """``(scale, threshold, tests per hour)`` of one sensor frame's ``d`` at every ``stride``-th
+    frame (:func:`_noise_stride`), from the samples ``use``."""
+    scale = robust_scale(d, use)
+    z = whitened_norm(d[use], scale)
+    tau_samples = float(correlation_times(d, use).max())
+    tests_per_hour = len(_FRAMES) * 3600.0 * pair.rate_hz / (stride * tau_samples)
     return scale, tail_threshold(z, tests_per_hour, pair.rate, tau_samples), tests_per_hour
 
 
@@ -448,15 +455,16 @@ def _test(
     caller has it already (saves the refit).
     """
     w = pair.window
-    frames = np.arange(free.size)
+    stride = _noise_stride(w, free.size)
+    frames = np.arange(0, free.size, stride)
     d_k = (pair.diff(cuts, i) if d_now is None else d_now)[k : k + 1]
-    d = pair.diff([*cuts, k], i)
-    rest = free & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
+    d = pair.diff([*cuts, k], i, stride)
+    rest = free[::stride] & np.isfinite(d).all(axis=1) & (np.abs(frames - k) > w)
     for c in cuts:
         rest &= np.abs(frames - c) > w
     if rest.sum() < 4 or not np.isfinite(d_k).all():
         return 0.0, float("inf")
-    scale, thr, _ = _noise_model(pair, d, rest)
+    scale, thr, _ = _noise_model(pair, d, rest, stride)
     return float(whitened_norm(d_k, scale)[0]), thr
 
 
@@ -688,10 +696,11 @@ def _detect_chunk(
             jump = float(np.linalg.norm(d_at if np.isfinite(d_at).all() else pair.fitted_diff(k, i)))
             events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
         shown = found[0][1] if found else 1
-        d_clean = pair.diff([f[0] for f in found], shown)
+        stride = _noise_stride(window, n)
+        d_clean = pair.diff([f[0] for f in found], shown, stride)
         # the joint refitted on each side of every event absorbs its step: every frame counts
-        rest = valid & np.isfinite(d_clean).all(axis=1)
-        scale, thr_all, tests_per_hour = _noise_model(pair, d_clean, rest)
+        rest = valid[::stride] & np.isfinite(d_clean).all(axis=1)
+        scale, thr_all, tests_per_hour = _noise_model(pair, d_clean, rest, stride)
         noise = float(np.linalg.norm(scale))
         min_jump = thr_all * noise / np.sqrt(3.0)
         # an event smaller than the recording's smallest detectable jump passed only because
