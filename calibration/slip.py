@@ -280,14 +280,14 @@ class _Pair:
             cols[12:15] = np.einsum("fji,fj->if", R_c, rel)
             cols[15] = np.einsum("fi,fi->f", rel, rel)
             cols[16] = 1.0
-            good = np.isfinite(cols).all(axis=0) & np.isfinite(p_p).all(axis=1) & np.isfinite(p_c).all(axis=1)
+            # every product finite: the rotations and p_c - p_p are, hence both positions
+            good = np.isfinite(cols).all(axis=0)
             good &= bool(np.isfinite(jp).all() and np.isfinite(jc).all())
             ok[s - a : t - a] = good
-            top = max(
-                top,
-                float(np.max(np.abs(p_p[good]), initial=0.0)),
-                float(np.max(np.abs(p_c[good]), initial=0.0)),
-            )
+            for x in (p_p, p_c):
+                x = x if good.all() else x[good]
+                if x.size:
+                    top = max(top, float(x.max()), -float(x.min()))
         if not ok.all():
             terms[:, ~ok] = 0.0
         coupling = window_difference_rows(terms[:15], ok, window)

@@ -83,6 +83,10 @@ def window_difference_rows(
     for r in range(k):
         sums = window_sums(x[r : r + 1] if every else np.where(ok, x[r : r + 1], 0.0), w)[0]
         row = rows[r]
+        if every:  # both windows hold w rows
+            np.subtract(sums[w:], sums[: n - 2 * w + 1], out=row)
+            row /= w
+            continue
         with np.errstate(invalid="ignore", divide="ignore"):
             np.divide(sums[w:], na, out=row)
             row -= sums[: n - 2 * w + 1] / nb
