@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.fft import irfft, next_fast_len, rfft
 from scipy.interpolate import CubicSpline
 from scipy.optimize import minimize_scalar
 
@@ -151,7 +152,7 @@ def time_offset(
     """The delay of ``real`` behind ``ideal``: ``real(t) ~ ideal(t - offset)``.
 
     The normalised cross-correlation of the two (each axis's mean over the samples used removed,
-    the axes summed) at every whole lag within ``max_offset_s``, its peak refined between the whole
+    the axes summed) at every whole lag within ``max_offset_s`` (by FFT), its peak refined between the whole
     lags either side with the ideal signal interpolated by a cubic spline. The real samples are
     those of ``use`` at every lag, their partners any finite ideal samples.
 
@@ -182,14 +183,13 @@ def time_offset(
     if f <= 2 * lmax + 1:
         raise InputError(f"{f} samples are too few to search a time offset of +-{max_offset_s:g} s")
     lags = np.arange(-lmax, lmax + 1)
-    c = np.empty(lags.size)
     xx = float(np.sum(x * x))
-    for i, lag in enumerate(lags):
-        # real at k against ideal at k - lag
-        a = x[max(lag, 0) : f + min(lag, 0)]
-        b = y[max(-lag, 0) : f - max(lag, 0)]
-        den = np.sqrt(xx * np.sum(b[use[max(lag, 0) : f + min(lag, 0)]] ** 2))
-        c[i] = np.sum(a * b) / den if den > 0 else 0.0
+    # real at k against ideal at k - lag, summed over k: one FFT correlation for every lag
+    num = _correlation(x, y, lags).sum(axis=1)
+    yy = _correlation(use[:, None].astype(float), (y * y).sum(axis=1, keepdims=True), lags)[:, 0]
+    den = np.sqrt(xx * np.clip(yy, 0.0, None))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        c = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
     k = int(np.argmax(c))
     if k in (0, lags.size - 1):
         raise InputError(
@@ -198,6 +198,15 @@ def time_offset(
         )
     lag, peak = _refined_peak(x, y, use, have, xx, float(lags[k]))
     return lag / rate_hz, peak
+
+
+def _correlation(a: np.ndarray, b: np.ndarray, lags: np.ndarray) -> np.ndarray:
+    """``(lags, k)`` ``sum_t a[t] b[t - lag]`` per column of ``a`` and ``b`` (``(F, k)``, zero where
+    not used) at each lag (``|lag| < F``), by FFT (zero-padded: no wrap-around)."""
+    f = a.shape[0]
+    size = next_fast_len(f + int(np.abs(lags).max()) + 1, real=True)
+    r = irfft(rfft(a, size, axis=0) * np.conj(rfft(b, size, axis=0)), size, axis=0)
+    return r[lags % size]
 
 
 def _refined_peak(
