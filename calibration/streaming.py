@@ -64,8 +64,14 @@ the batch's). The noise model is the data's own, as the batch's, from the last
   fitted to every armed joint's ``z`` together: in units of each joint's own scale the tail's
   shape is the recording's, and one joint's first seconds hold too few independent values for it.
 
-A joint arms (has a threshold) once its history holds :data:`SLIP_WARMUP_S` seconds, ``2 w``
-after it joined the tree (3 s at the default window). A jump of ``X`` times the threshold is seen
+*Arming.* A joint arms (has a threshold) once its history holds :data:`SLIP_WARMUP_S` seconds,
+from ``2 w`` after its pair's first frames (3 s at the default window), as its pair is seen rather
+than when the whole tree has settled (:meth:`StreamingCalibrator._monitor_joints`): the monitor
+follows the tree of the pairs seen together for ``2 w`` frames (a cluster out of view at first does
+not rearrange the others' joints); the poses of the last ``2 w`` frames and a warm-up are held, so
+that a joint new to the tree gets the history it would have had; a joint leaving the tree keeps its
+history for when it returns; and only a joint the tree kept over one refit raises alerts (a joint
+in it for a single refit is a tie of the tree's weights). A jump of ``X`` times the threshold is seen
 ``w / X`` frames after it happens (at most ``w``). The alert names the sensor whose other joints
 repeat the jump in its frame (a slip of a sensor moves every one of its joints' residuals by the
 same vector in its frame; a leaf sensor when its neighbour's other joints do not; failing both,
