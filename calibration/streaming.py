@@ -578,7 +578,10 @@ class StreamingCalibrator:
     def _refit_monitor(self) -> None:
         """Give the slip monitor the joints it follows, as fitted now (nothing while too few frames)."""
         assert self._monitor is not None
-        keys, lp, lc = self._monitor_joints(self.statistics())  # called from _drain: nothing pending
+        try:
+            keys, lp, lc = self._monitor_joints(self.statistics())  # called from _drain: nothing pending
+        except CalibrationError:  # as the calibration's: sensors the fit cannot yet join
+            return
         if not keys:
             return
         self._refit_at = self._n_summed - self._n_summed % self._refit_every  # every REFIT_S of the stream
