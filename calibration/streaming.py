@@ -64,8 +64,14 @@ the batch's). The noise model is the data's own, as the batch's, from the last
   fitted to every armed joint's ``z`` together: in units of each joint's own scale the tail's
   shape is the recording's, and one joint's first seconds hold too few independent values for it.
 
-A joint arms (has a threshold) once its history holds :data:`SLIP_WARMUP_S` seconds, ``2 w``
-after it joined the tree (3 s at the default window). A jump of ``X`` times the threshold is seen
+*Arming.* A joint arms (has a threshold) once its history holds :data:`SLIP_WARMUP_S` seconds,
+from ``2 w`` after its pair's first frames (3 s at the default window), as its pair is seen rather
+than when the whole tree has settled (:meth:`StreamingCalibrator._monitor_joints`): the monitor
+follows the tree of the pairs seen together for ``2 w`` frames (a cluster out of view at first does
+not rearrange the others' joints); the poses of the last ``2 w`` frames and a warm-up are held, so
+that a joint new to the tree gets the history it would have had; a joint leaving the tree keeps its
+history for when it returns; and only a joint the tree kept over one refit raises alerts (a joint
+in it for a single refit is a tie of the tree's weights). A jump of ``X`` times the threshold is seen
 ``w / X`` frames after it happens (at most ``w``). The alert names the sensor whose other joints
 repeat the jump in its frame (a slip of a sensor moves every one of its joints' residuals by the
 same vector in its frame; a leaf sensor when its neighbour's other joints do not; failing both,
@@ -99,6 +105,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse.csgraph import connected_components
 
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import (
@@ -569,14 +576,64 @@ class StreamingCalibrator:
         return cal, sol
 
     def _refit_monitor(self) -> None:
-        """Give the slip monitor the current tree and joints (nothing while too few frames)."""
-        try:
-            cal, _ = self._solve(self.statistics())  # called from _drain: nothing pending
-        except CalibrationError:
-            return
-        self._refit_at = self._n_summed
+        """Give the slip monitor the joints it follows, as fitted now (nothing while too few frames)."""
         assert self._monitor is not None
-        self._monitor.set_joints(cal)
+        try:
+            keys, lp, lc = self._monitor_joints(self.statistics())  # called from _drain: nothing pending
+        except CalibrationError:  # as the calibration's: sensors the fit cannot yet join
+            return
+        if not keys:
+            return
+        self._refit_at = self._n_summed - self._n_summed % self._refit_every  # every REFIT_S of the stream
+        self._monitor.set_joints(keys, lp, lc)
+
+    def _monitor_joints(self, stats: PairStatistics) -> tuple[list[tuple[int, int]], np.ndarray, np.ndarray]:
+        """The joints the slip monitor follows: ``[(parent, child)]`` sensor indices and their
+        centres ``(J, 3)`` in the parent's and the child's frame, metres.
+
+        The tree of :meth:`calibration` restricted to the pairs seen together for at least one
+        window pair (``2 w`` frames: before that no window difference exists, so no joint could be
+        tested): the spanning tree of each group of sensors those pairs connect, with the
+        calibration's weights, and of a given hierarchy its joints between such pairs. A sensor
+        seen for a few frames only (a marker cluster hidden at the start) has pair fits that are
+        noise; in the whole tree they rearrange the joints of the sensors seen all along at every
+        refit, each rearrangement restarting those joints' histories (measured on the sprint
+        recording of ``studies/live_slip_real.py``: its joints armed 7.7-15.7 s after the start).
+        """
+        assert self._monitor is not None
+        names, n = self.names, len(self.names)
+        known = stats.count >= 2 * self._monitor.w
+        np.fill_diagonal(known, False)
+        if self._tree_given is not None:
+            keys = [(p, c) for p, c in self._tree_given.joints if known[p, c]]
+        else:
+            i, j = np.nonzero(np.triu(known))
+            if not i.size:
+                return [], np.zeros((0, 3)), np.zeros((0, 3))
+            pairs = solve_pairs(stats, i, j, single_axis_ratio=self.single_axis_ratio)
+            weights = np.full((n, n), np.inf)
+            w = pairs.rms_residual
+            if self.hierarchy_method == "misfit":
+                nu = self._d3.noise_variance(i, j, pairs.joint_in_parent, pairs.joint_in_child)
+                w = misfit_weights(w, nu)
+            weights[i, j] = weights[j, i] = w
+            _, group = connected_components(known, directed=False)
+            keys = []
+            for g in np.unique(group):
+                members = np.flatnonzero(group == g)
+                if members.size < 2:
+                    continue
+                root = None
+                if self.root is not None and names.index(self.root) in members:
+                    root = int(np.flatnonzero(members == names.index(self.root))[0])
+                sub = spanning_tree(weights[np.ix_(members, members)], root=root)
+                keys += [(int(members[p]), int(members[c])) for p, c in sub.joints]
+        if not keys:
+            return [], np.zeros((0, 3)), np.zeros((0, 3))
+        par = np.array([k[0] for k in keys], dtype=np.int64)
+        chi = np.array([k[1] for k in keys], dtype=np.int64)
+        sol = solve_pairs(stats, par, chi, single_axis_ratio=self.single_axis_ratio)
+        return keys, sol.joint_in_parent.reshape(-1, 3), sol.joint_in_child.reshape(-1, 3)
 
 
 def _coverage(joint: Joint, sol: PairSolutions, k: int) -> Coverage:
@@ -663,6 +720,14 @@ class _SlipMonitor:
         self.history = max(4 * window, round(SLIP_HISTORY_S * self.rate)) // self.stride
         self.warmup = max(2, round(SLIP_WARMUP_S * self.rate) // self.stride)
         n = len(owner.names)
+        # the poses of the last 2 w frames and a warm-up's history (a ring): a joint that joins the
+        # tree gets its history from them, so that it arms as soon as its pair has been seen as long
+        # as a joint needs to arm, not a warm-up after the tree settles (_backfill)
+        self.back = 2 * window + self.warmup * self.stride
+        self.ring_R = np.zeros((self.back, n, 3, 3))
+        self.ring_p = np.zeros((self.back, n, 3))
+        self.ring_ok = np.zeros((self.back, n), dtype=bool)
+        self.ring_n = 0  # frames written to the ring since the stream's start (or a gap)
         self.R = np.zeros((0, n, 3, 3))  # held poses, the last 2 w frames up to frame end
         self.p = np.zeros((0, n, 3))
         self.ok = np.zeros((0, n), dtype=bool)
@@ -671,6 +736,9 @@ class _SlipMonitor:
         self.slipped: set[int] = set()  # sensors alerted on
         self.alerts: list[SlipAlert] = []
         self.armed_at: dict[tuple[int, int], int] = {}  # joint -> first frame with a noise model
+        # joints that left the tree: (hist, n_hist, quiet_until) rows, oldest first (set_joints)
+        self.shelf: dict[tuple[int, int], tuple[np.ndarray, int, int]] = {}
+        self.confirmed: set[frozenset[int]] = set()
         self._taken = 0
         self.ready = False
         self._rows(0)
@@ -709,18 +777,30 @@ class _SlipMonitor:
             "n_hist",
             "scale",
             "threshold",
+            "ring_R",
+            "ring_p",
+            "ring_ok",
         )
-        return [getattr(self, k) for k in (*names, "motion0", "quiet_until")]
+        shelved = [hist for hist, _, _ in self.shelf.values()]
+        return [getattr(self, k) for k in (*names, "motion0", "quiet_until")] + shelved
 
     def take_new(self) -> list[SlipAlert]:
         out = self.alerts[self._taken :]
         self._taken = len(self.alerts)
         return out
 
-    def _products(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray) -> np.ndarray:
-        """``(F, J, 16)`` per frame and joint: ``M`` (9), ``v_p`` (3), ``v_c`` (3), valid (1); zero
-        where either pose is missing."""
-        par, chi = self.par, self.chi
+    def _products(
+        self,
+        R: np.ndarray,
+        p: np.ndarray,
+        ok: np.ndarray,
+        par: np.ndarray | None = None,
+        chi: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """``(F, J, 16)`` per frame and joint (the tree's, or ``par``, ``chi``): ``M`` (9), ``v_p``
+        (3), ``v_c`` (3), valid (1); zero where either pose is missing."""
+        par = self.par if par is None else par
+        chi = self.chi if chi is None else chi
         Rp, Rc = R[:, par], R[:, chi]  # (F, J, 3, 3)
         dp = p[:, par] - p[:, chi]
         out = np.empty((R.shape[0], par.size, _Q))
@@ -746,27 +826,49 @@ class _SlipMonitor:
         )
         return d
 
-    def set_joints(self, cal: Calibration) -> None:
-        """Follow the tree's joints (a joint new to the tree starts afresh; one whose parent and
-        child swapped, as a new root turns them, keeps its history) and refresh every noise model
-        with the joints as now fitted."""
-        names = self.owner.names
-        keys = [(names.index(j.parent), names.index(j.child)) for j in cal.joints]
+    def set_joints(self, keys: list[tuple[int, int]], lp: np.ndarray, lc: np.ndarray) -> None:
+        """Follow the joints ``keys`` (``(parent, child)`` sensor indices; a joint new to them
+        starts afresh, one whose parent and child swapped, as a new root turns them, keeps its
+        history), fitted at ``lp``, ``lc`` (``(J, 3)``, metres, in the parent's and the child's
+        frame), and refresh every noise model with them."""
+        before = {frozenset(k) for k in self.keys}
+        self.confirmed |= {frozenset(k) for k in keys} & before
         if keys != self.keys:  # the tree changed: rows move, new joints start afresh
             old = {k: i for i, k in enumerate(self.keys)}
             kept = {name: getattr(self, name) for name in ("hist", "n_hist", "quiet_until")}
             self._rows(len(keys))
+            # joints leaving the tree go on the shelf, with their histories, for when they return
+            # (a tree whose weights are close swaps joints back and forth at refits)
+            for k, key in enumerate(self.keys):
+                if key not in keys and key[::-1] not in keys:
+                    self.shelf.pop(key, None)
+                    self.shelf[key] = (
+                        kept["hist"][k].copy(),
+                        int(kept["n_hist"][k]),
+                        int(kept["quiet_until"][k]),
+                    )
+            while len(self.shelf) > max(len(keys), 1):  # the oldest first
+                del self.shelf[next(iter(self.shelf))]
+            fresh = []  # joints new to the tree: their history from the ring
             for i, key in enumerate(keys):
                 flipped = key[::-1]
                 if key in old:
                     for name, arr in kept.items():
                         getattr(self, name)[i] = arr[old[key]]
-                elif flipped in old:
-                    k = old[flipped]
-                    self.hist[i] = _flipped(kept["hist"][k])
-                    self.n_hist[i], self.quiet_until[i] = kept["n_hist"][k], kept["quiet_until"][k]
-                    if flipped in self.armed_at:
-                        self.armed_at.setdefault(key, self.armed_at[flipped])
+                    continue
+                if flipped in old:
+                    k, source = old[flipped], flipped
+                    hist, n_hist, quiet = kept["hist"][k], kept["n_hist"][k], kept["quiet_until"][k]
+                elif key in self.shelf or flipped in self.shelf:
+                    source = key if key in self.shelf else flipped
+                    hist, n_hist, quiet = self.shelf.pop(source)
+                else:
+                    fresh.append(i)
+                    continue
+                self.hist[i] = hist if source == key else _flipped(hist)
+                self.n_hist[i], self.quiet_until[i] = n_hist, quiet
+                if source in self.armed_at:
+                    self.armed_at.setdefault(key, self.armed_at[source])
             self.keys = keys
             self.par = np.array([k[0] for k in keys], dtype=np.int64)
             self.chi = np.array([k[1] for k in keys], dtype=np.int64)
@@ -775,13 +877,36 @@ class _SlipMonitor:
             np.fill_diagonal(self.nbr, False)
             self.q = self._products(self.R, self.p, self.ok)
             self.cs = np.concatenate([np.zeros((1, *self.q.shape[1:])), np.cumsum(self.q, axis=0)])
-        self.lp = np.array([j.fit.joint_in_parent for j in cal.joints]).reshape(-1, 3)
-        self.lc = np.array([j.fit.joint_in_child for j in cal.joints]).reshape(-1, 3)
+            self._backfill(np.array(fresh, dtype=np.int64))
+        self.lp = np.asarray(lp, dtype=float).reshape(-1, 3)
+        self.lc = np.asarray(lc, dtype=float).reshape(-1, 3)
         for i, key in enumerate(keys):
             if self.slipped & set(key):
                 self.quiet_until[i] = _FOREVER
         self.ready = True
         self._models()
+
+    def _backfill(self, rows: np.ndarray) -> None:
+        """The histories of joints ``rows`` (new to the tree, none yet) from the poses in the ring:
+        the window differences :meth:`_examine` would have kept had they been joints all along."""
+        w, m = self.w, min(self.ring_n, self.back)
+        if not rows.size or m < 2 * w:
+            return
+        at = (self.ring_n - m + np.arange(m)) % self.back
+        q = self._products(self.ring_R[at], self.ring_p[at], self.ring_ok[at], self.par[rows], self.chi[rows])
+        cs = np.concatenate([np.zeros((1, *q.shape[1:])), np.cumsum(q, axis=0)])
+        ends = np.arange(2 * w - 1, m)
+        ends = ends[(self.end - m + ends) % self.stride == 0]  # the frames the history samples
+        hi, mid, lo = ends + 1, ends + 1 - w, ends + 1 - 2 * w
+        after, before = cs[hi] - cs[mid], cs[mid] - cs[lo]  # (c, r, 16)
+        na, nb = after[..., 15], before[..., 15]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            delta = after[..., :15] / na[..., None] - before[..., :15] / nb[..., None]  # (c, r, 15)
+        good = (na >= w / 2) & (nb >= w / 2) & np.isfinite(delta).all(axis=2)
+        for k, row in enumerate(rows):
+            samples = delta[good[:, k], k][-self.history :]
+            self.hist[row, : samples.shape[0]] = samples
+            self.n_hist[row] = samples.shape[0]
 
     def update(self, R: np.ndarray, p: np.ndarray, ok: np.ndarray, start: int) -> None:
         """Examine frames ``start .. start + len(R)`` (already validated, invalid poses zeroed)."""
@@ -789,6 +914,14 @@ class _SlipMonitor:
         if self.ok.shape[0] and self.end != start:  # a gap in the stream
             self.R, self.p, self.ok = self.R[:0], self.p[:0], self.ok[:0]
             self.q, self.cs = self.q[:0], self.cs[:1] * 0.0
+            self.ring_n = 0
+        at = (self.ring_n + np.arange(R.shape[0])[-self.back :]) % self.back
+        self.ring_R[at], self.ring_p[at], self.ring_ok[at] = (
+            R[-self.back :],
+            p[-self.back :],
+            ok[-self.back :],
+        )
+        self.ring_n += R.shape[0]
         held = self.ok.shape[0]
         new = self._products(R, p, ok)
         q = np.concatenate([self.q, new])
@@ -922,6 +1055,10 @@ class _SlipMonitor:
             tau_all,
             confidence=LIVE_TAIL_CONFIDENCE,
         )
+        # only a joint the tree kept over a refit raises alerts (a joint in it for one refit only is
+        # a tie of its weights: a hand against a foot while neither has moved, a head against a
+        # wheelchair's wheel), though its history and noise model go into the pooled tail
+        ready = ready[[frozenset(self.keys[j]) in self.confirmed for j in ready]]
         self.threshold[ready] = threshold
         if np.isfinite(threshold):
             for j in ready:

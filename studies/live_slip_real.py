@@ -65,6 +65,8 @@ SLIP_M = 0.02
 FIRST_SLIP_S = 3.5
 TOLERANCE_S = 0.5
 PRESETS = ("skin-markers", "skin-paper-human")
+#: A joint arms once its window differences hold SLIP_WARMUP_S, the first 2 w after its pair's first frame.
+ARMING_S = 2 * LIVE_SLIP_WINDOW_S + SLIP_WARMUP_S
 
 
 def real_recording(path: Path) -> PoseRecording:
@@ -110,19 +112,24 @@ def moving_sensors(rec: PoseRecording) -> list[int]:
     return [k for k, name in enumerate(rec.names) if not name.startswith("still")]
 
 
-def slip_runs(label: str, rec: PoseRecording, sensors: list[int], first_s: float) -> list[dict[str, Any]]:
+def slip_draw(label: str, rec: PoseRecording, k: int, first_s: float) -> tuple[float, int, np.ndarray]:
+    """The slip injected on sensor ``k``: its drawn time (s after the first frame), its first frame,
+    and the offset ``(3,)`` in the sensor's frame, metres (seeded by ``label`` and the sensor)."""
     duration = rec.n_frames / rec.rate_hz
+    rng = np.random.default_rng([42, zlib.crc32(f"{label}/{rec.names[k]}".encode())])
+    t_slip = float(rng.uniform(first_s, duration - 1.0))
+    d = rng.normal(size=3)
+    return t_slip, int(np.ceil(t_slip * rec.rate_hz)), SLIP_M * d / np.linalg.norm(d)
+
+
+def slip_runs(label: str, rec: PoseRecording, sensors: list[int], first_s: float) -> list[dict[str, Any]]:
     runs = []
     for k in sensors:
-        rng = np.random.default_rng([42, zlib.crc32(f"{label}/{rec.names[k]}".encode())])
-        t_slip = float(rng.uniform(first_s, duration - 1.0))
-        d = rng.normal(size=3)
-        frame = int(np.ceil(t_slip * rec.rate_hz))
+        t_slip, frame, offset = slip_draw(label, rec, k, first_s)
         if not rec.valid[frame : frame + round(TOLERANCE_S * rec.rate_hz), k].any():
             runs.append({"sensor": rec.names[k], "slip_s": t_slip, "skipped": "no pose after the slip"})
             continue
         t_slip = frame / rec.rate_hz  # seconds after the first frame, as the alerts' raise times
-        offset = SLIP_M * d / np.linalg.norm(d)
         live = run_live(recording_with_slip(rec, rec.names[k], float(rec.time_s[frame]), offset))
         hits = [
             a
@@ -148,9 +155,28 @@ def slip_runs(label: str, rec: PoseRecording, sensors: list[int], first_s: float
     return runs
 
 
+def seen_s(rec: PoseRecording, joint: str) -> float | None:
+    """Seconds after the first frame by which both sensors of ``"parent-child"`` had been valid
+    together for :data:`ARMING_S` (the history a joint needs to arm); ``None`` if never."""
+    a, b = (rec.names.index(x) for x in _ends(rec.names, joint))
+    both = np.flatnonzero(rec.valid[:, a] & rec.valid[:, b])
+    need = round(ARMING_S * rec.rate_hz)
+    return float(both[need - 1] / rec.rate_hz) if both.size >= need else None
+
+
+def _ends(names: tuple[str, ...], joint: str) -> tuple[str, str]:
+    """The two sensor names of ``"parent-child"`` (names may hold ``-``)."""
+    for name in names:
+        if joint.startswith(name + "-") and joint[len(name) + 1 :] in names:
+            return name, joint[len(name) + 1 :]
+    raise ValueError(f"{joint!r} is not a pair of {names}")
+
+
 def clean_summary(rec: PoseRecording, live: dict[str, Any]) -> dict[str, Any]:
     minutes = rec.n_frames / rec.rate_hz / 60.0
     armed = [live["armed_s"].get(j) for j in live["joints"]]
+    seen = [seen_s(rec, j) for j in live["joints"]]
+    after_seen = [a - s for a, s in zip(armed, seen, strict=True) if a is not None and s is not None]
     return {
         "sensors": list(rec.names),
         "frames": rec.n_frames,
@@ -159,6 +185,8 @@ def clean_summary(rec: PoseRecording, live: dict[str, Any]) -> dict[str, Any]:
         "joints": live["joints"],
         "armed_s": dict(zip(live["joints"], armed, strict=True)),
         "armed_s_max": max((round(a, 3) for a in armed if a is not None), default=None),
+        "seen_s": dict(zip(live["joints"], seen, strict=True)),
+        "armed_after_seen_s_max": max((round(a, 3) for a in after_seen), default=None),
         "never_armed": [j for j, a in zip(live["joints"], armed, strict=True) if a is None],
         "false_alarms": live["alerts"],
         "joint_minutes": len(live["joints"]) * minutes,
@@ -205,7 +233,7 @@ def sim_case(preset: str, seed: int) -> dict[str, Any]:
 def _line(label: str, case: dict[str, Any]) -> str:
     c, s = case["clean"], case["slip"]
     return (
-        f"{label:58s} armed by {c['armed_s_max']} s"
+        f"{label:58s} armed by {c['armed_s_max']} s ({c['armed_after_seen_s_max']} s after seen)"
         f" (never: {len(c['never_armed'])}), false alarms {len(c['false_alarms'])} in "
         f"{c['joint_minutes']:.1f} joint-min; slips {s['right_sensor']}/{s['slips']} right sensor "
         f"({s['detected_within_0.5s']} any), latency max {s['latency_s_max']}, "
@@ -238,9 +266,11 @@ def main() -> None:
         minutes = sum(c["clean"]["joint_minutes"] for c in cases)
         alarms = sum(len(c["clean"]["false_alarms"]) for c in cases)
         armed = [c["clean"]["armed_s_max"] for c in cases]
+        after_seen = [c["clean"]["armed_after_seen_s_max"] for c in cases]
         return {
             **slip_summary(runs),
             "armed_s_max": max((a for a in armed if a is not None), default=None),
+            "armed_after_seen_s_max": max((a for a in after_seen if a is not None), default=None),
             "recordings_never_armed": sum(bool(c["clean"]["never_armed"]) for c in cases),
             "clean_false_alarms": alarms,
             "clean_joint_minutes": minutes,

@@ -4,6 +4,7 @@ never armed on skin, and alerted none of the slips injected into real recordings
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -114,4 +115,21 @@ def test_skin_markers_session_quiet_when_the_legs_start_moving():
     rec = run_session(config, load_session_model(config)).poses()
     sc = _live(rec)
     assert "abdomen-pelvis" in sc.slip_armed_s()  # armed, and so tested, before the legs move
+    assert sc.alerts == (), [a.message for a in sc.alerts]
+
+
+def test_real_hip_trial_with_the_shank_cluster_hidden_at_first(hip):
+    # a cluster out of view for the first 6 s (as sprintbasket's forearm, 11 s): the pelvis-thigh
+    # joint arms 3 s after the start, the thigh-shank joint 3 s after the shank appears (at a
+    # refit, at most REFIT_S later), and the skin's motion raises no alert
+    from calibration.streaming import FLUSH_S, REFIT_S
+
+    hidden_s = 6.0
+    valid = hip.valid.copy()
+    valid[: round(hidden_s * hip.rate_hz), hip.names.index("shank_r")] = False
+    sc = _live(dataclasses.replace(hip, valid=valid))
+    armed = sc.slip_armed_s()
+    assert armed["thigh_r-pelvis"] <= ARMED_BY_S
+    late = hidden_s + ARMED_BY_S - FLUSH_S - 1.0 / hip.rate_hz  # a refit comes before its flush's frames
+    assert late <= armed["thigh_r-shank_r"] <= hidden_s + ARMED_BY_S + REFIT_S
     assert sc.alerts == (), [a.message for a in sc.alerts]

@@ -332,3 +332,84 @@ def test_a_joint_whose_parent_and_child_swap_keeps_its_slip_history():
     d_swapped = np.stack([monitor._d(_flipped(hist[k]), lc[k], lp[k]) for k in range(len(monitor.keys))])
     assert hist.shape[1] >= 10 and np.abs(d).max() > 1e-3  # something to compare
     assert_allclose(d_swapped, -d[..., ::-1, :], atol=1e-12)
+
+
+def _pushed_one_at_a_time(names, R, p, valid, rate=RATE, **kwargs):
+    sc = StreamingCalibrator(names, rate_hz=rate, **kwargs)
+    for f in range(R.shape[0]):
+        sc.push(R[f], p[f], valid[f])
+    return sc
+
+
+def test_a_joint_new_to_the_tree_gets_the_history_it_would_have_had():
+    # the poses held in the ring give a joint that joins the tree exactly the window differences
+    # the monitor would have kept had it followed the joint all along
+    skeleton, cap = _capture(n_frames=900, noise=0.003)
+    valid = np.random.default_rng(6).random((900, 8)) > 0.05
+    sc = _pushed_one_at_a_time(skeleton.names, cap.R_w_s, cap.p_w_s, valid)
+    monitor = sc._monitor
+    assert sc.alerts == ()  # no frame left out of the histories
+    for j in range(len(monitor.keys)):
+        n = int(monitor.n_hist[j])
+        kept = monitor.hist[j, :n].copy()
+        monitor.hist[j], monitor.n_hist[j] = 0.0, 0
+        monitor._backfill(np.array([j]))
+        k = int(monitor.n_hist[j])
+        assert monitor.warmup <= k < n  # a warm-up's history, not the whole
+        assert_allclose(monitor.hist[j, :k], kept[n - k :], rtol=0, atol=1e-12)
+
+
+def test_joints_arm_as_their_pairs_are_seen_not_when_the_tree_settles():
+    # a leaf sensor hidden for the first 5 s (a marker cluster out of view): the other joints arm
+    # 3 s after the start, the leaf's joint 3 s after it appears (plus at most one refit), and
+    # nothing is alerted
+    from calibration.streaming import FLUSH_S, REFIT_S
+
+    skeleton, cap = _capture(n_frames=1500, noise=0.003)
+    parents = {seg.parent for seg in skeleton.segments}
+    leaf = next(s.name for s in reversed(skeleton.segments) if s.name not in parents)
+    hidden_s = 5.0
+    valid = np.ones((1500, 8), dtype=bool)
+    valid[: round(hidden_s * RATE), skeleton.names.index(leaf)] = False
+    sc = _pushed_one_at_a_time(skeleton.names, cap.R_w_s, cap.p_w_s, valid)
+    armed = sc.slip_armed_s()
+    joints = {j.name: j for j in sc.calibration().joints}
+    assert set(armed) >= set(joints)
+    for name, joint in joints.items():
+        if leaf in (joint.parent, joint.child):
+            # (armed at a refit, which comes before the flush's frames are examined)
+            assert hidden_s + 3.0 - FLUSH_S - 1 / RATE <= armed[name] <= hidden_s + 3.0 + REFIT_S, (
+                name,
+                armed[name],
+            )
+        else:
+            assert armed[name] <= 3.0, (name, armed[name])
+    assert sc.alerts == ()
+
+
+def test_a_joint_kept_over_a_refit_arms_and_one_that_returns_keeps_its_history():
+    skeleton, cap = _capture(n_frames=720, noise=0.003)
+    sc = _pushed_one_at_a_time(skeleton.names, cap.R_w_s, cap.p_w_s, np.ones((720, 8), dtype=bool))
+    assert sc._refit_at % sc._refit_every == 0  # refits at multiples of REFIT_S of the stream
+    monitor = sc._monitor
+    keys, lp, lc = list(monitor.keys), monitor.lp.copy(), monitor.lc.copy()
+    assert np.isfinite(monitor.threshold).all()
+    saved = monitor.hist[0, : monitor.n_hist[0]].copy()
+    # the tree swaps joint 0 for a pair that is no joint: a tie of the weights at one refit
+    pair = next(
+        (a, b)
+        for a in range(8)
+        for b in range(a + 1, 8)
+        if (a, b) not in keys and (b, a) not in keys and a not in keys[0] and b not in keys[0]
+    )
+    swapped = [*keys[1:], pair]
+    monitor.set_joints(swapped, np.vstack([lp[1:], np.zeros(3)]), np.vstack([lc[1:], np.zeros(3)]))
+    new = swapped.index(pair)
+    assert monitor.n_hist[new] >= monitor.warmup  # its history is there (the ring)...
+    assert np.isinf(monitor.threshold[new]).all()  # ... but it is not armed at its first refit
+    assert np.isfinite(np.delete(monitor.threshold, new, axis=0)).all()
+    monitor.set_joints(swapped, np.vstack([lp[1:], np.zeros(3)]), np.vstack([lc[1:], np.zeros(3)]))
+    assert np.isfinite(monitor.threshold[new]).all()  # kept over a refit: armed
+    monitor.set_joints(keys, lp, lc)  # joint 0 returns with its history
+    assert_allclose(monitor.hist[0, : saved.shape[0]], saved, rtol=0, atol=0)
+    assert monitor.n_hist[0] == saved.shape[0]
