@@ -967,6 +967,7 @@ def _normal_equations(
     frames: int,
     per_frame: int,
     cache: dict | None = None,
+    out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``J^T J`` in LAPACK's lower band layout ``(u + 1, 3 frames per_frame)``, Fortran-ordered
     (the layout ``pbtrf`` reads without a copy; lower is a third faster than upper here), and
@@ -976,8 +977,9 @@ def _normal_equations(
     Every pair of a group's blocks gives a 3 x 3 product per row, written with the frames last
     (each product entry one row of a work array over the frames); one sparse matrix, the same
     for every iteration of a problem (:func:`_band_layout`, kept in ``cache``), sums them into
-    the band's places frame by frame. The band returned is the cache's buffer: the next call
-    overwrites it."""
+    the band's places frame by frame. The band is written into ``out`` (a buffer of its shape,
+    e.g. the one LAPACK factors in place; :func:`_band_again` writes it once more from the sums
+    kept in ``cache``), else into the cache's buffer, which the next call overwrites."""
     nb = per_frame
     if cache is None:
         cache = {}
@@ -988,7 +990,10 @@ def _normal_equations(
     work = cache.get("work")
     if work is None:  # the products over the frames; columns no row reaches stay zero
         work = cache["work"] = np.zeros((cache["rows"], frames))
-        cache["band"] = np.zeros((u + 1, 3 * nb * frames), order="F")
+    if out is None:
+        out = cache.get("band")
+        if out is None:
+            out = cache["band"] = np.zeros((u + 1, 3 * nb * frames), order="F")
     start = 0
     for blocks, (shape, pairs, grads) in zip(groups, cache["plan"], strict=True):
         rows, K = shape
@@ -1033,13 +1038,24 @@ def _normal_equations(
                 np.multiply(va, rg, out=G)
             else:
                 np.einsum("kmit,kmt->kit", va, rg, out=G)
-    summed = cache["sum"] @ work  # (places, frames)
-    ab = cache["band"]
+    summed = cache["summed"] = cache["sum"] @ work  # (places, frames)
     n_band = cache["places"].size
-    ab.T.reshape(frames, -1)[:, cache["places"]] = summed[:n_band].T
     g = np.zeros((frames, 3 * nb))
     g[:, cache["gradient"]] = summed[n_band:].T
-    return ab, g.reshape(-1)
+    return _band_again(cache, out), g.reshape(-1)
+
+
+def _band_again(cache: dict, out: np.ndarray) -> np.ndarray:
+    """The last :func:`_normal_equations`' band written (once more) into ``out``, ``(u + 1, 3
+    frames per_frame)`` Fortran-ordered, from the sums it kept in ``cache``: zeros but for the
+    places products reach (a factorisation in place fills the rest)."""
+    n_band = cache["places"].size
+    shape = (cache["u"] + 1, 3 * cache["per_frame"] * cache["frames"])
+    if out.shape != shape or not out.flags.f_contiguous:
+        raise ValueError(f"Expected a Fortran-ordered band buffer of shape {shape}, got {out.shape}")
+    out.fill(0.0)
+    out.T.reshape(cache["frames"], -1)[:, cache["places"]] = cache["summed"][:n_band].T
+    return out
 
 
 def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
@@ -1091,8 +1107,9 @@ def _levenberg_marquardt(
     problem: _Problem, R: np.ndarray, V: np.ndarray, max_iter: int, rel_tol: float = 1e-6
 ) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Minimise the problem's cost from ``R`` ``(F, N, 3, 3)`` and the roots' velocities ``V``
-    ``(F, n_vel, 3)``; return them, the iterations and the final cost. Each try factors a copy
-    of the band (LAPACK ``pbsv`` in place, in one buffer kept over the tries)."""
+    ``(F, n_vel, 3)``; return them, the iterations and the final cost. The band is assembled in
+    the buffer LAPACK factors in place (``pbsv``), one over the iterations; a rejected try
+    writes it again from the kept sums (:func:`_band_again`) rather than each try copying it."""
     f, n = problem.use.shape
     nb = problem.blocks_per_frame
     lam = 1e-3
@@ -1102,13 +1119,15 @@ def _levenberg_marquardt(
     factor = None
     try:
         for iterations in range(1, max_iter + 1):
-            ab, g = _normal_equations(r, groups, f, nb, problem.band)
+            ab, g = _normal_equations(r, groups, f, nb, problem.band, out=factor)
+            factor = ab  # factored in place; a rejected try writes the band again
             diag = ab[0].copy()
             floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
-            if factor is None:
-                factor = np.empty_like(ab, order="F")
+            tries = 0
             while True:
-                np.copyto(factor, ab)
+                if tries:
+                    _band_again(problem.band, factor)
+                tries += 1
                 factor[0] = diag * (1 + lam) + floor
                 _, x, info = dpbsv(factor, -g[:, None], lower=1, overwrite_ab=1, overwrite_b=1)
                 if info < 0:
@@ -1131,8 +1150,8 @@ def _levenberg_marquardt(
                 break
             r, groups = problem.residuals(R, V, jacobian=True)
     finally:  # the work buffers are large: a problem kept for later solves holds only its layout
-        problem.band.pop("work", None)
-        problem.band.pop("band", None)
+        for key in ("work", "band", "summed"):
+            problem.band.pop(key, None)
     return R, V, iterations, cost
 
 
