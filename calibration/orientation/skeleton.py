@@ -115,6 +115,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -684,11 +685,18 @@ class _Problem:
         perturbation ``d``: every such 3 x 3 block is a cross product, ``[v]x`` with ``v``
         ``(rows..., 3)``, or a multiple of the identity, ``v I`` with ``v`` a scalar (the
         smoothness rows)."""
+        r, blocks = self.evaluate(R, V)
+        return (r, blocks()) if jacobian else r
+
+    def evaluate(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, Callable[[], list]]:
+        """:meth:`residuals` at ``R``, ``V``, and a function that gives their Jacobian's blocks
+        (``residuals(R, V, jacobian=True)[1]``) from what the residuals computed: a solver asks
+        for them only where it accepts a step."""
         f, n = self.use.shape
         nb = self.blocks_per_frame
         dt, pri, sk = self.dt, self.priors, self.skeleton
         res: list[np.ndarray] = []
-        groups: list[list[tuple[np.ndarray, np.ndarray]]] = []
+        builders: list[Callable[[], list[tuple[np.ndarray, np.ndarray]]]] = []
 
         slot = self.slot
 
@@ -696,60 +704,61 @@ class _Problem:
             return t * nb + slot[k]
 
         frames = np.arange(f)[:, None]
+        inner = frames[1:-1]
         joints = self.joints(R)
         acc = self.filled(R, V, joints)
         # magnetometer: R m - b
         Rm = np.einsum("fnij,fnj->fni", R, self.mag_dir)
         w = (self.mag_weight / pri.mag_rad)[..., None]
         res.append((w * (Rm - self.ref.field_dir_w)).reshape(-1))
-        if jacobian:
-            groups.append([(col(frames, np.arange(n)[None]), -w * Rm)])
+        builders.append(lambda: [(col(frames, np.arange(n)[None]), -w * Rm)])
         # body roots: R f - g up, their acceleration a zero-mean prior
         Rf = np.einsum("fnij,fnj->fni", R, acc)
         roots = self.body_roots
         wr = (self.use[:, roots] / self.root_sigma)[..., None]
         res.append((wr * (Rf[:, roots] - self.ref.gravity * self.ref.up_w)).reshape(-1))
-        if jacobian:
-            groups.append([(col(frames, roots[None]), -wr * Rf[:, roots])])
+        builders.append(lambda: [(col(frames, roots[None]), -wr * Rf[:, roots])])
         # lone sensors: their velocity V (V[t] over the step t -> t + 1) changes by their
         # linear acceleration, (V[t] - V[t-1]) / dt = R f - g up at t; V a zero-mean prior
         lone = self.lone
         if lone.size and f > 2:
             e = Rf[1:-1, lone] - self.ref.gravity * self.ref.up_w
-            W = (self.use[1:-1, lone] / pri.lone_acc)[..., None]
-            res.append((W * ((V[1:-1] - V[:-2]) / dt - e)).reshape(-1))
+            W_lone = (self.use[1:-1, lone] / pri.lone_acc)[..., None]
+            res.append((W_lone * ((V[1:-1] - V[:-2]) / dt - e)).reshape(-1))
             res.append((V / pri.lone_speed).reshape(-1))
-            if jacobian:
-                t = frames[1:-1]
+
+            def lone_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 v_col = n + np.arange(lone.size)[None]
-                step = (W / dt)[..., None] * np.eye(3)
-                groups.append(
-                    [
-                        (col(t, lone[None]), W * Rf[1:-1, lone]),
-                        (col(t, v_col), step),
-                        (col(t - 1, v_col), -step),
-                    ]
-                )
-                groups.append([(col(frames, v_col), np.float64(1.0 / pri.lone_speed))])
+                step = (W_lone / dt)[..., None] * np.eye(3)
+                return [
+                    (col(inner, lone[None]), W_lone * Rf[1:-1, lone]),
+                    (col(inner, v_col), step),
+                    (col(inner - 1, v_col), -step),
+                ]
+
+            builders.append(lone_blocks)
+            builders.append(
+                lambda: [(col(frames, n + np.arange(lone.size)[None]), np.float64(1.0 / pri.lone_speed))]
+            )
         # joints: R_p f_p + D2(R_p l_p) - R_c f_c - D2(R_c l_c)
         p, c, Lp, Lc, d2p, d2c = joints
         if c.size:
             wj = (self.use[1:-1, p] & self.use[1:-1, c]) / pri.joint_acc
             res.append((wj[..., None] * (Rf[1:-1, p] - Rf[1:-1, c] + d2p - d2c)).reshape(-1))
-            if jacobian:
-                t = frames[1:-1]
+
+            def joint_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 W = wj[..., None]
                 h = 1.0 / dt**2
-                groups.append(
-                    [
-                        (col(t - 1, p[None]), -h * W * Lp[:-2]),
-                        (col(t, p[None]), -W * (Rf[1:-1, p] - 2 * h * Lp[1:-1])),
-                        (col(t + 1, p[None]), -h * W * Lp[2:]),
-                        (col(t - 1, c[None]), h * W * Lc[:-2]),
-                        (col(t, c[None]), W * (Rf[1:-1, c] - 2 * h * Lc[1:-1])),
-                        (col(t + 1, c[None]), h * W * Lc[2:]),
-                    ]
-                )
+                return [
+                    (col(inner - 1, p[None]), -h * W * Lp[:-2]),
+                    (col(inner, p[None]), -W * (Rf[1:-1, p] - 2 * h * Lp[1:-1])),
+                    (col(inner + 1, p[None]), -h * W * Lp[2:]),
+                    (col(inner - 1, c[None]), h * W * Lc[:-2]),
+                    (col(inner, c[None]), W * (Rf[1:-1, c] - 2 * h * Lc[1:-1])),
+                    (col(inner + 1, c[None]), h * W * Lc[2:]),
+                ]
+
+            builders.append(joint_blocks)
         # hinges: the axis the same from both sides, R_p a_p - R_c a_c
         hc = sk.hinges
         if hc.size:
@@ -757,13 +766,12 @@ class _Problem:
             Ap = np.einsum("fkij,kj->fki", R[:, hp], np.asarray(sk.hinge_in_parent, dtype=float)[hc])
             Ac = np.einsum("fkij,kj->fki", R[:, hc], np.asarray(sk.hinge_in_child, dtype=float)[hc])
             res.append(((Ap - Ac) / pri.hinge_rad).reshape(-1))
-            if jacobian:
-                groups.append(
-                    [
-                        (col(frames, hp[None]), -Ap / pri.hinge_rad),
-                        (col(frames, hc[None]), Ac / pri.hinge_rad),
-                    ]
-                )
+            builders.append(
+                lambda: [
+                    (col(frames, hp[None]), -Ap / pri.hinge_rad),
+                    (col(frames, hc[None]), Ac / pri.hinge_rad),
+                ]
+            )
         # ranges: the excess of log(C^T R_p^T R_c) beyond the cone's radius
         rc = sk.ranged
         if rc.size:
@@ -776,7 +784,8 @@ class _Problem:
             out = size > theta
             safe = np.where(out, size, 1.0)
             res.append((np.where(out, phi * (1.0 - theta / safe), 0.0) / pri.beyond_range_rad).reshape(-1))
-            if jacobian:
+
+            def range_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 # d excess / d phi, then d phi / d(delta_c) = J_r^-1(phi) R_c^T, d(delta_p) = -that
                 D = np.where(
                     out[..., None],
@@ -786,28 +795,28 @@ class _Problem:
                 )
                 Jc = D @ np.swapaxes(_log_jacobian_inverse(phi), -1, -2) @ np.swapaxes(R[:, rc], -1, -2)
                 Jc = Jc / pri.beyond_range_rad
-                groups.append([(col(frames, rp[None]), -Jc), (col(frames, rc[None]), Jc)])
+                return [(col(frames, rp[None]), -Jc), (col(frames, rc[None]), Jc)]
+
+            builders.append(range_blocks)
         # smoothness: change of the world angular increment
         if f > 2:
             s = pri.angular_acc * dt**2
             inc = _log(R[1:] @ np.swapaxes(R[:-1], -1, -2))
             res.append(((inc[1:] - inc[:-1]) / s).reshape(-1))
-            if jacobian:
-                t = frames[1:-1]
+
+            def smoothness_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 k = np.arange(n)[None]
                 Jl = _log_jacobian_inverse(inc) / s  # (F-1, N, 3, 3): d inc_t / d(delta_{t+1})
                 Jr = np.swapaxes(Jl, -1, -2)  # -d inc_t / d(delta_t)
-                groups.append(
-                    [
-                        (col(t - 1, k), Jr[:-1]),
-                        (col(t, k), -Jr[1:] - Jl[:-1]),
-                        (col(t + 1, k), Jl[1:]),
-                    ]
-                )
+                return [
+                    (col(inner - 1, k), Jr[:-1]),
+                    (col(inner, k), -Jr[1:] - Jl[:-1]),
+                    (col(inner + 1, k), Jl[1:]),
+                ]
+
+            builders.append(smoothness_blocks)
         r = np.concatenate(res)
-        if not jacobian:
-            return r
-        return r, groups
+        return r, lambda: [build() for build in builders]
 
 
 def _log(M: np.ndarray) -> np.ndarray:
@@ -1136,7 +1145,7 @@ def _levenberg_marquardt(
                     d = x.reshape(f, nb, 3)[:, problem.slot]
                     R_new = rotvec_to_matrix(d[:, :n]) @ R
                     V_new = V + d[:, n:]
-                    r_new = problem.residuals(R_new, V_new)
+                    r_new, blocks_new = problem.evaluate(R_new, V_new)
                     cost_new = float(r_new @ r_new)
                     if cost_new < cost:
                         break
@@ -1148,7 +1157,7 @@ def _levenberg_marquardt(
             lam = max(lam / 3, 1e-9)
             if gain < rel_tol:
                 break
-            r, groups = problem.residuals(R, V, jacobian=True)
+            r, groups = r_new, blocks_new()  # the Jacobian where the step is accepted
     finally:  # the work buffers are large: a problem kept for later solves holds only its layout
         for key in ("work", "band", "summed"):
             problem.band.pop(key, None)
