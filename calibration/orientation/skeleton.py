@@ -115,6 +115,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -684,11 +685,18 @@ class _Problem:
         perturbation ``d``: every such 3 x 3 block is a cross product, ``[v]x`` with ``v``
         ``(rows..., 3)``, or a multiple of the identity, ``v I`` with ``v`` a scalar (the
         smoothness rows)."""
+        r, blocks = self.evaluate(R, V)
+        return (r, blocks()) if jacobian else r
+
+    def evaluate(self, R: np.ndarray, V: np.ndarray) -> tuple[np.ndarray, Callable[[], list]]:
+        """:meth:`residuals` at ``R``, ``V``, and a function that gives their Jacobian's blocks
+        (``residuals(R, V, jacobian=True)[1]``) from what the residuals computed: a solver asks
+        for them only where it accepts a step."""
         f, n = self.use.shape
         nb = self.blocks_per_frame
         dt, pri, sk = self.dt, self.priors, self.skeleton
         res: list[np.ndarray] = []
-        groups: list[list[tuple[np.ndarray, np.ndarray]]] = []
+        builders: list[Callable[[], list[tuple[np.ndarray, np.ndarray]]]] = []
 
         slot = self.slot
 
@@ -696,60 +704,61 @@ class _Problem:
             return t * nb + slot[k]
 
         frames = np.arange(f)[:, None]
+        inner = frames[1:-1]
         joints = self.joints(R)
         acc = self.filled(R, V, joints)
         # magnetometer: R m - b
         Rm = np.einsum("fnij,fnj->fni", R, self.mag_dir)
         w = (self.mag_weight / pri.mag_rad)[..., None]
         res.append((w * (Rm - self.ref.field_dir_w)).reshape(-1))
-        if jacobian:
-            groups.append([(col(frames, np.arange(n)[None]), -w * Rm)])
+        builders.append(lambda: [(col(frames, np.arange(n)[None]), -w * Rm)])
         # body roots: R f - g up, their acceleration a zero-mean prior
         Rf = np.einsum("fnij,fnj->fni", R, acc)
         roots = self.body_roots
         wr = (self.use[:, roots] / self.root_sigma)[..., None]
         res.append((wr * (Rf[:, roots] - self.ref.gravity * self.ref.up_w)).reshape(-1))
-        if jacobian:
-            groups.append([(col(frames, roots[None]), -wr * Rf[:, roots])])
+        builders.append(lambda: [(col(frames, roots[None]), -wr * Rf[:, roots])])
         # lone sensors: their velocity V (V[t] over the step t -> t + 1) changes by their
         # linear acceleration, (V[t] - V[t-1]) / dt = R f - g up at t; V a zero-mean prior
         lone = self.lone
         if lone.size and f > 2:
             e = Rf[1:-1, lone] - self.ref.gravity * self.ref.up_w
-            W = (self.use[1:-1, lone] / pri.lone_acc)[..., None]
-            res.append((W * ((V[1:-1] - V[:-2]) / dt - e)).reshape(-1))
+            W_lone = (self.use[1:-1, lone] / pri.lone_acc)[..., None]
+            res.append((W_lone * ((V[1:-1] - V[:-2]) / dt - e)).reshape(-1))
             res.append((V / pri.lone_speed).reshape(-1))
-            if jacobian:
-                t = frames[1:-1]
+
+            def lone_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 v_col = n + np.arange(lone.size)[None]
-                step = (W / dt)[..., None] * np.eye(3)
-                groups.append(
-                    [
-                        (col(t, lone[None]), W * Rf[1:-1, lone]),
-                        (col(t, v_col), step),
-                        (col(t - 1, v_col), -step),
-                    ]
-                )
-                groups.append([(col(frames, v_col), np.float64(1.0 / pri.lone_speed))])
+                step = (W_lone / dt)[..., None] * np.eye(3)
+                return [
+                    (col(inner, lone[None]), W_lone * Rf[1:-1, lone]),
+                    (col(inner, v_col), step),
+                    (col(inner - 1, v_col), -step),
+                ]
+
+            builders.append(lone_blocks)
+            builders.append(
+                lambda: [(col(frames, n + np.arange(lone.size)[None]), np.float64(1.0 / pri.lone_speed))]
+            )
         # joints: R_p f_p + D2(R_p l_p) - R_c f_c - D2(R_c l_c)
         p, c, Lp, Lc, d2p, d2c = joints
         if c.size:
             wj = (self.use[1:-1, p] & self.use[1:-1, c]) / pri.joint_acc
             res.append((wj[..., None] * (Rf[1:-1, p] - Rf[1:-1, c] + d2p - d2c)).reshape(-1))
-            if jacobian:
-                t = frames[1:-1]
+
+            def joint_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 W = wj[..., None]
                 h = 1.0 / dt**2
-                groups.append(
-                    [
-                        (col(t - 1, p[None]), -h * W * Lp[:-2]),
-                        (col(t, p[None]), -W * (Rf[1:-1, p] - 2 * h * Lp[1:-1])),
-                        (col(t + 1, p[None]), -h * W * Lp[2:]),
-                        (col(t - 1, c[None]), h * W * Lc[:-2]),
-                        (col(t, c[None]), W * (Rf[1:-1, c] - 2 * h * Lc[1:-1])),
-                        (col(t + 1, c[None]), h * W * Lc[2:]),
-                    ]
-                )
+                return [
+                    (col(inner - 1, p[None]), -h * W * Lp[:-2]),
+                    (col(inner, p[None]), -W * (Rf[1:-1, p] - 2 * h * Lp[1:-1])),
+                    (col(inner + 1, p[None]), -h * W * Lp[2:]),
+                    (col(inner - 1, c[None]), h * W * Lc[:-2]),
+                    (col(inner, c[None]), W * (Rf[1:-1, c] - 2 * h * Lc[1:-1])),
+                    (col(inner + 1, c[None]), h * W * Lc[2:]),
+                ]
+
+            builders.append(joint_blocks)
         # hinges: the axis the same from both sides, R_p a_p - R_c a_c
         hc = sk.hinges
         if hc.size:
@@ -757,13 +766,12 @@ class _Problem:
             Ap = np.einsum("fkij,kj->fki", R[:, hp], np.asarray(sk.hinge_in_parent, dtype=float)[hc])
             Ac = np.einsum("fkij,kj->fki", R[:, hc], np.asarray(sk.hinge_in_child, dtype=float)[hc])
             res.append(((Ap - Ac) / pri.hinge_rad).reshape(-1))
-            if jacobian:
-                groups.append(
-                    [
-                        (col(frames, hp[None]), -Ap / pri.hinge_rad),
-                        (col(frames, hc[None]), Ac / pri.hinge_rad),
-                    ]
-                )
+            builders.append(
+                lambda: [
+                    (col(frames, hp[None]), -Ap / pri.hinge_rad),
+                    (col(frames, hc[None]), Ac / pri.hinge_rad),
+                ]
+            )
         # ranges: the excess of log(C^T R_p^T R_c) beyond the cone's radius
         rc = sk.ranged
         if rc.size:
@@ -776,7 +784,8 @@ class _Problem:
             out = size > theta
             safe = np.where(out, size, 1.0)
             res.append((np.where(out, phi * (1.0 - theta / safe), 0.0) / pri.beyond_range_rad).reshape(-1))
-            if jacobian:
+
+            def range_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 # d excess / d phi, then d phi / d(delta_c) = J_r^-1(phi) R_c^T, d(delta_p) = -that
                 D = np.where(
                     out[..., None],
@@ -786,28 +795,28 @@ class _Problem:
                 )
                 Jc = D @ np.swapaxes(_log_jacobian_inverse(phi), -1, -2) @ np.swapaxes(R[:, rc], -1, -2)
                 Jc = Jc / pri.beyond_range_rad
-                groups.append([(col(frames, rp[None]), -Jc), (col(frames, rc[None]), Jc)])
+                return [(col(frames, rp[None]), -Jc), (col(frames, rc[None]), Jc)]
+
+            builders.append(range_blocks)
         # smoothness: change of the world angular increment
         if f > 2:
             s = pri.angular_acc * dt**2
             inc = _log(R[1:] @ np.swapaxes(R[:-1], -1, -2))
             res.append(((inc[1:] - inc[:-1]) / s).reshape(-1))
-            if jacobian:
-                t = frames[1:-1]
+
+            def smoothness_blocks() -> list[tuple[np.ndarray, np.ndarray]]:
                 k = np.arange(n)[None]
                 Jl = _log_jacobian_inverse(inc) / s  # (F-1, N, 3, 3): d inc_t / d(delta_{t+1})
                 Jr = np.swapaxes(Jl, -1, -2)  # -d inc_t / d(delta_t)
-                groups.append(
-                    [
-                        (col(t - 1, k), Jr[:-1]),
-                        (col(t, k), -Jr[1:] - Jl[:-1]),
-                        (col(t + 1, k), Jl[1:]),
-                    ]
-                )
+                return [
+                    (col(inner - 1, k), Jr[:-1]),
+                    (col(inner, k), -Jr[1:] - Jl[:-1]),
+                    (col(inner + 1, k), Jl[1:]),
+                ]
+
+            builders.append(smoothness_blocks)
         r = np.concatenate(res)
-        if not jacobian:
-            return r
-        return r, groups
+        return r, lambda: [build() for build in builders]
 
 
 def _log(M: np.ndarray) -> np.ndarray:
@@ -967,6 +976,7 @@ def _normal_equations(
     frames: int,
     per_frame: int,
     cache: dict | None = None,
+    out: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``J^T J`` in LAPACK's lower band layout ``(u + 1, 3 frames per_frame)``, Fortran-ordered
     (the layout ``pbtrf`` reads without a copy; lower is a third faster than upper here), and
@@ -976,8 +986,9 @@ def _normal_equations(
     Every pair of a group's blocks gives a 3 x 3 product per row, written with the frames last
     (each product entry one row of a work array over the frames); one sparse matrix, the same
     for every iteration of a problem (:func:`_band_layout`, kept in ``cache``), sums them into
-    the band's places frame by frame. The band returned is the cache's buffer: the next call
-    overwrites it."""
+    the band's places frame by frame. The band is written into ``out`` (a buffer of its shape,
+    e.g. the one LAPACK factors in place; :func:`_band_again` writes it once more from the sums
+    kept in ``cache``), else into the cache's buffer, which the next call overwrites."""
     nb = per_frame
     if cache is None:
         cache = {}
@@ -988,7 +999,10 @@ def _normal_equations(
     work = cache.get("work")
     if work is None:  # the products over the frames; columns no row reaches stay zero
         work = cache["work"] = np.zeros((cache["rows"], frames))
-        cache["band"] = np.zeros((u + 1, 3 * nb * frames), order="F")
+    if out is None:
+        out = cache.get("band")
+        if out is None:
+            out = cache["band"] = np.zeros((u + 1, 3 * nb * frames), order="F")
     start = 0
     for blocks, (shape, pairs, grads) in zip(groups, cache["plan"], strict=True):
         rows, K = shape
@@ -1033,13 +1047,24 @@ def _normal_equations(
                 np.multiply(va, rg, out=G)
             else:
                 np.einsum("kmit,kmt->kit", va, rg, out=G)
-    summed = cache["sum"] @ work  # (places, frames)
-    ab = cache["band"]
+    summed = cache["summed"] = cache["sum"] @ work  # (places, frames)
     n_band = cache["places"].size
-    ab.T.reshape(frames, -1)[:, cache["places"]] = summed[:n_band].T
     g = np.zeros((frames, 3 * nb))
     g[:, cache["gradient"]] = summed[n_band:].T
-    return ab, g.reshape(-1)
+    return _band_again(cache, out), g.reshape(-1)
+
+
+def _band_again(cache: dict, out: np.ndarray) -> np.ndarray:
+    """The last :func:`_normal_equations`' band written (once more) into ``out``, ``(u + 1, 3
+    frames per_frame)`` Fortran-ordered, from the sums it kept in ``cache``: zeros but for the
+    places products reach (a factorisation in place fills the rest)."""
+    n_band = cache["places"].size
+    shape = (cache["u"] + 1, 3 * cache["per_frame"] * cache["frames"])
+    if out.shape != shape or not out.flags.f_contiguous:
+        raise ValueError(f"Expected a Fortran-ordered band buffer of shape {shape}, got {out.shape}")
+    out.fill(0.0)
+    out.T.reshape(cache["frames"], -1)[:, cache["places"]] = cache["summed"][:n_band].T
+    return out
 
 
 def _sensor_costs(problem: _Problem, R: np.ndarray, V: np.ndarray) -> np.ndarray:
@@ -1091,8 +1116,9 @@ def _levenberg_marquardt(
     problem: _Problem, R: np.ndarray, V: np.ndarray, max_iter: int, rel_tol: float = 1e-6
 ) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Minimise the problem's cost from ``R`` ``(F, N, 3, 3)`` and the roots' velocities ``V``
-    ``(F, n_vel, 3)``; return them, the iterations and the final cost. Each try factors a copy
-    of the band (LAPACK ``pbsv`` in place, in one buffer kept over the tries)."""
+    ``(F, n_vel, 3)``; return them, the iterations and the final cost. The band is assembled in
+    the buffer LAPACK factors in place (``pbsv``), one over the iterations; a rejected try
+    writes it again from the kept sums (:func:`_band_again`) rather than each try copying it."""
     f, n = problem.use.shape
     nb = problem.blocks_per_frame
     lam = 1e-3
@@ -1102,13 +1128,15 @@ def _levenberg_marquardt(
     factor = None
     try:
         for iterations in range(1, max_iter + 1):
-            ab, g = _normal_equations(r, groups, f, nb, problem.band)
+            ab, g = _normal_equations(r, groups, f, nb, problem.band, out=factor)
+            factor = ab  # factored in place; a rejected try writes the band again
             diag = ab[0].copy()
             floor = 1e-12 * max(float(diag.max(initial=0.0)), 1e-300)
-            if factor is None:
-                factor = np.empty_like(ab, order="F")
+            tries = 0
             while True:
-                np.copyto(factor, ab)
+                if tries:
+                    _band_again(problem.band, factor)
+                tries += 1
                 factor[0] = diag * (1 + lam) + floor
                 _, x, info = dpbsv(factor, -g[:, None], lower=1, overwrite_ab=1, overwrite_b=1)
                 if info < 0:
@@ -1117,7 +1145,7 @@ def _levenberg_marquardt(
                     d = x.reshape(f, nb, 3)[:, problem.slot]
                     R_new = rotvec_to_matrix(d[:, :n]) @ R
                     V_new = V + d[:, n:]
-                    r_new = problem.residuals(R_new, V_new)
+                    r_new, blocks_new = problem.evaluate(R_new, V_new)
                     cost_new = float(r_new @ r_new)
                     if cost_new < cost:
                         break
@@ -1129,10 +1157,10 @@ def _levenberg_marquardt(
             lam = max(lam / 3, 1e-9)
             if gain < rel_tol:
                 break
-            r, groups = problem.residuals(R, V, jacobian=True)
+            r, groups = r_new, blocks_new()  # the Jacobian where the step is accepted
     finally:  # the work buffers are large: a problem kept for later solves holds only its layout
-        problem.band.pop("work", None)
-        problem.band.pop("band", None)
+        for key in ("work", "band", "summed"):
+            problem.band.pop(key, None)
     return R, V, iterations, cost
 
 
