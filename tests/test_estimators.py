@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -195,15 +196,17 @@ def test_a_users_failure_is_named(tmp_path, linkage, body, message):
         ("import time; time.sleep(30)", "time limit of 1 s"),
     ],
 )
-def test_a_failing_command_is_named_and_leaves_nothing(tmp_path, linkage, script, message):
+def test_a_failing_command_is_named_and_leaves_nothing(tmp_path, linkage, script, message, monkeypatch):
     path = _write(tmp_path / "bad_cmd.py", script)
     est = resolve(f"cmd:{sys.executable} {path} {{out}} {{poses}}")
-    before = set(Path("/tmp").glob("simbench-cmd-*"))
+    own_tmp = tmp_path / "tmp"  # this test's temporary folder: other runs' folders do not count
+    own_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(own_tmp))
     t0 = time.perf_counter()
     with pytest.raises(EstimatorError, match=message):
         run_joints(est, linkage.poses(), params={"time_limit_s": 1.0})
     assert time.perf_counter() - t0 < 20
-    assert set(Path("/tmp").glob("simbench-cmd-*")) <= before  # the working folder is removed
+    assert list(own_tmp.iterdir()) == []  # the working folder is removed
 
 
 def test_command_specs_are_checked_before_running():
