@@ -54,12 +54,17 @@ STILL_NAMES = r"static|probing|anat_pose"
 
 
 def correlation_s(residual: np.ndarray, rate_hz: float) -> float:
-    """First lag (s) where the mean autocorrelation of the residual's coordinates falls below 1/e."""
+    """First lag (s) where the mean autocorrelation of the residual's coordinates falls below 1/e,
+    over the longest stretch of frames where every marker is seen."""
     r = residual.reshape(len(residual), -1)
-    r = r[:, np.isfinite(r).all(axis=0)] if np.isfinite(r).all(axis=0).any() else r[:, :0]
-    full = np.isfinite(r).all(axis=1)
-    r = r[full]
-    if r.shape[1] == 0 or len(r) < 8:
+    full = np.concatenate([[False], np.isfinite(r).all(axis=1), [False]])
+    edges = np.flatnonzero(np.diff(full.astype(int)))
+    starts, ends = edges[::2], edges[1::2]
+    if starts.size == 0:
+        return float("nan")
+    longest = int(np.argmax(ends - starts))
+    r = r[starts[longest] : ends[longest]]
+    if len(r) < 8:
         return float("nan")
     r = r - r.mean(axis=0)
     n = len(r)
