@@ -448,3 +448,60 @@ def test_turns_every_way_apply_the_calibration_and_recover_the_iron():
     expected = soft / np.cbrt(np.linalg.det(soft))
     assert np.linalg.norm(fit.soft_iron - expected) / np.linalg.norm(expected) < 0.01
     assert not np.array_equal(fixed.mag, rec.mag)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_magnetometer_axis_that_picks_up_the_horizontal_field_is_not_taken_for_hard_iron(seed):
+    """Issue 43's RepoIMU trial 04_2: turns about the vertical (+-143 degrees) and a horizontal
+    axis (+-34 degrees), the magnetometer's z axis picking up 6 % of the field's x and 4.5 % of its
+    y (a cross-axis coupling, not symmetric soft iron) and a hard iron of 0.7 uT. The field
+    strength then varies with the heading as an offset in the plane of the turn makes it vary:
+    the sphere's centre moves there (measured before: TRIAD 1.74 -> 5.66 degrees, the default
+    2.37 -> 6.25, calibrated vs not). The ellipsoid, with the soft iron free, does not follow it:
+    the sphere departs from it beyond its standard errors (Hausman's test) and nothing is
+    applied, no worse than none."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from simbench.io.imu import ImuRecording
+    from simbench.orient import applies, calibrate_magnetometers, describe_fit, estimate
+    from simbench.score import score_orientation
+
+    rng = np.random.default_rng(seed)
+    n = 6000
+    t = np.arange(n) / 100.0
+    heading = 2.5 * np.sin(2 * np.pi * 0.2 * t + rng.uniform(0, 6))
+    heading += np.cumsum(rng.normal(scale=0.01, size=n))
+    pitch = 0.6 * np.sin(2 * np.pi * 0.13 * t + rng.uniform(0, 6))
+    wobble = gaussian_filter1d(rng.normal(size=(n, 3)), 30, axis=0)
+    wobble *= np.deg2rad(3.0) / wobble.std(axis=0)
+    wobble[:, 2] = 0.0
+    R = (
+        rotvec_to_matrix(heading[:, None] * np.array([0.0, 0.0, 1.0]))
+        @ rotvec_to_matrix(pitch[:, None] * np.array([1.0, 0.0, 0.0]))
+        @ rotvec_to_matrix(wobble)
+    )
+    coupling = np.eye(3)
+    coupling[2, :2] = (0.06, 0.045)
+    b_s = np.einsum("fji,j->fi", R, FIELD_W)
+    mag = b_s @ coupling.T + np.array([0.5, -0.3, 0.4]) + rng.normal(scale=0.3, size=b_s.shape)
+    rec = ImuRecording(
+        names=("s",),
+        time_s=t,
+        acc=np.einsum("fji,j->fi", R, [0.0, 0.0, 9.81])[:, None],
+        gyro=np.zeros((n, 1, 3)),
+        mag=mag[:, None],
+        valid=np.ones((n, 1), dtype=bool),
+        q_true=matrix_to_quat(R)[:, None],
+        evaluate=None,
+        rate_hz=100.0,
+        source="test",
+    )
+    fixed, fits = calibrate_magnetometers(rec)
+    assert not applies(fits["s"])
+    assert "the sphere's centre departs from the ellipsoid's" in describe_fit(fits["s"])
+    for method in ("triad", "skeleton"):
+        before, after = (
+            score_orientation(estimate(r, method).q_enu, r.q_true, r.names).per_sensor["s"]["total_deg"]
+            for r in (rec, fixed)
+        )
+        assert after <= 1.05 * before
