@@ -1,7 +1,7 @@
 """The default gyro-free estimator on RepoIMU's T-stick trials, against TRIAD and VQF (issue 43).
 
     .venv/bin/python studies/repoimu_trials.py --data DIR [--json studies/results/repoimu_trials.json]
-        [--only NAME ...]
+        [--only NAME ...] [--pattern 'Pendulum_*.csv']
 
 RepoIMU (Szczesna et al. 2016, "Reference data set for accuracy evaluation of orientation
 estimation algorithms for inertial motion capture systems", ICCVG, doi 10.1007/978-3-319-46418-3_45;
@@ -11,6 +11,8 @@ of its ``TStick_*.csv`` files: ``;``-separated, two header lines, columns time (
 quaternion W X Y Z (relative to the start: identity at the first sample), the IMU's accelerometer
 (m/s^2), gyroscope (rad/s) and magnetometer (normalised, about 1) X Y Z. The files stay outside
 the repository; this reader stays here (one dataset's layout, not a format simbench offers).
+``--pattern 'Pendulum_*.csv'`` runs the dataset's other part (a three-segment pendulum, an IMU and
+markers on each segment, about 36 s a trial, the same layout), each segment on its own.
 
 **Alignment** (the same for every method, from the optical truth and the raw readings only,
 never from an estimate, so it favours none): the truth is ``R_enu_imu(t) = A Q(t) B`` with ``Q``
@@ -76,6 +78,23 @@ def read_repoimu(path: Path) -> tuple[ImuRecording, np.ndarray]:
     return rec, d[:, 1:5]
 
 
+def matrices(q: np.ndarray) -> np.ndarray:
+    """``(F, 3, 3)`` of quaternions ``(F, 4)``; NaN where a quaternion is missing (NaN or zero:
+    the markers lost)."""
+    ok = np.isfinite(q).all(axis=1) & (np.linalg.norm(np.nan_to_num(q), axis=1) > 0.5)
+    out = np.full((q.shape[0], 3, 3), np.nan)
+    out[ok] = quat_to_matrix(q[ok])
+    return out
+
+
+def quats(R: np.ndarray) -> np.ndarray:
+    """``(F, 4)`` of rotation matrices ``(F, 3, 3)``; NaN where they are."""
+    ok = np.isfinite(R).all(axis=(1, 2))
+    out = np.full((R.shape[0], 4), np.nan)
+    out[ok] = matrix_to_quat(R[ok])
+    return out
+
+
 def body_rate(R: np.ndarray, rate_hz: float) -> np.ndarray:
     """``(F, 3)`` the body-frame angular velocity of ``R`` ``(F, 3, 3)``, rad/s (central
     differences, NaN at the ends)."""
@@ -101,9 +120,9 @@ class Alignment:
 
 def align(rec: ImuRecording, q_vicon: np.ndarray) -> Alignment:
     """The two constant rotations of the module docstring, from the trial itself."""
-    Q = quat_to_matrix(q_vicon)
+    Q = matrices(q_vicon)
     acc, gyro, mag = rec.acc[:, 0], rec.gyro[:, 0], rec.mag[:, 0]
-    use = rec.valid[:, 0]
+    use = rec.valid[:, 0] & np.isfinite(Q).all(axis=(1, 2))
     wb = body_rate(Q, rec.rate_hz)
     C = misalignment(gyro, wb, use)  # gyro ~ C wb: C = R_imu_body
     B = C.T
@@ -139,7 +158,7 @@ def align(rec: ImuRecording, q_vicon: np.ndarray) -> Alignment:
 
 def truth(q_vicon: np.ndarray, al: Alignment) -> np.ndarray:
     """``(F, 1, 4)`` ``R_enu_imu`` = ``A Q B``."""
-    return matrix_to_quat(al.A @ quat_to_matrix(q_vicon) @ al.B)[:, None]
+    return quats(al.A @ matrices(q_vicon) @ al.B)[:, None]
 
 
 def scored(run_q: np.ndarray, rec: ImuRecording) -> dict[str, float]:
@@ -194,7 +213,7 @@ def mechanism(rec: ImuRecording, q_vicon: np.ndarray, al: Alignment) -> dict[str
     90th percentile of the windows' norms, m/s^2; the same in the world frame), and the fraction
     of samples whose optical rate (in the IMU's axes) is beyond the gyroscope's largest reading
     on some axis (a gyroscope that clips; the optical rate is then the motion's)."""
-    R = quat_to_matrix(rec.q_true[:, 0])  # R_enu_imu
+    R = matrices(rec.q_true[:, 0])  # R_enu_imu
     acc = rec.acc[:, 0]
     g = float(np.median(np.linalg.norm(acc, axis=1)))
     lin_s = acc - g * R[:, 2, :]  # a - R^T (0, 0, g)
@@ -203,9 +222,10 @@ def mechanism(rec: ImuRecording, q_vicon: np.ndarray, al: Alignment) -> dict[str
     n = lin_s.shape[0] // k
 
     def windows(x: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(x[: n * k].reshape(n, k, 3).mean(axis=1), axis=1)
+        w = np.linalg.norm(np.nanmean(x[: n * k].reshape(n, k, 3), axis=1), axis=1)
+        return w[np.isfinite(w)]  # windows where the markers were never lost: all of them there
 
-    wb = body_rate(quat_to_matrix(q_vicon), rec.rate_hz) @ al.B  # IMU axes
+    wb = body_rate(matrices(q_vicon), rec.rate_hz) @ al.B  # IMU axes
     top = np.max(np.abs(rec.gyro[:, 0]), axis=0)
     beyond = np.any(np.abs(wb) > top, axis=1)
     return {
@@ -222,16 +242,17 @@ def main() -> None:
     parser.add_argument("--data", required=True, help="folder of RepoIMU's TStick_*.csv")
     parser.add_argument("--json", metavar="OUT")
     parser.add_argument("--only", nargs="*", help="trial names (file stems) to run")
+    parser.add_argument("--pattern", default="TStick_*.csv", help="the trials' file names (glob)")
     args = parser.parse_args()
-    paths = sorted(p for p in Path(args.data).glob("TStick_*.csv") if "Static" not in p.stem)
+    paths = sorted(p for p in Path(args.data).glob(args.pattern) if "Static" not in p.stem)
     if args.only:
         paths = [p for p in paths if p.stem in args.only]
     if not paths:
-        raise SystemExit(f"{args.data}: no TStick_*.csv trials")
+        raise SystemExit(f"{args.data}: no {args.pattern} trials")
     results = {}
     d = DEFAULT_METHOD
     print(
-        f"{'trial':<22}{'gyro90':>7}{d:>10}{'head':>7}{'incl':>7}{'TRIAD':>8}{'head':>7}{'incl':>7}"
+        f"{'trial':<26}{'gyro90':>7}{d:>10}{'head':>7}{'incl':>7}{'TRIAD':>8}{'head':>7}{'incl':>7}"
         f"{'vqf':>7}{'xTRIAD':>8}{'magcal':>8}"
     )
     for path in paths:
@@ -239,7 +260,7 @@ def main() -> None:
         results[path.stem] = row
         m = row["methods"]
         print(
-            f"{path.stem[7:]:<22}{row['gyro_p90_rad_s']:>7.2f}"
+            f"{path.stem.split('_', 1)[1][:25]:<26}{row['gyro_p90_rad_s']:>7.2f}"
             + "".join(
                 f"{m[d][k]:>{w}.2f}"
                 for k, w in (("total_deg", 10), ("heading_deg", 7), ("inclination_deg", 7))
