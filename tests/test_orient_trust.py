@@ -12,6 +12,7 @@ import pytest
 from scipy.ndimage import gaussian_filter1d
 
 from calibration.orientation import field_drift, longest_rest, saturated_axes
+from calibration.orientation.trust import _piled_up
 from calibration.rotations import matrix_to_quat, rotvec_to_matrix
 from simbench.api import orient
 from simbench.cli import main
@@ -77,6 +78,32 @@ def test_a_clipped_gyroscope_and_accelerometer_are_found():
     assert sum("gyroscope axis" in w and "saturated" in w for w in warnings) == 3
     assert sum("accelerometer axis z held at +-8" in w for w in warnings) == 1
     assert orient(recording(acc, gyro, mag, R), "triad").warnings == ()
+
+
+def test_a_gyroscope_clipping_to_a_noisy_value_is_found_a_smooth_extreme_is_not():
+    """A gyroscope that clips to its range plus a little noise (RepoIMU's Xsens: 7.36-7.37 rad/s)
+    repeats no value, yet its samples pile up at the top; smooth extremes do not, however many and
+    however coarsely quantised (a swing at a constant amplitude, a still sensor)."""
+    rng = np.random.default_rng(7)
+    _, gyro, _, _ = turning(4, rate_rad_s=4.0)
+    top = np.quantile(np.abs(gyro[:, 0]), 0.95)
+    clipped = gyro.copy()
+    over = np.abs(clipped[:, 0]) > top
+    clipped[over, 0] = np.sign(clipped[over, 0]) * (top - rng.uniform(0.0, 4e-4 * top, over.sum()))
+    assert np.unique(np.abs(clipped[:, 0])).size > 0.99 * clipped.shape[0]  # no value repeats
+    (found,) = saturated_axes(clipped)
+    assert found.axis == 0 and found.value == pytest.approx(top, rel=1e-3) and found.fraction > 0.04
+    t = np.arange(6000) / RATE
+    swing = np.stack([np.sin(2 * np.pi * 0.7 * t), np.cos(2 * np.pi * 0.3 * t), np.sin(t)], axis=1) * 3.0
+    x = swing + rng.normal(scale=0.005, size=swing.shape)
+    assert saturated_axes(x) == []
+    still = 0.3 + rng.normal(scale=0.01, size=(6000, 3))
+    # the pile-up test on quantised readings (the repeated value flags them); a still axis whose
+    # noise spans a few levels only is not a smooth extreme, and is left out
+    for lsb, y in ((1e-3, x), (2e-2, x), (1e-3, still)):
+        q = np.round(y / lsb) * lsb
+        a = np.abs(q)
+        assert [_piled_up(q[:, j], a[:, j], float(a[:, j].max())) for j in range(3)] == [0, 0, 0]
 
 
 def test_a_field_strength_that_drifts_is_found():
