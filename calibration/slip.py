@@ -294,6 +294,11 @@ class _Pair:
         resolution = RESOLUTION_ULPS * float(np.spacing(max(top, 1.0)))
         return cls(terms, coupling, ok, (jp, jc), window, rate_hz, rate, resolution)
 
+    @property
+    def stride(self) -> int:
+        """Frames between the samples of ``d`` its noise models take (:func:`_noise_stride`)."""
+        return _noise_stride(self.window, self.ok.size)
+
     def residual_frames(self, a: int = 0, b: int | None = None, joint: Any = None) -> list[np.ndarray]:
         """``[e_p, e_c]``, ``(b - a, 3)`` each: the residual of ``joint`` (default: as fitted) in the
         parent's and the child's frame over frames ``a:b`` (zeros where not ok)."""
@@ -455,7 +460,7 @@ def _test(
     caller has it already (saves the refit).
     """
     w = pair.window
-    stride = _noise_stride(w, free.size)
+    stride = pair.stride
     frames = np.arange(0, free.size, stride)
     d_k = (pair.diff(cuts, i) if d_now is None else d_now)[k : k + 1]
     d = pair.diff([*cuts, k], i, stride)
@@ -532,7 +537,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
         ds = pair.diffs(cuts)
         best = None
         for i, d in enumerate(ds):
-            k = _peak(d, free, _noise_stride(w, free.size))
+            k = _peak(d, free, pair.stride)
             if k is None:
                 continue
             z, thr = _test(pair, free, cuts, k, i, d)
@@ -542,7 +547,7 @@ def _search(pair: _Pair, free: np.ndarray) -> tuple[list[tuple[int, int, float, 
             break
         if not best[2] > best[3]:
             k, i = best[0], best[1]
-            k2 = _peak(ds[i], free & (np.abs(frames - k) > w), _noise_stride(w, free.size))
+            k2 = _peak(ds[i], free & (np.abs(frames - k) > w), pair.stride)
             if k2 is None:
                 break
             z, thr = _test(pair, free & (np.abs(frames - k2) > w), [*cuts, k2], k, i)
@@ -696,7 +701,7 @@ def _detect_chunk(
             jump = float(np.linalg.norm(d_at if np.isfinite(d_at).all() else pair.fitted_diff(k, i)))
             events.append(SlipEvent(frame=frame, jump=jump, sensor_frame=_FRAMES[i], z=z, threshold=thr))
         shown = found[0][1] if found else 1
-        stride = _noise_stride(window, n)
+        stride = pair.stride
         d_clean = pair.diff([f[0] for f in found], shown, stride)
         # the joint refitted on each side of every event absorbs its step: every frame counts
         rest = valid[::stride] & np.isfinite(d_clean).all(axis=1)

@@ -524,19 +524,10 @@ class StreamingCalibrator:
                 f"no pair of sensors has {MIN_FRAMES} frames where both poses are valid "
                 f"(frames: {stats.n_frames}, most valid frames of one sensor: {int(np.max(per_sensor))})"
             )
-        i, j = np.triu_indices(n, k=1)
-        pairs = solve_pairs(stats, i, j, single_axis_ratio=self.single_axis_ratio)
-        residual = np.full((n, n), np.inf)
-        residual[i, j] = residual[j, i] = pairs.rms_residual
+        residual, weights = self._tree_weights(stats, *np.triu_indices(n, k=1))
         if self._tree_given is not None:
             tree = self._tree_given
         else:
-            weights = residual
-            if self.hierarchy_method == "misfit":
-                nu = self._d3.noise_variance(i, j, pairs.joint_in_parent, pairs.joint_in_child)
-                noise = np.zeros((n, n))
-                noise[i, j] = noise[j, i] = nu
-                weights = misfit_weights(residual, noise)
             root = None if self.root is None else names.index(self.root)
             tree = spanning_tree(weights, root=root, names=names)
         par = np.array([p for p, _ in tree.joints], dtype=np.int64)
@@ -575,6 +566,21 @@ class StreamingCalibrator:
         )
         return cal, sol
 
+    def _tree_weights(
+        self, stats: PairStatistics, i: np.ndarray, j: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs ``(i, j)`` solved: ``(N, N)`` their rms residuals and the spanning tree's
+        weights (the residuals, or the misfit's), ``inf`` for the pairs not given."""
+        n = len(self.names)
+        pairs = solve_pairs(stats, i, j, single_axis_ratio=self.single_axis_ratio)
+        residual = np.full((n, n), np.inf)
+        residual[i, j] = residual[j, i] = pairs.rms_residual
+        if self.hierarchy_method != "misfit":
+            return residual, residual
+        noise = np.zeros((n, n))
+        noise[i, j] = noise[j, i] = self._d3.noise_variance(i, j, pairs.joint_in_parent, pairs.joint_in_child)
+        return residual, misfit_weights(residual, noise)
+
     def _refit_monitor(self) -> None:
         """Give the slip monitor the joints it follows, as fitted now (nothing while too few frames)."""
         assert self._monitor is not None
@@ -601,7 +607,7 @@ class StreamingCalibrator:
         recording of ``studies/live_slip_real.py``: its joints armed 7.7-15.7 s after the start).
         """
         assert self._monitor is not None
-        names, n = self.names, len(self.names)
+        names = self.names
         known = stats.count >= 2 * self._monitor.w
         np.fill_diagonal(known, False)
         if self._tree_given is not None:
@@ -610,13 +616,7 @@ class StreamingCalibrator:
             i, j = np.nonzero(np.triu(known))
             if not i.size:
                 return [], np.zeros((0, 3)), np.zeros((0, 3))
-            pairs = solve_pairs(stats, i, j, single_axis_ratio=self.single_axis_ratio)
-            weights = np.full((n, n), np.inf)
-            w = pairs.rms_residual
-            if self.hierarchy_method == "misfit":
-                nu = self._d3.noise_variance(i, j, pairs.joint_in_parent, pairs.joint_in_child)
-                w = misfit_weights(w, nu)
-            weights[i, j] = weights[j, i] = w
+            _, weights = self._tree_weights(stats, i, j)
             _, group = connected_components(known, directed=False)
             keys = []
             for g in np.unique(group):

@@ -321,13 +321,31 @@ def test_a_simulated_magnet_riding_on_a_forearm_is_recalibrated_from_put_on_to_t
     assert not any(n.startswith("magnetometer ") and "forearm_l" not in n for n in cal.notes)
 
 
+def _one_sensor(R: np.ndarray, mag: np.ndarray, name: str = "s", rate: float = 100.0):
+    """One sensor's recording with orientations ``R`` (``(n, 3, 3)``), field samples ``mag``, the
+    accelerometer reading gravity alone and a gyroscope at zero, at ``rate`` Hz."""
+    from simbench.io.imu import ImuRecording
+
+    n = R.shape[0]
+    return ImuRecording(
+        names=(name,),
+        time_s=np.arange(n) / rate,
+        acc=np.einsum("fji,j->fi", R, [0.0, 0.0, 9.81])[:, None],
+        gyro=np.zeros((n, 1, 3)),
+        mag=mag[:, None],
+        valid=np.ones((n, 1), dtype=bool),
+        q_true=matrix_to_quat(R)[:, None],
+        evaluate=None,
+        rate_hz=rate,
+        source="test",
+    )
+
+
 def _hand_held(rng, about_one_axis: bool, n: int = 6000, rate: float = 100.0):
     """A hand-held sensor, 60 s at 100 Hz: turned back and forth about one axis (the world's
     vertical, the sensor mounted tilted) with a wobble of 3 degrees, or every way; a hard iron of
     about 10 uT and some soft iron. Returns the recording and the turning axis in the sensor frame."""
     from scipy.ndimage import gaussian_filter1d
-
-    from simbench.io.imu import ImuRecording
 
     t = np.arange(n) / rate
     mount = rotvec_to_matrix(np.array([0.3, -0.2, 0.0]))
@@ -342,20 +360,7 @@ def _hand_held(rng, about_one_axis: bool, n: int = 6000, rate: float = 100.0):
         R = rotvec_to_matrix(gaussian_filter1d(rng.normal(size=(n, 3)), 20, axis=0) * 40.0) @ mount
     soft = np.array([[1.05, 0.03, -0.02], [0.03, 0.96, 0.02], [-0.02, 0.02, 1.0]])
     hard = np.array([6.0, -4.0, 10.0])
-    mag = raw_samples(R, soft, hard, 0.3, rng)
-    acc = np.einsum("fji,j->fi", R, [0.0, 0.0, 9.81])
-    rec = ImuRecording(
-        names=("stick",),
-        time_s=t,
-        acc=acc[:, None],
-        gyro=np.zeros((n, 1, 3)),
-        mag=mag[:, None],
-        valid=np.ones((n, 1), dtype=bool),
-        q_true=matrix_to_quat(R)[:, None],
-        evaluate=None,
-        rate_hz=rate,
-        source="test",
-    )
+    rec = _one_sensor(R, raw_samples(R, soft, hard, 0.3, rng), "stick", rate)
     return rec, mount.T @ np.array([0.0, 0.0, 1.0]), soft, hard
 
 
@@ -394,7 +399,6 @@ def test_turns_about_two_axes_are_never_worse_than_no_calibration():
     than not (measured: 19.9 -> 2.7 degrees, the default 20.0 -> 2.7)."""
     from scipy.ndimage import gaussian_filter1d
 
-    from simbench.io.imu import ImuRecording
     from simbench.orient import calibrate_magnetometers, estimate
     from simbench.score import score_orientation
 
@@ -412,20 +416,7 @@ def test_turns_about_two_axes_are_never_worse_than_no_calibration():
         @ rotvec_to_matrix(np.array([0.3, -0.2, 0.0]))
     )
     soft = np.array([[1.05, 0.03, -0.02], [0.03, 0.96, 0.02], [-0.02, 0.02, 1.0]])
-    mag = raw_samples(R, soft, np.array([6.0, -4.0, 10.0]), 0.3, rng)
-    acc = np.einsum("fji,j->fi", R, [0.0, 0.0, 9.81])
-    rec = ImuRecording(
-        names=("s",),
-        time_s=t,
-        acc=acc[:, None],
-        gyro=np.zeros((n, 1, 3)),
-        mag=mag[:, None],
-        valid=np.ones((n, 1), dtype=bool),
-        q_true=matrix_to_quat(R)[:, None],
-        evaluate=None,
-        rate_hz=100.0,
-        source="test",
-    )
+    rec = _one_sensor(R, raw_samples(R, soft, np.array([6.0, -4.0, 10.0]), 0.3, rng))
     fixed, _ = calibrate_magnetometers(rec)
     for method in ("triad", "skeleton"):
         before, after = (
@@ -462,7 +453,6 @@ def test_a_magnetometer_axis_that_picks_up_the_horizontal_field_is_not_taken_for
     applied, no worse than none."""
     from scipy.ndimage import gaussian_filter1d
 
-    from simbench.io.imu import ImuRecording
     from simbench.orient import applies, calibrate_magnetometers, describe_fit, estimate
     from simbench.score import score_orientation
 
@@ -484,18 +474,7 @@ def test_a_magnetometer_axis_that_picks_up_the_horizontal_field_is_not_taken_for
     coupling[2, :2] = (0.06, 0.045)
     b_s = np.einsum("fji,j->fi", R, FIELD_W)
     mag = b_s @ coupling.T + np.array([0.5, -0.3, 0.4]) + rng.normal(scale=0.3, size=b_s.shape)
-    rec = ImuRecording(
-        names=("s",),
-        time_s=t,
-        acc=np.einsum("fji,j->fi", R, [0.0, 0.0, 9.81])[:, None],
-        gyro=np.zeros((n, 1, 3)),
-        mag=mag[:, None],
-        valid=np.ones((n, 1), dtype=bool),
-        q_true=matrix_to_quat(R)[:, None],
-        evaluate=None,
-        rate_hz=100.0,
-        source="test",
-    )
+    rec = _one_sensor(R, mag)
     fixed, fits = calibrate_magnetometers(rec)
     assert not applies(fits["s"])
     assert "the sphere's centre departs from the ellipsoid's" in describe_fit(fits["s"])
