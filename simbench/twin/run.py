@@ -4,7 +4,7 @@ what the real sensor adds, compare sample by sample, and score the orientation m
 For a BROAD-layout trial (:func:`simbench.io.imu.read_broad`, with ``opt_pos`` and ``opt_quat``):
 
 1. **Ideal readings** of the housing's optical pose through the one seam
-   (:func:`simbench.twin.simulate.twin_readings`; orientation smoothed below
+   (:func:`simbench.twin.simulate.ideal_readings`; orientation smoothed below
    :data:`DEFAULT_CUTOFF_HZ`, positions below :data:`DEFAULT_POSITION_CUTOFF_HZ`); gaps in the
    optical data filled, and the samples within the smoothing's half-window of a gap left out of
    every comparison (:func:`simbench.twin.simulate.near_gaps`).
@@ -48,9 +48,10 @@ from calibration.rotations import matrix_to_rotvec
 from simbench.errors import InputError
 from simbench.estimators import DEFAULT_ORIENTATION, resolve, run_orientation
 from simbench.io.imu import ImuRecording, read_broad, read_broad_pose
+from simbench.orient import calibrate_magnetometers
 from simbench.score import score_orientation
 from simbench.twin import compare, identify
-from simbench.twin.simulate import fill_gaps, near_gaps, smoothing_window, twin_readings
+from simbench.twin.simulate import fill_gaps, ideal_readings, near_gaps, smoothing_window
 from simbench.versions import software_versions
 
 #: The orientation's smoothing cutoff, Hz: the gyroscope's R^2 over BROAD's undisturbed trials is
@@ -247,8 +248,18 @@ def _noisy(x: np.ndarray, std: np.ndarray, rng: np.random.Generator) -> np.ndarr
     return x + std * rng.normal(size=x.shape)
 
 
-def _orientation_error(rec: ImuRecording, method: str, evaluate: np.ndarray) -> float:
-    got = run_orientation(resolve(method, "orientation"), rec)
+def _orientation_error(
+    rec: ImuRecording, method: str, evaluate: np.ndarray, calibrated: ImuRecording | None = None
+) -> float:
+    """The method's total error on ``rec`` over ``evaluate``, degrees. ``calibrated``: ``rec`` with
+    its magnetometers calibrated already (:func:`simbench.orient.calibrate_magnetometers`), for an
+    estimator that would calibrate them itself (its ``calibrate_mag``, on by default): the same
+    input, the fit made once per recording rather than once per method."""
+    est = resolve(method, "orientation")
+    if calibrated is not None and est.defaults.get("calibrate_mag") is True:
+        got = run_orientation(est, calibrated, params={"calibrate_mag": False})
+    else:
+        got = run_orientation(est, rec)
     scored = score_orientation(got.q_enu, rec.q_true, rec.names, evaluate)
     return scored.per_sensor[rec.names[0]]["total_deg"]
 
@@ -307,17 +318,19 @@ def twin(
         motion = np.asarray(rec.evaluate, dtype=bool)
     else:
         motion = None
-    # the ideal readings on the optical clock, and what a unit field or lever arm adds
-    acc0, gyro0, _ = twin_readings(t, p, q, np.zeros(3), cutoff_hz, position_cutoff_hz=position_cutoff_hz)
-    lever0 = np.empty((n, 3, 3))
-    unit0 = np.empty((n, 3, 3))
-    for j in range(3):
-        e = np.eye(3)[j]
-        a_j, _, m_j = twin_readings(
-            t, p, q, e, cutoff_hz, position_cutoff_hz=position_cutoff_hz, lever_arm_m=e
-        )
-        lever0[:, :, j] = a_j - acc0
-        unit0[:, :, j] = m_j
+    # the ideal readings on the optical clock, and what a unit field or lever arm adds: one
+    # playback, an accelerometer at the tracked point and one a metre along each axis
+    ideal = ideal_readings(
+        t,
+        p,
+        q,
+        cutoff_hz,
+        position_cutoff_hz=position_cutoff_hz,
+        lever_arms_m=np.vstack([np.zeros(3), np.eye(3)]),
+    )
+    acc0, gyro0 = ideal.acc[:, 0], ideal.gyro
+    lever0 = np.swapaxes(ideal.acc[:, 1:] - acc0[:, None], 1, 2)  # (F, axis, arm)
+    unit0 = np.swapaxes(ideal.R_w_s, 1, 2)  # column j: R^T e_j, the reading of a unit field along j
     still = identify.still_phases(real["gyro"], rate, usable)
     if motion is None:
         motion = ~still.mask
@@ -412,9 +425,11 @@ def twin(
         notes=(),
     )
     orientation = {}
+    # each recording's magnetometers calibrated once, for every method that calibrates them
+    real_cal, twin_cal = (calibrate_magnetometers(r)[0] if methods else None for r in (rec, twin_rec))
     for method in methods:
-        real_deg = _orientation_error(rec, method, use)
-        twin_deg = _orientation_error(twin_rec, method, use)
+        real_deg = _orientation_error(rec, method, use, real_cal)
+        twin_deg = _orientation_error(twin_rec, method, use, twin_cal)
         orientation[method] = {"real_deg": real_deg, "twin_deg": twin_deg, "ratio": twin_deg / real_deg}
     coverage = {
         "optical_gap_fraction": float(gap.mean()),

@@ -31,6 +31,7 @@ one: those readings rest on filled poses and are left out of every comparison.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -81,6 +82,89 @@ def smoothing_window(rate_hz: float, cutoff_hz: float, n_frames: int, source: st
     return savgol_window(rate_hz, cutoff_hz, n_frames, source)
 
 
+@dataclass(frozen=True)
+class IdealReadings:
+    """Ideal readings of a body moving as recorded, at several lever arms (:func:`ideal_readings`).
+
+    Attributes:
+        acc: ``(F, K, 3)`` specific force at each of the ``K`` lever arms, sensor frame, m/s^2.
+        gyro: ``(F, 3)`` angular velocity, sensor frame, rad/s.
+        R_w_s: ``(F, 3, 3)`` the sensor's orientation (sensor frame to world, ENU), as played back.
+    """
+
+    acc: np.ndarray
+    gyro: np.ndarray
+    R_w_s: np.ndarray
+
+    def mag(self, field_w: np.ndarray) -> np.ndarray:
+        """``(F, 3)`` an ideal magnetometer's ``R^T b`` of the world field ``b`` (``(3,)`` or
+        ``(F, 3)``, uT), uT."""
+        return np.einsum("fji,fj->fi", self.R_w_s, np.broadcast_to(field_w, (self.R_w_s.shape[0], 3)))
+
+
+def ideal_readings(
+    time_s: np.ndarray,
+    p_w: np.ndarray,
+    q_w: np.ndarray,
+    cutoff_hz: float,
+    *,
+    position_cutoff_hz: float | None = None,
+    lever_arms_m: np.ndarray | None = None,
+) -> IdealReadings:
+    """Ideal accelerometers at ``K`` lever arms, the gyroscope and the orientation of a body moving
+    as recorded: one playback through the simulator (module docstring), a sensor body per lever arm
+    following the one recorded pose (the bodies are not joined: each reads as if alone).
+
+    Args:
+        time_s, p_w, q_w, cutoff_hz, position_cutoff_hz: as :func:`twin_readings`.
+        lever_arms_m: ``(K, 3)`` the accelerometers' positions relative to the tracked point, in the
+            sensor frame, m (default: one, at the tracked point).
+
+    Raises:
+        InputError: shapes or values not as :func:`twin_readings` takes them.
+    """
+    time_s, p_w, q_w = (np.asarray(x, dtype=float) for x in (time_s, p_w, q_w))
+    rate = _check(time_s, p_w, q_w, np.zeros(3))
+    n = time_s.size
+    arms = np.zeros((1, 3)) if lever_arms_m is None else np.asarray(lever_arms_m, dtype=float)
+    if arms.ndim != 2 or arms.shape[0] < 1 or arms.shape[1] != 3 or not np.isfinite(arms).all():
+        raise InputError(
+            f"twin_readings: expected lever arms as (K, 3) finite numbers (m), got {np.shape(lever_arms_m)}"
+        )
+    names = tuple(BROAD_SENSOR if k == 0 else f"{BROAD_SENSOR}_{k}" for k in range(arms.shape[0]))
+    placement = tuple(
+        (name, (float(r[0]), float(r[1]), float(r[2])))
+        for name, r in zip(names, arms, strict=True)
+        if r.any()
+    )
+    for name, cutoff in (("orientation", cutoff_hz), ("position", position_cutoff_hz or cutoff_hz)):
+        smoothing_window(rate, cutoff, n, f"twin_readings ({name})")  # the twin's own error message
+    q = q_w / np.linalg.norm(q_w, axis=1, keepdims=True)
+    pose = np.concatenate([p_w, q], axis=1)
+    motion = RecordedMotion(
+        source="twin_readings",
+        frame_time_s=1.0 / rate,
+        tracks=tuple(Track(name, "free", pose) for name in names),
+        valid=np.ones(n, dtype=bool),
+        format="poses",
+    )
+    config = SessionConfig(
+        model=POSES_MODEL,
+        motion="twin_readings: an optical pose",
+        duration_s=n / rate,
+        rate_hz=rate,
+        sensors="ideal",
+        placement=placement,
+        motion_cutoff_hz=float(cutoff_hz),
+        motion_position_cutoff_hz=None if position_cutoff_hz is None else float(position_cutoff_hz),
+        recording=MotionSource(motion, POSES_MODEL, functools.partial(poses_spec, names, "twin")),
+    )
+    truth = run_session(config).truth.rigid
+    return IdealReadings(
+        acc=np.array(truth.acc), gyro=np.array(truth.gyro[:, 0]), R_w_s=quat_to_matrix(truth.q_w_s[:, 0])
+    )
+
+
 def twin_readings(
     time_s: np.ndarray,
     p_w: np.ndarray,
@@ -102,7 +186,7 @@ def twin_readings(
         cutoff_hz: the smoothing's cutoff for the orientation, Hz (module docstring).
         position_cutoff_hz: the positions' cutoff, Hz (default ``cutoff_hz``).
         lever_arm_m: ``(3,)`` the accelerometer's position relative to the tracked point, in the
-            sensor frame, m (default zero).
+            sensor frame, m (default zero). Several at once: :func:`ideal_readings`.
 
     Returns:
         ``(acc, gyro, mag)``, each ``(F, 3)`` in the sensor frame: specific force m/s^2,
@@ -112,40 +196,17 @@ def twin_readings(
         InputError: shapes or values not as above, a cutoff the samples cannot be smoothed to.
     """
     time_s, p_w, q_w, field_w = (np.asarray(x, dtype=float) for x in (time_s, p_w, q_w, field_w))
-    rate = _check(time_s, p_w, q_w, field_w)
-    n = time_s.size
-    placement: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    _check(time_s, p_w, q_w, field_w)
+    arms = None
     if lever_arm_m is not None:
         r = np.asarray(lever_arm_m, dtype=float)
         if r.shape != (3,) or not np.isfinite(r).all():
             raise InputError(f"twin_readings: expected lever_arm_m as 3 finite numbers (m), got {r!r}")
-        placement = ((BROAD_SENSOR, (float(r[0]), float(r[1]), float(r[2]))),)
-    for name, cutoff in (("orientation", cutoff_hz), ("position", position_cutoff_hz or cutoff_hz)):
-        smoothing_window(rate, cutoff, n, f"twin_readings ({name})")  # the twin's own error message
-    q = q_w / np.linalg.norm(q_w, axis=1, keepdims=True)
-    track = Track(BROAD_SENSOR, "free", np.concatenate([p_w, q], axis=1))
-    motion = RecordedMotion(
-        source="twin_readings",
-        frame_time_s=1.0 / rate,
-        tracks=(track,),
-        valid=np.ones(n, dtype=bool),
-        format="poses",
+        arms = r[None]
+    got = ideal_readings(
+        time_s, p_w, q_w, cutoff_hz, position_cutoff_hz=position_cutoff_hz, lever_arms_m=arms
     )
-    config = SessionConfig(
-        model=POSES_MODEL,
-        motion="twin_readings: an optical pose",
-        duration_s=n / rate,
-        rate_hz=rate,
-        sensors="ideal",
-        placement=placement,
-        motion_cutoff_hz=float(cutoff_hz),
-        motion_position_cutoff_hz=None if position_cutoff_hz is None else float(position_cutoff_hz),
-        recording=MotionSource(motion, POSES_MODEL, functools.partial(poses_spec, (BROAD_SENSOR,), "twin")),
-    )
-    truth = run_session(config).truth.rigid
-    R = quat_to_matrix(truth.q_w_s[:, 0])
-    mag = np.einsum("fji,fj->fi", R, np.broadcast_to(field_w, (n, 3)))
-    return np.array(truth.acc[:, 0]), np.array(truth.gyro[:, 0]), mag
+    return got.acc[:, 0], got.gyro, got.mag(field_w)
 
 
 def gap_mask(p_w: np.ndarray, q_w: np.ndarray) -> np.ndarray:
