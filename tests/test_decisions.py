@@ -5,7 +5,15 @@ from __future__ import annotations
 
 import pytest
 
-from simbench.experiments.decisions import HINGE_CASES, cluster_trial, hinge_trial
+from simbench.experiments.decisions import (
+    HINGE_CASES,
+    SLIP_FIRST_SEED,
+    DecisionPlan,
+    cluster_trial,
+    hinge_trial,
+)
+from simbench.experiments.obrien import _human_config
+from simbench.experiments.validate import Plan
 from simbench.report.decisions import decisions_markdown
 
 
@@ -67,3 +75,17 @@ def test_section_marks_every_missed_target():
     ):
         text = "\n".join(decisions_markdown(bad))
         assert text.count("NOT met") == 1 and text.count(": met") == 3
+
+
+@pytest.mark.parametrize("quick", [True, False])
+def test_slip_sessions_ride_the_male_trials_motions(quick):
+    """The validation's slip sessions are its male subject's trials (seed and length) with a slip:
+    the physics cache then gives them those trials' physics instead of computing it again."""
+    slips, plan = DecisionPlan.of(quick), Plan.of(quick)
+    assert slips.slip_s == plan.humanoid_s
+    trials = {"exercise": plan.exercise_trials, "walk": plan.walk_trials}
+    for motion in slips.slip_motions:
+        assert slips.slip_seeds <= trials[motion]
+        for k in range(slips.slip_seeds):
+            trial = _human_config("male", motion, k + 1, plan.humanoid_s, "skin-paper-human")
+            assert trial.seed == SLIP_FIRST_SEED + k and trial.duration_s == slips.slip_s

@@ -58,6 +58,12 @@ HINGE_CASES = {
 }
 
 
+#: The first seed of the slip sessions: the male subject's trials' (:mod:`simbench.experiments.obrien`:
+#: seed ``100 + k`` of the ``k``-th exercise or walk), so that at the validation's length a slip
+#: session's physics is its trial's (the physics cache shares it; only the skin differs).
+SLIP_FIRST_SEED = 101
+
+
 @dataclass(frozen=True)
 class DecisionPlan:
     """Sample sizes of the decision checks."""
@@ -70,10 +76,12 @@ class DecisionPlan:
 
     @classmethod
     def of(cls, quick: bool) -> DecisionPlan:
+        """The validation's sizes; ``slip_s`` is its humanoid trials' length
+        (:class:`simbench.experiments.validate.Plan`), the slips then riding those trials' motions."""
         if quick:
-            return cls(slip_seeds=1, slip_motions=("exercise",), slip_s=20.0, hinge_seeds=3, cluster_seeds=5)
+            return cls(slip_seeds=1, slip_motions=("exercise",), slip_s=10.0, hinge_seeds=3, cluster_seeds=5)
         return cls(
-            slip_seeds=2, slip_motions=("exercise", "walk"), slip_s=30.0, hinge_seeds=20, cluster_seeds=20
+            slip_seeds=2, slip_motions=("exercise", "walk"), slip_s=45.0, hinge_seeds=20, cluster_seeds=20
         )
 
 
@@ -199,7 +207,7 @@ def slip_trials(quick: bool, run: Callable = map) -> list[dict[str, Any]]:
     ``map`` or an executor's ``map`` (they are independent)."""
     plan = DecisionPlan.of(quick)
     jobs = [
-        (motion, cm, 1000 + seed, plan.slip_s)
+        (motion, cm, SLIP_FIRST_SEED + seed, plan.slip_s)
         for motion in plan.slip_motions
         for cm in DETECTION_TARGET
         for seed in range(plan.slip_seeds)

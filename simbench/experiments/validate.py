@@ -268,6 +268,10 @@ def _orientation(plan: Plan) -> dict[str, Any]:
 SIMULATION_TARGET_DEG = 8.0
 
 
+#: The label of Fontaine's estimator with 1 Hz weighted smoothing, a variant of the same estimator.
+SMOOTHED_FONTAINE = "fontaine (1 Hz weighted smoothing)"
+
+
 #: The orientation estimators the report compares: gyro-free, then the gyro-aided reference.
 def _orientation_methods() -> dict[str, dict[str, Any]]:
     """Every gyro-free built-in (the registry's order), Fontaine's also with 1 Hz weighted
@@ -277,7 +281,7 @@ def _orientation_methods() -> dict[str, dict[str, Any]]:
         if "gyro" not in resolve(name).needs:
             out[name] = {"method": name}
         if name == "fontaine":
-            out["fontaine (1 Hz weighted smoothing)"] = {"method": name, "smooth_hz": 1.0}
+            out[SMOOTHED_FONTAINE] = {"method": name, "smooth_hz": 1.0}
     out["vqf (gyro-aided reference)"] = {"method": "vqf"}
     return out
 
@@ -289,15 +293,17 @@ ORIENTATION_METHODS = _orientation_methods()
 BROAD_TARGETS = (("magnet", 0.6), ("undisturbed", 0.8), ("", 1.0))
 
 
-def _broad_orientation() -> dict[str, Any]:
+def _broad_orientation(quick: bool = False) -> dict[str, Any]:
     """Every estimator on each BROAD trial at hand (``broad_*.hdf5`` in ``../shared/data``),
     scored with BROAD's definitions, with its ratio to TRIAD and the default estimator's target;
-    ``{}`` without the recordings."""
+    ``{}`` without the recordings. ``quick``: without Fontaine's smoothed variant (a fifth of the
+    step; the simulated session runs it)."""
     out: dict[str, Any] = {}
+    methods = {k: v for k, v in ORIENTATION_METHODS.items() if not (quick and k == SMOOTHED_FONTAINE)}
     for path in sorted(DEFAULT_DATA_DIR.glob("broad_*.hdf5")):
         rec = read_broad(path)
         scores = {}
-        for label, kw in ORIENTATION_METHODS.items():
+        for label, kw in methods.items():
             run = estimate(rec, **kw)
             s = score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate).per_sensor
             scores[label] = {
@@ -414,7 +420,7 @@ def run_validation(
     with (
         physics_cache(physics_folder),
         one_blas_thread(),
-        ThreadPoolExecutor(8) if workers > 1 else _Here() as helper,
+        ThreadPoolExecutor(HELPER_THREADS) if workers > 1 else _Here() as helper,
         worker_pool(workers) if workers > 1 else _Here() as pool,
     ):
         # every job is handed out as soon as what it needs is there, and the pool takes them in
@@ -440,10 +446,13 @@ def run_validation(
         scale = work.call(STEPS[0], rigid_pair_scale, duration_s=pair_s)
         work.close(STEPS[0])
         trials = human_trials(plan.exercise_trials, plan.walk_trials, plan.female_walk_trials)
-        human_runs = work.map(STEPS[2])(
-            human_trial,
-            *zip(*trials, strict=True),
-            *[[x] * len(trials) for x in (plan.humanoid_s, scale["scale"])],
+        human_runs = helper.submit(
+            list,
+            work.map(STEPS[2])(
+                human_trial,
+                *zip(*trials, strict=True),
+                *[[x] * len(trials) for x in (plan.humanoid_s, scale["scale"])],
+            ),
         )
         linkage_run = helper.submit(
             work.bound(STEPS[1], linkage_experiment),
@@ -453,7 +462,11 @@ def run_validation(
             keep,
             run=work.map(STEPS[1]),
         )
-        slips_run = helper.submit(work.bound(STEPS[5], slip_trials), quick, work.map(STEPS[5]))
+        # the slips ride the male subject's trials' motions (decisions.SLIP_FIRST_SEED): handed out
+        # once those trials are done, their physics is in the cache rather than computed twice
+        slips_run = helper.submit(
+            _after, human_runs, work.bound(STEPS[5], slip_trials), quick, work.map(STEPS[5])
+        )
         # each BROAD trial's digital twin (the realism section's), a job each
         twins_run = helper.submit(
             work.bound(STEPS[8], run_twins),
@@ -463,7 +476,9 @@ def run_validation(
         )
         slip_run = work.submit(STEPS[3], _slip, plan)
         orientation_run = work.submit(STEPS[4], _orientation, plan)
-        broad_run = work.submit(STEPS[4], _broad_orientation)  # the real recordings: a job of their own
+        broad_run = work.submit(
+            STEPS[4], _broad_orientation, quick
+        )  # the real recordings: a job of their own
         realism_run = work.submit(STEPS[8], run_realism, quick=quick)
         methods_run = helper.submit(work.bound(STEPS[9], _joint_methods), plan, work.map(STEPS[9]))
         walks_run = helper.submit(work.bound(STEPS[7], _walk_failures), plan, work.map(STEPS[7]))
@@ -474,7 +489,7 @@ def run_validation(
             run=work.map(STEPS[6]),
             pair_s=pair_s,
         )
-        humanoid = {"preset": HUMAN_PRESET, "duration_s": plan.humanoid_s, "trials": list(human_runs)}
+        humanoid = {"preset": HUMAN_PRESET, "duration_s": plan.humanoid_s, "trials": human_runs.result()}
         tables_2_4 = _human_causes(plan, humanoid["trials"], work.map(STEPS[6]), pair_s)
         linkage = linkage_run.result()
         decisions_run = helper.submit(
@@ -625,6 +640,17 @@ def _coverage(ds: Any, hits: dict[str, list[int]]) -> None:
             for held in holds_truth(unc, true_p[child], true_c[child]):
                 hits[key][0] += int(held)
                 hits[key][1] += 1
+
+
+#: Threads of :func:`run_validation`'s ``helper``: more than the tasks it holds at once (nine), as
+#: one may wait on another's result.
+HELPER_THREADS = 12
+
+
+def _after(first: Future, fn: Callable[..., Any], /, *args: Any) -> Any:
+    """``fn(*args)`` once ``first`` is done (its result waited for, its exception raised)."""
+    first.result()
+    return fn(*args)
 
 
 class _Here:
