@@ -54,10 +54,8 @@ from scipy.sparse.csgraph import (
     shortest_path,
 )
 
+from calibration.defaults import HIERARCHY_METHODS as HIERARCHY_METHODS  # the edge weightings
 from calibration.errors import CalibrationError, CalibrationInputError
-
-#: The edge weightings :func:`spanning_tree` is given (module docstring); the first is the default.
-HIERARCHY_METHODS = ("misfit", "mst")
 
 #: Default factor of :func:`loop_candidates`.
 LOOP_FACTOR = 1.0

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.defaults import SINGLE_AXIS_RATIO  # the hard floor on s / s_max
 from calibration.eiv import check_noise, corrected_solution
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hinge import (
@@ -51,11 +52,6 @@ from calibration.hinge import (
     testable_directions,
 )
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
-
-#: Hard floor on ``s / s_max`` below which a direction is undetermined whatever the test says:
-#: 1e-4 is about 0.2 mrad (0.01 degree) rms off the axis, finer than any tracker resolves, so
-#: below it the statistical test (:mod:`calibration.hinge`) would compare rounding errors.
-SINGLE_AXIS_RATIO = 1e-4
 
 #: The fewest of a joint's 6 coordinates the motion must determine for its centre to be located:
 #: a single-axis joint leaves one free (its centre a point of the axis); fewer is no joint located.

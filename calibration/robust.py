@@ -73,6 +73,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.defaults import LOSSES  # the losses robust_fit_joint knows, the default first
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.hierarchy import HIERARCHY_METHODS, misfit_weights
 from calibration.joint import (
@@ -87,9 +88,6 @@ from calibration.joint import (
 from calibration.pair_noise import THIRD_DIFFERENCE_GAIN
 from calibration.poses import check_poses
 from calibration.quantiles import chi2_ppf
-
-#: The losses :func:`robust_fit_joint` knows; the first is the default (module docstring).
-LOSSES = ("tukey", "huber")
 
 #: Median of the chi distribution with 3 degrees of freedom, ``sqrt(chi2.ppf(0.5, 3))``: the
 #: median residual norm of 3-D Gaussian noise with unit standard deviation per axis.

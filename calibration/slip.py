@@ -99,6 +99,8 @@ from typing import Any
 
 import numpy as np
 
+from calibration.defaults import FALSE_ALARMS_PER_HOUR  # the detector's defaults
+from calibration.defaults import SLIP_WINDOW_S as SLIP_WINDOW_S
 from calibration.errors import CalibrationInputError
 from calibration.hinge import block_edges
 from calibration.joint import MIN_FRAMES, check_pair
@@ -111,17 +113,6 @@ from calibration.slip_stats import (
     whitened_norm,
     window_difference_rows,
 )
-
-#: Default expected false alarms per hour of joint time (the one default: ``simbench calibrate
-#: --slip-false-alarms-per-hour``, ``sb.slip_reports``, the live monitor of
-#: :mod:`calibration.streaming`).
-FALSE_ALARMS_PER_HOUR = 1.0
-
-#: Default window ``w`` of the detector, seconds (turned into frames at the recording's rate): the
-#: one default of ``simbench calibrate --slip-window``, ``sb.slip_reports`` and the validation's
-#: decisions (:mod:`simbench.experiments.decisions`). The live monitor's window is its own
-#: (:data:`calibration.streaming.LIVE_SLIP_WINDOW_S`).
-SLIP_WINDOW_S = 2.0
 
 _FRAMES = ("parent", "child")
 

@@ -19,6 +19,8 @@ from simbench.api import (
 )
 from simbench.cli import COMMANDS, build_parser
 from simbench.cli.help_examples import EXAMPLES
+from simbench.estimators import catalog
+from simbench.estimators.registry import REGISTRY
 
 
 def _help(monkeypatch, *argv: str) -> str:
@@ -65,3 +67,22 @@ def test_every_preset_model_motion_and_method_is_listed(monkeypatch):
     twin = _help(monkeypatch, "twin")
     for name in TWIN_EFFECTS:
         assert name in twin, name
+
+
+def test_the_catalog_is_the_registry():
+    """The names, kinds and parameters ``--help`` reads from the catalog (no numpy) are those the
+    registry holds, in its order: the registry is filled from the catalog, with the functions."""
+    assert catalog.names(plugins=False) == tuple(REGISTRY)
+    for entry in catalog.BUILTINS:
+        est = REGISTRY[entry.name]
+        assert (est.kind, est.needs, est.data, est.takes_skeleton) == (
+            entry.kind,
+            entry.needs,
+            entry.data,
+            entry.takes_skeleton,
+        )
+        if entry.params is not None:
+            assert est.params == entry.params, entry.name
+        assert est.summary and (not entry.summary or est.summary == entry.summary)
+    for kind in catalog.KINDS:
+        assert catalog.names(kind) == estimator_names(kind)

@@ -16,7 +16,7 @@ import pytest
 
 import calibration
 import simbench
-from simbench import cli
+from simbench import cli, estimators
 
 ROOT = Path(simbench.__file__).resolve().parent.parent
 
@@ -70,7 +70,7 @@ LAZY_ALLOWED = {
 #: line's commands and the library a command runs. Such an import, when it names its module, is
 #: checked against the layers as any other (:func:`imports` reads it);
 #: ``test_lazy_tables_name_their_own_layers`` checks the tables they read names from.
-LAZY_LOADERS = {"simbench", "simbench.cli", "calibration"}
+LAZY_LOADERS = {"simbench", "simbench.cli", "simbench.estimators", "calibration"}
 
 FORBIDDEN_IN_CALIBRATION = {"mujoco", "dm_control", "simbench"}
 
@@ -215,6 +215,8 @@ def test_lazy_tables_name_their_own_layers():
     assert all(layer_of(module) == LAYERS["simbench.cli"] for module, _ in cli.COMMANDS.values())
     assert all(module.startswith("calibration.") for module in calibration._LAZY.values())
     assert set(calibration._LAZY) == set(calibration.__all__)
+    assert all(module.startswith("simbench.estimators.") for module in estimators._LAZY.values())
+    assert set(estimators._LAZY) == set(estimators.__all__)
 
 
 def test_calibration_package_is_importable_alone():

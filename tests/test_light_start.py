@@ -65,6 +65,17 @@ def test_a_command_loads_its_own_module_not_the_others(command):
     assert commands & got == {COMMANDS[command][0]}
 
 
+def test_calibrate_help_loads_no_numerical_library():
+    """``simbench calibrate --help`` lists the estimators, defaults and choices from light modules
+    (the estimator catalog, the core's defaults), not from the registry's code; the command's run
+    (``simbench.cli.calibrate_run``) is loaded when it runs."""
+    got = loaded(
+        "from simbench.cli import main\n    try: main(['calibrate', '--help'])\n    except SystemExit: pass"
+    )
+    assert heavy(got) == set()
+    assert "simbench.estimators.catalog" in got and "simbench.cli.calibrate_run" not in got
+
+
 def test_the_library_loads_no_plotting_until_a_report_draws():
     """``simbench.api`` (every command's door) leaves matplotlib to the reports' figures."""
     got = loaded("import simbench.api")

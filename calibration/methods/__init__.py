@@ -41,6 +41,7 @@ from typing import Protocol
 
 import numpy as np
 
+from calibration.defaults import JOINT_METHOD_NAMES
 from calibration.eiv import orientation_noise_variance
 from calibration.errors import CalibrationError, CalibrationInputError
 from calibration.joint import LOCATED_RANK, JointFit, fit_joint
@@ -414,14 +415,21 @@ def estimate_inertial(
 
 
 #: The pose-based estimators by name, all with the common signature (module docstring).
-JOINT_METHODS: dict[str, PoseMethod] = {
-    "obrien": estimate_obrien,
-    "obrien-eiv": estimate_obrien_eiv,
-    "score": estimate_score,
-    "sara": estimate_sara,
-    "sphere-gamage-lasenby": partial(estimate_sphere, variant="gamage-lasenby"),
-    "sphere-geometric": partial(estimate_sphere, variant="geometric"),
-}
+#: Their names are :data:`calibration.defaults.JOINT_METHOD_NAMES` (read without numpy).
+JOINT_METHODS: dict[str, PoseMethod] = dict(
+    zip(
+        JOINT_METHOD_NAMES,
+        (
+            estimate_obrien,
+            estimate_obrien_eiv,
+            estimate_score,
+            estimate_sara,
+            partial(estimate_sphere, variant="gamage-lasenby"),
+            partial(estimate_sphere, variant="geometric"),
+        ),
+        strict=True,
+    )
+)
 
 __all__ = [
     "JOINT_METHODS",

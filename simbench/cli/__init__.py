@@ -14,7 +14,7 @@ import signal
 import sys
 import warnings
 import weakref
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -73,6 +73,15 @@ _FILLED: weakref.WeakSet[argparse.ArgumentParser] = weakref.WeakSet()
 def command_module(command: str) -> ModuleType:
     """The module of one of :data:`COMMANDS`, imported now if it was not."""
     return importlib.import_module(COMMANDS[command][0])
+
+
+def command_function(func: Callable[[argparse.Namespace], int] | str) -> Callable[[argparse.Namespace], int]:
+    """The function a command runs: the parser's ``func`` itself, or the one it names as
+    ``"module:function"`` (a command whose options load little, its run loaded only now)."""
+    if callable(func):
+        return func
+    module, _, name = func.partition(":")
+    return getattr(importlib.import_module(module), name)
 
 
 class _Commands(argparse._SubParsersAction):
@@ -245,10 +254,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         with api.one_blas_thread(), warnings.catch_warnings():
             if not args.debug:  # one line a note, as the errors; --debug keeps Python's form
                 warnings.showwarning = _note
+            run = command_function(args.func)
             if args.command in OUTPUT_SETS:
                 with api.output_set():
-                    return int(args.func(args))
-            return int(args.func(args))
+                    return int(run(args))
+            return int(run(args))
     except Terminated:
         print("simbench: terminated", file=sys.stderr)
         return 143

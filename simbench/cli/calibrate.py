@@ -1,33 +1,24 @@
-"""``simbench calibrate``: joints, hierarchy and skeleton from a pose file (O'Brien et al. 2000)."""
+"""``simbench calibrate``: joints, hierarchy and skeleton from a pose file (O'Brien et al. 2000).
+
+Its options; the command runs in :mod:`simbench.cli.calibrate_run` (:data:`RUN`), loaded when it
+runs. Every name, default and choice the options list comes from a module that loads no numpy
+(the estimator catalog, the core's defaults), so that ``simbench calibrate --help`` is a light
+start (issue 44).
+"""
 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from simbench.api import (
-    DEFAULT_JOINTS,
-    FALSE_ALARMS_PER_HOUR,
-    SLIP_WINDOW_S,
-    TIME_LIMIT_S,
-    Estimator,
-    JointsResult,
-    calibrate,
-    calibration_document,
-    estimator_names,
-    pose_inputs_text,
-    read_hierarchy,
-    read_poses,
-    refuse_unlocated,
-    resolve_estimator,
-    slip_reports,
-    write_calibration,
-)
-from simbench.cli.live import add_follow_arguments, follow_csv
-from simbench.cli.table import format_table
+from calibration.defaults import FALSE_ALARMS_PER_HOUR, SLIP_WINDOW_S
 from simbench.cli.types import positive_float
-from simbench.errors import CalibrationError, InputError
-from simbench.units import LENGTH_UNITS, implausible_lengths
+from simbench.estimators.catalog import DEFAULT_JOINTS, TIME_LIMIT_S, builtin, names
+from simbench.experiments.live_defaults import RATE_FRAMES, REFRESH_S
+from simbench.io.inputs import pose_inputs_text
+from simbench.units import LENGTH_UNITS
+
+#: The function that runs the command (``module:function``, :func:`simbench.cli.command_function`).
+RUN = "simbench.cli.calibrate_run:cmd_calibrate"
 
 #: ``--drop-noisy-frames``, as ``simbench calibrate`` and ``simbench report`` offer it.
 DROP_NOISY_FRAMES_HELP = (
@@ -40,10 +31,10 @@ DROP_NOISY_FRAMES_HELP = (
 def add_arguments(cal: argparse.ArgumentParser) -> None:
     """The arguments of ``simbench calibrate``; O'Brien's options take their
     defaults and choices from the estimator registry (``obrien``, ``obrien-robust``)."""
-    obrien = resolve_estimator(DEFAULT_JOINTS)
+    obrien = builtin(DEFAULT_JOINTS)
     hierarchy_method = obrien.param("hierarchy_method")
     single_axis_ratio = obrien.param("single_axis_ratio").default
-    losses = resolve_estimator("obrien-robust").param("robust").choices or ()
+    losses = builtin("obrien-robust").param("robust").choices or ()
     cal.description = (
         "Estimate joint centres, body hierarchy, limb lengths and sensor placement from "
         "6-DoF sensor poses (O'Brien et al. 2000)."
@@ -53,7 +44,7 @@ def add_arguments(cal: argparse.ArgumentParser) -> None:
         "--method",
         default=DEFAULT_JOINTS,
         metavar="SPEC",
-        help=f"the joints estimator: {', '.join(estimator_names('joints'))} (default {DEFAULT_JOINTS}); or "
+        help=f"the joints estimator: {', '.join(names('joints'))} (default {DEFAULT_JOINTS}); or "
         "your own: package.module:function, path/to/file.py:function, an installed plugin's name, or "
         "'cmd:COMMAND ... {poses} [{hierarchy}] {out}' (docs/estimators.md); the methods that fit a "
         "given tree need --hierarchy",
@@ -148,199 +139,35 @@ def add_arguments(cal: argparse.ArgumentParser) -> None:
     )
     cal.add_argument("--no-slip", action="store_true", help="skip slip detection")
     add_follow_arguments(cal)
-    cal.set_defaults(func=cmd_calibrate)
+    cal.set_defaults(func=RUN)
 
 
-def _file_units(path: str) -> str:
-    """Where a file's length unit came from when ``--units`` is not given."""
-    suffix = Path(path).suffix.lower()
-    return {".c3d": "POINT:UNITS", ".trc": "Units"}.get(suffix, "m")
-
-
-def cmd_calibrate(args: argparse.Namespace) -> int:
-    """``simbench calibrate``: joints, hierarchy and skeleton from a pose file."""
-    if args.follow:
-        if args.method != DEFAULT_JOINTS:
-            raise InputError(f"--follow calibrates live with {DEFAULT_JOINTS}, not {args.method}")
-        return _follow(args)
-    est = resolve_estimator(args.method, "joints")  # a spec that names nothing is refused before reading
-    if est.data != "poses":
-        raise InputError(f"{est.name!r} estimates joints from IMU data, not poses: it is not for calibrate")
-    if args.method != DEFAULT_JOINTS:
-        return _other_method(args, est)
-    rec = read_poses(args.input, args.units, args.clusters, args.wide)
-    parent_of = read_hierarchy(args.hierarchy) if args.hierarchy else None
-    sensors = f"its sensors: {', '.join(rec.names)}"
-    if args.root is not None and args.root not in rec.names:
-        raise InputError(f"--root: no sensor {args.root!r} in {args.input} ({sensors})")
-    unknown = sorted({s for edge in (parent_of or {}).items() for s in edge} - set(rec.names))
-    if unknown:
-        raise InputError(f"{args.hierarchy}: sensor(s) {unknown} are not in {args.input} ({sensors})")
-    try:
-        cal = calibrate(
-            rec,
-            hierarchy=parent_of,
-            root=args.root,
-            hierarchy_method=args.hierarchy_method,
-            single_axis_ratio=args.single_axis_ratio,
-            robust=args.robust,
-            intervals=args.intervals,
-            correct_rotation_noise=args.correct_rotation_noise,
-            drop_noisy_frames=args.drop_noisy_frames,
-        )
-    except CalibrationError as exc:  # the data (or the hierarchy given) cannot be calibrated
-        raise InputError(
-            f"{args.input}{f' with {args.hierarchy}' if args.hierarchy else ''}: {exc}"
-        ) from None
-    refuse_unlocated(rec, cal, args.input)
-    slips = (
-        []
-        if args.no_slip
-        else slip_reports(
-            rec,
-            cal,
-            window_s=args.slip_window,
-            false_alarms_per_hour=args.slip_false_alarms_per_hour,
-            series=False,  # the events are printed and written; the statistic's series is not
-        )
+def add_follow_arguments(cal: argparse.ArgumentParser) -> None:
+    """``--follow`` and its options on ``simbench calibrate``."""
+    cal.add_argument(
+        "--follow",
+        action="store_true",
+        help="INPUT is a pose CSV a logger is still writing: calibrate live as rows arrive "
+        "(Ctrl-C or --timeout stops)",
     )
-    print(format_table(rec, cal, slips))
-    odd = implausible_lengths(cal.lengths, args.units, args.input, wide=bool(args.wide))
-    if odd:
-        print(f"\n  warning: {odd}")
-    if args.json:
-        # with each joint's range of motion in these poses, for the skeleton orientation estimator
-        doc = calibration_document(
-            cal,
-            rec,
-            slips=slips,
-            input_info={
-                "source": rec.source,
-                "sensors": list(rec.names),
-                "frames": rec.n_frames,
-                "rate_hz": rec.rate_hz,
-                "units": args.units or _file_units(args.input),
-            },
-            notes=(*rec.notes, odd) if odd else rec.notes,
-            options={
-                "hierarchy_file": args.hierarchy,
-                "root": args.root,
-                "hierarchy_method": None if args.hierarchy else args.hierarchy_method,
-                "single_axis_ratio": args.single_axis_ratio,
-                "robust": args.robust,
-                "intervals": args.intervals,
-                "correct_rotation_noise": args.correct_rotation_noise,
-                "drop_noisy_frames": args.drop_noisy_frames,
-                "slip_window_s": None if args.no_slip else args.slip_window,
-                "slip_false_alarms_per_hour": None if args.no_slip else args.slip_false_alarms_per_hour,
-            },
-        )
-        write_calibration(args.json, doc)
-        print(f"\n  wrote {args.json}")
-    return 0
-
-
-#: Options of ``calibrate`` that are estimator parameters: ``(flag, argparse dest, parameter)``;
-#: another --method gets those it declares, and refuses the others when given.
-PARAMETER_OPTIONS = (
-    ("--root", "root", "root"),
-    ("--hierarchy-method", "hierarchy_method", "hierarchy_method"),
-    ("--single-axis-ratio", "single_axis_ratio", "single_axis_ratio"),
-    ("--intervals", "intervals", "intervals"),
-    ("--drop-noisy-frames", "drop_noisy_frames", "drop_noisy_frames"),
-    ("--robust", "robust", "robust"),
-)
-
-
-def _other_method(args: argparse.Namespace, est: Estimator) -> int:
-    """``simbench calibrate --method SPEC``: any joints estimator on the recording's poses; the
-    whole table and JSON for O'Brien's variants, the joints (and their JSON) for the others."""
-    defaults = parser_defaults()
-    params = {}
-    for flag, dest, param in PARAMETER_OPTIONS:
-        value = getattr(args, dest)
-        if value == defaults[dest]:
-            continue
-        if param not in est.defaults:
-            raise InputError(
-                f"{flag}: not a parameter of {est.name!r} ({[p.name for p in est.params] or 'none'})"
-            )
-        params[param] = value
-    if args.correct_rotation_noise:
-        raise InputError(
-            f"--correct-rotation-noise is O'Brien's; with --method give obrien-eiv, not {est.name!r}"
-        )
-    if args.slip_window != defaults["slip_window"]:
-        raise InputError("--slip-window: slip detection runs with O'Brien's calibration (the default method)")
-    rec = read_poses(args.input, args.units, args.clusters, args.wide)
-    parent_of = read_hierarchy(args.hierarchy) if args.hierarchy else None
-    limit = None if est.origin == "builtin" else args.time_limit
-    got = calibrate(rec, method=est, hierarchy=parent_of, params=params, time_limit_s=limit)
-    assert isinstance(got, JointsResult)
-    if got.calibration is not None:
-        refuse_unlocated(rec, got.calibration, args.input)
-        print(format_table(rec, got.calibration, []))
-        doc = calibration_document(got, rec, ranges=False)
-    else:
-        print(f"simbench calibrate: {rec.source}")
-        print(f"  sensors: {len(rec.names)}   frames: {rec.n_frames}   method: {est.name}")
-        print(f"\n  {'joint':<28}{'centre in parent (mm)':>30}{'centre in child (mm)':>30}")
-        j = got.joints
-        for k in range(len(j.child)):
-            jp = " ".join(f"{1000 * v:8.1f}" for v in j.joint_in_parent[k])
-            jc = " ".join(f"{1000 * v:8.1f}" for v in j.joint_in_child[k])
-            print(f"  {j.parent[k] + '-' + j.child[k]:<28}{jp:>30}{jc:>30}")
-        for note in (*rec.notes, *got.notes):
-            print(f"  note: {note}")
-        doc = calibration_document(got)  # the joints alone, with the estimator's notes
-    doc["method"] = est.name
-    if args.json:
-        write_calibration(args.json, doc)
-        print(f"\n  wrote {args.json}")
-    return 0
-
-
-def parser_defaults() -> dict:
-    """The defaults of ``calibrate``'s options, by argparse dest."""
-    parser = argparse.ArgumentParser()
-    add_arguments(parser)
-    return vars(parser.parse_args(["input"]))
-
-
-def _follow(args: argparse.Namespace) -> int:
-    """``simbench calibrate --follow``: the live calibration of a growing pose CSV."""
-    unsupported = [
-        flag
-        for flag, value in (
-            ("--json", args.json),
-            ("--robust", args.robust),
-            ("--intervals", args.intervals),
-            ("--correct-rotation-noise", args.correct_rotation_noise),
-            ("--drop-noisy-frames", args.drop_noisy_frames),
-            ("--clusters", args.clusters),
-            ("--wide", args.wide),
-        )
-        if value
-    ]
-    if unsupported:
-        raise InputError(f"--follow calibrates a pose CSV live; it does not take {', '.join(unsupported)}")
-    suffix = Path(args.input).suffix.lower()
-    if suffix not in (".csv", ".txt", ""):
-        raise InputError(
-            f"{args.input}: --follow calibrates a pose CSV (.csv) that another process appends to, not a "
-            f"{suffix} file; calibrate it without --follow"
-        )
-    follow_csv(
-        args.input,
-        units=args.units or "m",
-        rate_hz=args.rate_hz,
-        timeout_s=args.timeout,
-        refresh_s=args.refresh,
-        slip=not args.no_slip,
-        hierarchy=read_hierarchy(args.hierarchy) if args.hierarchy else None,
-        root=args.root,
-        hierarchy_method=args.hierarchy_method,
-        single_axis_ratio=args.single_axis_ratio,
-        false_alarms_per_hour=args.slip_false_alarms_per_hour,
+    cal.add_argument(
+        "--timeout",
+        type=positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="with --follow: stop after this many seconds of wall time (default: until Ctrl-C)",
     )
-    return 0
+    cal.add_argument(
+        "--rate-hz",
+        type=positive_float,
+        default=None,
+        metavar="HZ",
+        help=f"with --follow: the capture rate (default: from the first {RATE_FRAMES} frames' time stamps)",
+    )
+    cal.add_argument(
+        "--refresh",
+        type=positive_float,
+        default=REFRESH_S,
+        metavar="SECONDS",
+        help=f"with --follow: seconds of capture between tables (default {REFRESH_S:g})",
+    )

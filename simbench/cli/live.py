@@ -20,7 +20,6 @@ from typing import Any
 import numpy as np
 
 from simbench.api import (
-    LIVE_RATE_FRAMES,
     LIVE_REFRESH_S,
     LOCATED_RANK,
     LiveState,
@@ -59,38 +58,6 @@ def add_replay_arguments(rep: argparse.ArgumentParser) -> None:
     )
     _common(rep)
     rep.set_defaults(func=cmd_replay)
-
-
-def add_follow_arguments(cal: argparse.ArgumentParser) -> None:
-    """``--follow`` and its options on ``simbench calibrate``."""
-    cal.add_argument(
-        "--follow",
-        action="store_true",
-        help="INPUT is a pose CSV a logger is still writing: calibrate live as rows arrive "
-        "(Ctrl-C or --timeout stops)",
-    )
-    cal.add_argument(
-        "--timeout",
-        type=positive_float,
-        default=None,
-        metavar="SECONDS",
-        help="with --follow: stop after this many seconds of wall time (default: until Ctrl-C)",
-    )
-    cal.add_argument(
-        "--rate-hz",
-        type=positive_float,
-        default=None,
-        metavar="HZ",
-        help=f"with --follow: the capture rate (default: from the first {LIVE_RATE_FRAMES} frames' time "
-        "stamps)",
-    )
-    cal.add_argument(
-        "--refresh",
-        type=positive_float,
-        default=LIVE_REFRESH_S,
-        metavar="SECONDS",
-        help=f"with --follow: seconds of capture between tables (default {LIVE_REFRESH_S:g})",
-    )
 
 
 def _common(parser: argparse.ArgumentParser) -> None:

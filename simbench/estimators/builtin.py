@@ -29,14 +29,20 @@ from typing import Any
 
 import numpy as np
 
-from calibration import HIERARCHY_METHODS, SINGLE_AXIS_RATIO, Calibration, CalibrationError
+from calibration import Calibration, CalibrationError
 from calibration import calibrate as calibrate_arrays
 from calibration.joint import LOCATED_RANK
 from calibration.methods import JOINT_METHODS, JointEstimate, estimate_inertial
 from calibration.orientation import Priors, Skeleton
-from calibration.robust import LOSSES
+from simbench.estimators.catalog import (
+    BUILTINS,
+    CALIBRATE_MAG,
+    DEFAULT_JOINTS,
+    DEFAULT_ORIENTATION,
+    OBRIEN_PARAMS,
+    Builtin,
+)
 from simbench.estimators.registry import (
-    REGISTRY,
     SUFFIX_UNITS,
     Estimator,
     JointsResult,
@@ -49,29 +55,7 @@ from simbench.io.imu import ImuRecording
 from simbench.io.poses import PoseRecording
 from simbench.orient import calibrate_magnetometers, estimate
 
-#: The default joints estimator (``simbench calibrate``, ``sb.calibrate``).
-DEFAULT_JOINTS = "obrien"
-#: The default orientation estimator (``simbench orient``, ``sb.orient``).
-DEFAULT_ORIENTATION = "skeleton"
-
-_HIERARCHY_METHOD = Param(
-    "hierarchy_method",
-    HIERARCHY_METHODS[0],
-    help="how an inferred tree weighs each pair: misfit = the joint-fit residual less its noise, "
-    "mst = the residual itself (O'Brien et al.'s minimum spanning tree)",
-    choices=HIERARCHY_METHODS,
-)
-_SINGLE_AXIS_RATIO = Param(
-    "single_axis_ratio",
-    SINGLE_AXIS_RATIO,
-    help="hard floor of s_min/s_max below which a direction is always undetermined",
-)
-_ROOT = Param("root", None, help="root sensor (default: the centre of the inferred tree)")
-_INTERVALS = Param("intervals", False, help="95 % regions of every centre and intervals of limb lengths")
-_DROP_NOISY = Param(
-    "drop_noisy_frames", False, help="leave out each sensor's frames whose position noise drowns its others"
-)
-OBRIEN_PARAMS = (_HIERARCHY_METHOD, _SINGLE_AXIS_RATIO, _ROOT, _INTERVALS, _DROP_NOISY)
+__all__ = ["DEFAULT_JOINTS", "DEFAULT_ORIENTATION", "OBRIEN_PARAMS", "joints_of", "pair_params", "pairwise"]
 
 
 def joints_of(cal: Calibration) -> CalibrationJoints:
@@ -210,106 +194,48 @@ def _orientation(method: str) -> Callable[..., OrientationResult]:
     return run
 
 
-_WEIGHTING = Param("weighting", True, help="Fontaine's disturbance weighting of the accelerometer")
-_CALIBRATE_MAG = Param(
-    "calibrate_mag",
-    True,
-    help="fit each magnetometer's hard and soft iron to the recording's own samples first, applied "
-    "where the samples determine it and it steadies the field strength",
-)
-_SMOOTH = Param("smooth_hz", None, unit="hz", help="zero-phase low-pass cutoff of the inputs (none: none)")
+def _function(b: Builtin) -> Callable[..., Any]:
+    """The function of a built-in of :data:`simbench.estimators.catalog.BUILTINS`."""
+    if b.name == DEFAULT_JOINTS:
+        return _obrien
+    if b.name == "obrien-eiv":
+        return _obrien_variant(correct_rotation_noise=True)
+    if b.name == "obrien-robust":
+        return _obrien_variant()
+    if b.name == "inertial":
+        return _inertial
+    if b.name in JOINT_METHODS:
+        return pairwise(JOINT_METHODS[b.name])
+    return _orientation(b.name)
+
+
+def _params(b: Builtin) -> tuple[Param, ...]:
+    """The parameters the catalog leaves to the code: a one-pair method's, read off its function;
+    the skeleton estimator's, whose speed prior's default is the core's."""
+    if b.name in JOINT_METHODS:
+        return pair_params(JOINT_METHODS[b.name])
+    if b.name == DEFAULT_ORIENTATION:
+        lone = Param(
+            "lone_speed_m_per_s",
+            Priors().lone_speed,
+            unit="m/s",
+            help="the speed prior of a sensor on its own (no skeleton, or a root with no children)",
+        )
+        return (CALIBRATE_MAG, lone)
+    raise KeyError(f"the catalog gives no parameters of {b.name!r} and neither does the code")
 
 
 def _register_all() -> None:
-    register(
-        Estimator(
-            DEFAULT_JOINTS,
-            "joints",
-            _obrien,
-            OBRIEN_PARAMS,
-            summary="O'Brien et al. 2000: least-squares joint fits, single-axis test, spanning tree",
-        )
-    )
-    register(
-        Estimator(
-            "obrien-eiv",
-            "joints",
-            _obrien_variant(correct_rotation_noise=True),
-            OBRIEN_PARAMS,
-            summary="O'Brien's fits corrected for the rotations' noise (errors in variables)",
-        )
-    )
-    register(
-        Estimator(
-            "obrien-robust",
-            "joints",
-            _obrien_variant(),
-            (*OBRIEN_PARAMS, Param("robust", LOSSES[0], help="the IRLS loss", choices=LOSSES)),
-            summary="O'Brien's fits by iteratively reweighted least squares (slip, bursts)",
-        )
-    )
-    # the one-pair methods of calibration.methods (O'Brien's are the whole-recording ones above)
-    for name, fit in JOINT_METHODS.items():
-        if name in REGISTRY:
-            continue
+    """Every entry of the catalog, in its order, with its function."""
+    for b in BUILTINS:
+        fn = _function(b)
+        summary = b.summary or _summary(JOINT_METHODS[b.name])
+        params = b.params if b.params is not None else _params(b)
         register(
             Estimator(
-                name, "joints", pairwise(fit), pair_params(fit), frozenset({"hierarchy"}), _summary(fit)
+                b.name, b.kind, fn, params, b.needs, summary, data=b.data, takes_skeleton=b.takes_skeleton
             )
         )
-    register(
-        Estimator(
-            "inertial",
-            "joints",
-            _inertial,
-            (Param("hinge", False, help="the joints are hinges: their axes from the gyroscopes"),),
-            frozenset({"hierarchy", "rate", "gyro"}),
-            "Seel et al. 2012/2014: joints from gyroscopes and accelerometers, no poses",
-            data="imu",
-        )
-    )
-    register(
-        Estimator(
-            DEFAULT_ORIENTATION,
-            "orientation",
-            _orientation("skeleton"),
-            (
-                _CALIBRATE_MAG,
-                Param(
-                    "lone_speed_m_per_s",
-                    Priors().lone_speed,
-                    unit="m/s",
-                    help="the speed prior of a sensor on its own (no skeleton, or a root with no children)",
-                ),
-            ),
-            frozenset({"rate"}),
-            "every sensor over the whole recording at once, on the calibrated skeleton when given",
-            takes_skeleton=True,
-        )
-    )
-    for name, params, needs, summary in (
-        ("triad", (_CALIBRATE_MAG, _SMOOTH), {"rate"}, "TRIAD: the two-vector fix per sample"),
-        (
-            "fontaine",
-            (_CALIBRATE_MAG, _WEIGHTING, _SMOOTH),
-            {"rate"},
-            "Fontaine et al.: Gauss-Newton per sample",
-        ),
-        (
-            "wahba",
-            (_CALIBRATE_MAG, _WEIGHTING, _SMOOTH),
-            {"rate"},
-            "Wahba's problem per sample (closed form)",
-        ),
-        ("mahony", (_CALIBRATE_MAG, _SMOOTH), {"rate", "gyro"}, "Mahony's complementary filter (gyro-aided)"),
-        (
-            "vqf",
-            (_CALIBRATE_MAG, _SMOOTH),
-            {"rate", "gyro"},
-            "VQF (Laidig and Seel 2023), offline (gyro-aided reference)",
-        ),
-    ):
-        register(Estimator(name, "orientation", _orientation(name), params, frozenset(needs), summary))
 
 
 _register_all()

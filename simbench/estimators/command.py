@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from simbench.errors import InputError
+from simbench.estimators.catalog import TIME_LIMIT_S as TIME_LIMIT_S  # a command's, per call
 from simbench.estimators.registry import Estimator, JointsResult, OrientationResult, Param
 from simbench.io.atomic import outside_output_set
 from simbench.io.calibration_json import read_calibration_json
@@ -49,9 +50,6 @@ PLACEHOLDERS = {
     "joints": {"poses": "poses.csv", "hierarchy": "hierarchy.json", "out": "calibration.json"},
     "orientation": {"imu": "imu.csv", "out": "orientation.csv"},
 }
-
-#: A command's time limit per call unless one is given (``--time-limit``), s.
-TIME_LIMIT_S = 600.0
 
 #: How much of a failed command's standard error a message quotes, characters.
 STDERR_TAIL = 600

@@ -32,69 +32,10 @@ import numpy as np
 
 from calibration import Calibration
 from simbench.errors import InputError
+from simbench.estimators.catalog import DATA, KINDS, NEEDS
+from simbench.estimators.catalog import ENTRY_POINT_GROUP as ENTRY_POINT_GROUP
+from simbench.estimators.catalog import Param as Param
 from simbench.io.calibration_json import CalibrationJoints
-
-#: The kinds of estimator, each with its contract (module docstring).
-KINDS = ("joints", "orientation")
-
-#: What an estimator may need beyond its data: ``hierarchy`` (a joints estimator that fits the
-#: joints of a given tree and cannot infer one), ``rate`` (a sample rate from the time stamps),
-#: ``gyro`` (gyroscope readings).
-NEEDS = ("hierarchy", "rate", "gyro")
-
-#: The data a joints estimator takes: ``poses`` (a pose recording) or ``imu`` (an IMU recording).
-DATA = ("poses", "imu")
-
-#: The entry-point group of installed estimator plugins (``pyproject.toml``:
-#: ``[project.entry-points."simbench.estimators"] name = "package.module:function"``).
-ENTRY_POINT_GROUP = "simbench.estimators"
-
-
-@dataclass(frozen=True)
-class Param:
-    """One parameter of an estimator.
-
-    Attributes:
-        name: the keyword its function takes.
-        default: its value when none is given (the one place the default lives).
-        unit: the unit of a number (a key of :data:`simbench.units.UNITS`, ``"1"`` for none).
-        help: one line on what it does.
-        choices: the values allowed, or ``None`` for any value of the default's type.
-    """
-
-    name: str
-    default: Any
-    unit: str = "1"
-    help: str = ""
-    choices: tuple[Any, ...] | None = None
-
-    def check(self, value: Any, owner: str) -> Any:
-        """``value`` as the parameter takes it (an int for a float default becomes a float).
-
-        Raises:
-            InputError: naming the estimator, the parameter, what it takes and what arrived.
-        """
-        if self.choices is not None:
-            if value not in self.choices:
-                raise InputError(
-                    f"{owner}: parameter {self.name!r} takes one of {list(self.choices)}, got {value!r}"
-                )
-            return value
-        default = self.default
-        if isinstance(default, bool):
-            if not isinstance(value, bool):
-                raise InputError(f"{owner}: parameter {self.name!r} takes true or false, got {value!r}")
-            return value
-        if isinstance(default, int | float) or (default is None and self.unit != "1"):
-            if value is None and default is None:
-                return None
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-                raise InputError(
-                    f"{owner}: parameter {self.name!r} takes a finite number"
-                    f"{'' if self.unit == '1' else f' in {self.unit}'}, got {value!r}"
-                )
-            return type(default)(value) if isinstance(default, int | float) else float(value)
-        return value
 
 
 @dataclass(frozen=True)
@@ -221,11 +162,6 @@ def register(estimator: Estimator) -> Estimator:
         raise InputError(f"an estimator named {estimator.name!r} is registered already")
     REGISTRY[estimator.name] = estimator
     return estimator
-
-
-def builtin_names(kind: str | None = None) -> tuple[str, ...]:
-    """The built-in estimators' names, of one kind or all, in registration order."""
-    return tuple(name for name, e in REGISTRY.items() if kind is None or e.kind == kind)
 
 
 @dataclass(frozen=True)
@@ -360,7 +296,6 @@ __all__ = [
     "JointsResult",
     "OrientationResult",
     "Param",
-    "builtin_names",
     "estimator",
     "from_callable",
     "register",

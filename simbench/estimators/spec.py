@@ -14,30 +14,15 @@ import hashlib
 import importlib
 import importlib.util
 import sys
-from functools import cache
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
 from simbench.errors import InputError
+from simbench.estimators import catalog
 from simbench.estimators.builtin import DEFAULT_JOINTS, DEFAULT_ORIENTATION  # fills REGISTRY
+from simbench.estimators.catalog import names as names  # the built-ins' and the plugins' names
 from simbench.estimators.command import PREFIX, command_estimator
-from simbench.estimators.registry import ENTRY_POINT_GROUP, KINDS, REGISTRY, Estimator, from_callable
-
-
-@cache
-def _plugins() -> dict[str, Any]:
-    """The installed plugins' entry points by name (looked up once per process)."""
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
-
-
-def names(kind: str | None = None, *, plugins: bool = True) -> tuple[str, ...]:
-    """The names :func:`resolve` takes as they are: the built-ins of ``kind`` (or all) in
-    registration order, then the installed plugins (whose kind is known once loaded: all are listed)."""
-    if kind is not None and kind not in KINDS:
-        raise InputError(f"kind must be one of {list(KINDS)}, got {kind!r}")
-    own = tuple(n for n, e in REGISTRY.items() if kind is None or e.kind == kind)
-    return own + (tuple(sorted(set(_plugins()) - set(REGISTRY))) if plugins else ())
+from simbench.estimators.registry import REGISTRY, Estimator, from_callable
 
 
 def default(kind: str) -> str:
@@ -71,7 +56,7 @@ def resolve(spec: str, kind: str | None = None) -> Estimator:
         return est
     if spec.startswith(PREFIX):
         return command_estimator(spec, kind)
-    plugin = _plugins().get(spec)
+    plugin = catalog.plugin_entry_points().get(spec)
     if plugin is not None:
         try:
             obj = plugin.load()

@@ -26,19 +26,14 @@ from calibration.slip import FALSE_ALARMS_PER_HOUR
 from calibration.streaming import LiveState, SlipAlert, StreamingCalibrator
 from simbench.errors import InputError
 from simbench.estimators import DEFAULT_JOINTS, resolve
+from simbench.experiments.live_defaults import RATE_FRAMES, REFRESH_S
 from simbench.io.follow import CsvFollower, FollowStopped, RawFrame, first_seen
 from simbench.io.poses import PoseRecording
 from simbench.sim.live import live_blocks
 from simbench.units import metres_per_unit
 
-#: Seconds of capture between two updates of the calibration.
-REFRESH_S = 1.0
-
 #: Seconds to wait before looking at a followed file again when it has not grown.
 POLL_S = 0.05
-
-#: Frames a followed file must hold before its rate is estimated (count over span, docs/conventions.md).
-RATE_FRAMES = 64
 
 _OBRIEN = resolve(DEFAULT_JOINTS)
 

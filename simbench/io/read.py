@@ -28,24 +28,12 @@ from simbench.io.dataset import FORMAT as DATASET_FORMAT
 from simbench.io.dataset import Dataset, dataset_from_poses, read_dataset, read_dataset_poses
 from simbench.io.hdf5 import open_hdf5
 from simbench.io.imu import ImuRecording, read_broad
+from simbench.io.inputs import POSE_INPUTS as POSE_INPUTS
+from simbench.io.inputs import pose_inputs_text as pose_inputs_text
 from simbench.io.poses import PoseRecording, read_pose_csv
 from simbench.io.wide_csv import read_wide_csv, read_wide_spec
 
 POSE_SUFFIXES = (".csv", ".txt", ".c3d", ".trc", ".h5", ".hdf5")
-
-#: The pose recordings simbench reads, by kind: what ``--help`` and the errors list.
-POSE_INPUTS: dict[str, str] = {
-    "csv": "a pose CSV (.csv, .txt: time,sensor,x,y,z,qw,qx,qy,qz)",
-    "wide": "a tracker's wide export (.csv with --wide SPEC.toml)",
-    "c3d": "optical markers (.c3d, .trc: clustered by --clusters SPEC.toml or found)",
-    "h5": "a simbench dataset (.h5, .hdf5)",
-}
-
-
-def pose_inputs_text(without: tuple[str, ...] = ()) -> str:
-    """The kinds of :data:`POSE_INPUTS` (less those of ``without``) as one phrase (``a; b or c``)."""
-    kinds = [text for kind, text in POSE_INPUTS.items() if kind not in without]
-    return "; ".join(kinds[:-1]) + " or " + kinds[-1]
 
 
 def is_simbench_dataset(path: str | os.PathLike[str]) -> bool:
