@@ -144,11 +144,12 @@ def main() -> None:
         f"wall / (CPU / workers) = {out['ratio_to_cpu_floor']:.2f}; load "
         f"{out['load_average_before'][0]:.1f} before, {out['load_average_after'][0]:.1f} after"
     )
-    print(
-        f"  first worker job at {out['first_worker_job_s']:.1f} s, last one ended "
-        f"{out['after_last_worker_job_s']:.1f} s before the end; workers busy "
-        + ", ".join(f"{b:.1f} s" for b in out["worker_busy_s"].values())
-    )
+    if out["first_worker_job_s"] is not None:  # with --workers 1 every job runs in this process
+        print(
+            f"  first worker job at {out['first_worker_job_s']:.1f} s, last one ended "
+            f"{out['after_last_worker_job_s']:.1f} s before the end; workers busy "
+            + ", ".join(f"{b:.1f} s" for b in out["worker_busy_s"].values())
+        )
     for step, row in out["steps"].items():
         print(
             f"  {row['cpu_s']:7.1f} cpu-s {row['jobs']:3d} jobs  {row['first_start_s']:6.1f} .. "

@@ -742,6 +742,7 @@ def run_twins(
     seed: int = TWIN_SEED,
     run: Callable[..., Any] = map,
     methods: Sequence[str] = TWIN_METHODS,
+    pattern: str = "broad_*.hdf5",
 ) -> dict[str, Any]:
     """The digital twin (:mod:`simbench.twin`) of each BROAD trial at hand (``broad_*.hdf5`` in
     ``data_dir``, default :data:`DEFAULT_DATA_DIR`): its readings simulated from the optical pose
@@ -753,6 +754,7 @@ def run_twins(
         seed: the seed of the twins' noise.
         run: ``map`` or a pool's (a job per trial).
         methods: the orientation methods scored on each trial and its twin.
+        pattern: the trials' file names (a glob in ``data_dir``).
 
     Returns:
         JSON-ready: ``data_dir``, ``seed``, ``twins`` (by file stem:
@@ -760,13 +762,14 @@ def run_twins(
     """
     t0 = time.perf_counter()
     data = Path(data_dir) if data_dir is not None else DEFAULT_DATA_DIR
-    paths = sorted(data.glob("broad_*.hdf5"))
+    paths = sorted(data.glob(pattern))
     n = len(paths)
     twins = dict(zip((p.stem for p in paths), run(twin_entry, paths, [seed] * n, [methods] * n), strict=True))
     return {
         "data_dir": str(data),
         "seed": seed,
         "methods": list(methods),
+        "pattern": pattern,
         "twins": twins,
         "run_time_s": time.perf_counter() - t0,
     }

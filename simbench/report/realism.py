@@ -164,9 +164,12 @@ def twins_markdown(run: Mapping[str, Any]) -> list[str]:
     """The digital twins' subsection (``run``: :func:`simbench.experiments.realism.run_twins`)."""
     lines = ["### Digital twins of the BROAD trials", ""]
     twins = run["twins"]
+    pattern = run.get("pattern", "broad_*.hdf5")
     if not twins:
-        return [*lines, f"No BROAD trial (`broad_*.hdf5`) in `{run['data_dir']}`: no twin.", ""]
+        return [*lines, f"No BROAD trial (`{pattern}`) in `{run['data_dir']}`: no twin.", ""]
     targets = ", ".join(f"{k} {v:g}" for k, v in R2_TARGETS.items())
+    if pattern != "broad_*.hdf5":
+        lines += [f"The trials `{pattern}` only (`--quick`; the full run makes every trial's twin).", ""]
     lines += [
         "Each trial's IMU simulated from the optical pose of its housing, with the errors the recording "
         "shows identified (`simbench twin`, `docs/twin.md`), compared sample by sample over the motion "
