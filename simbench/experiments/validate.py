@@ -93,8 +93,9 @@ STEPS = (
 #: of jobs, full and ``quick``; and of writing the report (``"report"``): the units of the progress
 #: bar (:class:`simbench.experiments.work.Work`) and the order the pool takes the jobs in (the
 #: longest first). Measured by ``benchmarks/bench_validate.py [--quick]`` (its ``steps``: the jobs'
-#: CPU seconds; 0.1 for a step that took less), rounded; only the shares matter (the bar's rate is
-#: the machine's).
+#: CPU seconds; 0.1 for a step that took less; the full run's in one process, each job's own CPU
+#: without the jobs it waited on), rounded; only the shares matter (the bar's rate is the
+#: machine's).
 COST_S: dict[bool, dict[str, tuple[float, int]]] = {
     False: dict(
         zip(
@@ -102,14 +103,14 @@ COST_S: dict[bool, dict[str, tuple[float, int]]] = {
             (
                 (0.1, 1),
                 (9.4, 6),
-                (50.3, 10),
+                (52.9, 10),
                 (1.0, 1),
-                (17.7, 2),
-                (25.9, 14),
-                (31.9, 44),
-                (21.7, 6),
-                (22.8, 4),
-                (31.5, 13),
+                (16.1, 2),
+                (17.4, 14),
+                (25.1, 44),
+                (23.4, 6),
+                (22.6, 4),
+                (38.1, 13),
                 (2.2, 1),
             ),
             strict=True,
