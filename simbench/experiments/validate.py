@@ -649,7 +649,7 @@ def _coverage(ds: Any, hits: dict[str, list[int]]) -> None:
                 hits[key][1] += 1
 
 
-#: Threads of :func:`run_validation`'s ``helper``: more than the tasks it holds at once (nine), as
+#: Threads of :func:`run_validation`'s ``helper``: more than the tasks it holds at once (eight), as
 #: one may wait on another's result.
 HELPER_THREADS = 12
 
