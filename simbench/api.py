@@ -735,7 +735,7 @@ def calibration_document(
     Args:
         cal: O'Brien's calibration (:func:`calibrate`), or any estimator's
             :class:`simbench.estimators.JointsResult` (the whole document of an O'Brien
-            variant; the joints alone, in metres, for the others).
+            variant; the joints alone, in the poses' unit, for the others).
         data: the recording it came from: slip events and intervals get their times in seconds,
             and each joint its range of motion in these poses (``ranges``).
         slips: ``(joint name, report)`` of :func:`slip_reports`.
@@ -762,7 +762,7 @@ def calibration_document(
                     "n_frames": int(r.frames[k]),
                 }
             return {
-                "units": "m",
+                "units": cal.unit,
                 "joints": [
                     {
                         "parent": j.parent[k],

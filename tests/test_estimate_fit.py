@@ -96,6 +96,11 @@ def test_joints_at_the_sensors_explain_nothing_and_the_verdicts_are_unit_free(li
     np.testing.assert_allclose(in_mm.residuals.rms, 1000 * got.residuals.rms, rtol=1e-9)
     np.testing.assert_allclose(in_mm.residuals.best, 1000 * got.residuals.best, rtol=1e-6, atol=1e-9)
     assert in_mm.warnings == got.warnings
+    doc, doc_mm = simbench.calibration_document(got), simbench.calibration_document(in_mm)
+    assert (doc["units"], doc_mm["units"]) == ("m", "mm")
+    assert doc_mm["joints"][0]["rms_residual"] == pytest.approx(1000 * doc["joints"][0]["rms_residual"])
+    scored = simbench.score(doc, linkage).mean_centre_error_m
+    assert simbench.score(doc_mm, linkage).mean_centre_error_m == pytest.approx(scored, rel=1e-12)
 
 
 def test_poses_not_of_one_body_are_the_datas_fault(linkage):

@@ -191,6 +191,7 @@ class JointsResult:
         warnings: with ``residuals``: joints whose residual stands far above the others' or
             explains almost nothing of their sensors' motion
             (:func:`calibration.diagnostics.residual_warnings`, as O'Brien's calibration warns).
+        unit: the length unit of the centres and residuals (the poses').
     """
 
     joints: CalibrationJoints
@@ -198,6 +199,7 @@ class JointsResult:
     notes: tuple[str, ...] = ()
     residuals: JointResiduals | None = None
     warnings: tuple[str, ...] = ()
+    unit: str = "m"
 
 
 @dataclass(frozen=True)

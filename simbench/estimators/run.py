@@ -240,7 +240,7 @@ def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") 
         joints.joint_in_child * factor,
         joints.single_axis,
     )
-    return JointsResult(joints, calibration=calibration, notes=tuple(notes))
+    return JointsResult(joints, calibration=calibration, notes=tuple(notes), unit=unit)
 
 
 def _document(joints: CalibrationJoints, unit: str, name: str) -> dict[str, Any]:
