@@ -65,14 +65,15 @@ the frames that carry it, :mod:`calibration.frame_noise`), or poses that are not
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from calibration.errors import CalibrationInputError
 from calibration.hinge import LITERATURE_RANGE_DEG, WELL_MOVED_RMS_RAD, bias_bounds, systematic_rms
 from calibration.hinge import UNCERTAIN_FRACTION as HINGE_FRACTION
 from calibration.joint import LOCATED_RANK
-from calibration.pairs import PairStatistics
+from calibration.pairs import PairStatistics, pair_statistics, solve_pairs
 from calibration.poses import CHUNK_FRAMES, iter_chunks
 from calibration.rotations import matrix_to_rotvec
 
@@ -490,6 +491,118 @@ def _outliers(rms_residual: np.ndarray, separation: np.ndarray) -> list[tuple[in
     return residual_outliers(rms_residual, floor if np.isfinite(floor) else 0.0)
 
 
+class JointResiduals(NamedTuple):
+    """How well given joints fit a recording's poses (any estimator's joints).
+
+    Attributes:
+        rms: ``(J,)`` root mean square over frames of the residual's norm (O'Brien eq. 13), in
+            the positions' unit; NaN for a joint with no frame where both sensors are seen.
+        max: ``(J,)`` the largest residual norm, same unit.
+        best: ``(J,)`` the least rms residual any centre leaves on the same frames (O'Brien's
+            least-squares fit of the pair), same unit.
+        separation: ``(J,)`` rms distance between the joint's two sensors, same unit.
+        frames: ``(J,)`` frames where both sensors are seen.
+    """
+
+    rms: np.ndarray
+    max: np.ndarray
+    best: np.ndarray
+    separation: np.ndarray
+    frames: np.ndarray
+
+
+def joint_residuals(
+    R_w_s: Any,
+    p_w_s: Any,
+    parent: np.ndarray,
+    child: np.ndarray,
+    joint_in_parent: np.ndarray,
+    joint_in_child: np.ndarray,
+    *,
+    valid: Any = None,
+    chunk_frames: int = CHUNK_FRAMES,
+) -> JointResiduals:
+    """The residual of joints located by any method, over a recording, chunk by chunk, beside
+    the least residual any centre leaves (the least-squares fit of each pair, O'Brien eqs. 9-13).
+
+    The same figures O'Brien's calibration reports for its own joints, for centres found some
+    other way, so that :func:`estimate_warnings` judges every estimator's joints alike.
+
+    Args:
+        R_w_s: ``(frames, sensors, 3, 3)`` rotations, sensor to world.
+        p_w_s: ``(frames, sensors, 3)`` positions in world, any length unit.
+        parent: ``(J,)`` parent sensor index of each joint.
+        child: ``(J,)`` child sensor index of each joint.
+        joint_in_parent: ``(J, 3)`` centres in the parent sensor's frame, the positions' unit.
+        joint_in_child: ``(J, 3)`` centres in the child sensor's frame, the same unit.
+        valid: optional ``(frames, sensors)`` bool, False where a pose is missing.
+        chunk_frames: frames worked on at a time.
+    """
+    par = np.asarray(parent, dtype=np.int64).reshape(-1)
+    chi = np.asarray(child, dtype=np.int64).reshape(-1)
+    lp = np.asarray(joint_in_parent, dtype=float).reshape(-1, 3)
+    lc = np.asarray(joint_in_child, dtype=float).reshape(-1, 3)
+    if not len(par) == len(chi) == len(lp) == len(lc):
+        raise CalibrationInputError(
+            f"Expected one parent, child and two centres per joint, got {len(par)} parents, {len(chi)} "
+            f"children, {len(lp)} and {len(lc)} centres"
+        )
+    stats = pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=False)
+    fit = solve_pairs(stats, par, chi)
+    # theirs and the least-squares centres, residuals exact from the data (not the normal equations)
+    par2, chi2 = np.concatenate([par, par]), np.concatenate([chi, chi])
+    lp2 = np.concatenate([lp, np.nan_to_num(fit.joint_in_parent)])
+    lc2 = np.concatenate([lc, np.nan_to_num(fit.joint_in_child)])
+    sq, top, dist, count = (np.zeros(len(par2)) for _ in range(4))
+    for _, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
+        both = ok[:, par2] & ok[:, chi2]  # (chunk, 2J)
+        at_p = np.einsum("fjab,jb->fja", R[:, par2], lp2) + p[:, par2]
+        at_c = np.einsum("fjab,jb->fja", R[:, chi2], lc2) + p[:, chi2]
+        r = np.where(both, np.linalg.norm(at_p - at_c, axis=2), 0.0)
+        sq += (r**2).sum(axis=0)
+        top = np.maximum(top, r.max(axis=0, initial=0.0))
+        dist += np.where(both, ((p[:, par2] - p[:, chi2]) ** 2).sum(axis=2), 0.0).sum(axis=0)
+        count += both.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rms, separation = np.sqrt(sq / count), np.sqrt(dist / count)
+    top[count == 0] = np.nan
+    j = len(par)
+    best = np.where(np.isfinite(fit.rms_residual), np.minimum(rms[j:], rms[:j]), np.nan)
+    return JointResiduals(rms[:j], top[:j], best, separation[:j], count[:j].astype(np.int64))
+
+
+def estimate_warnings(
+    names: tuple[str, ...], pairs: list[tuple[int, int]], residuals: JointResiduals, unit_m: float = 1.0
+) -> list[str]:
+    """:func:`residual_warnings` for joints located by any method, told apart by the cause.
+
+    A joint the rules of :func:`residual_flagged` report whose least-squares centre on the same
+    poses they would not report is the estimate's fault, not the data's: it is said so, with what
+    the least-squares centre leaves. Where the least-squares centres are reported too, the data's
+    warning is given as O'Brien's calibration gives it.
+
+    Args:
+        names: sensor names.
+        pairs: ``(parent, child)`` sensor indices of the joints.
+        residuals: :func:`joint_residuals` of the joints.
+        unit_m: metres per unit of the residuals (the warnings state millimetres).
+    """
+    rms, best, sep = (
+        np.asarray(x, dtype=float) * unit_m for x in (residuals.rms, residuals.best, residuals.separation)
+    )
+    theirs, least = residual_flagged(rms, sep), residual_flagged(best, sep)
+    out = []
+    for k in sorted(theirs - least):
+        p, c = pairs[k]
+        out.append(
+            f"joint {names[p]}-{names[c]}: residual {rms[k] * 1e3:.3g} mm rms ({sep[k] * 1e3:.3g} mm between "
+            f"the sensors), where the least-squares centre of the same poses leaves {best[k] * 1e3:.3g} mm: "
+            "the estimate does not fit these poses (a method that fits less of the motion, such as a sphere "
+            "fit of the child's position alone, or centres in the wrong sensor's frame or another unit)"
+        )
+    return out + residual_warnings(names, pairs, rms, sep, only=theirs & least)
+
+
 def residual_flagged(rms_residual: np.ndarray, separation: np.ndarray) -> frozenset[int]:
     """The joints :func:`residual_warnings` reports (indices)."""
     sep, rms = np.asarray(separation, dtype=float), np.asarray(rms_residual, dtype=float)
@@ -498,7 +611,12 @@ def residual_flagged(rms_residual: np.ndarray, separation: np.ndarray) -> frozen
 
 
 def residual_warnings(
-    names: tuple[str, ...], pairs: list[tuple[int, int]], rms_residual: np.ndarray, separation: np.ndarray
+    names: tuple[str, ...],
+    pairs: list[tuple[int, int]],
+    rms_residual: np.ndarray,
+    separation: np.ndarray,
+    *,
+    only: frozenset[int] | None = None,
 ) -> list[str]:
     """Warnings for joints whose residual stands far above the others', and for joints that
     explain little of their sensors' distance (module docstring).
@@ -508,9 +626,12 @@ def residual_warnings(
         pairs: ``(parent, child)`` sensor indices of the joints.
         rms_residual: ``(J,)`` their rms residuals, metres.
         separation: ``(J,)`` the rms distance between each joint's sensors, metres.
+        only: warn of these joints (indices) alone, judged among all; ``None``: all.
     """
     out = []
     for k, z, ratio in _outliers(rms_residual, separation):
+        if only is not None and k not in only:
+            continue
         p, c = pairs[k]
         test = "the largest other joint's"
         if not np.isnan(z):
@@ -522,6 +643,8 @@ def residual_warnings(
             "(see the slip events)"
         )
     for k, (p, c) in enumerate(pairs):
+        if only is not None and k not in only:
+            continue
         if separation[k] > 0 and rms_residual[k] > UNEXPLAINED_FRACTION * separation[k]:
             out.append(
                 f"joint {names[p]}-{names[c]}: residual {rms_residual[k] * 1e3:.3g} mm rms is "

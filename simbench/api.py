@@ -56,6 +56,7 @@ from simbench.estimators import (
 )
 from simbench.estimators import names as estimator_names
 from simbench.estimators.registry import from_callable
+from simbench.estimators.run import with_residuals
 from simbench.experiments.live import RATE_FRAMES as LIVE_RATE_FRAMES
 from simbench.experiments.live import REFRESH_S as LIVE_REFRESH_S
 from simbench.experiments.live import LiveOptions, LiveUpdate
@@ -320,7 +321,8 @@ def calibrate(
             raise InputError(
                 f"{est.name!r} estimates joints from IMU data: give a Dataset with inertial data"
             )
-        return run_joints(est, data_of, hierarchy=hierarchy, params=params, time_limit_s=time_limit_s)
+        got = run_joints(est, data_of, hierarchy=hierarchy, params=params, time_limit_s=time_limit_s)
+        return with_residuals(got, rec) if got.calibration is None and est.data == "poses" else got
     if params is not None:
         raise InputError("params go with method=...: O'Brien's options are the keyword arguments")
     return calibrate_arrays(
@@ -733,7 +735,7 @@ def calibration_document(
     Args:
         cal: O'Brien's calibration (:func:`calibrate`), or any estimator's
             :class:`simbench.estimators.JointsResult` (the whole document of an O'Brien
-            variant; the joints alone, in metres, for the others).
+            variant; the joints alone, in the poses' unit, for the others).
         data: the recording it came from: slip events and intervals get their times in seconds,
             and each joint its range of motion in these poses (``ranges``).
         slips: ``(joint name, report)`` of :func:`slip_reports`.
@@ -751,9 +753,16 @@ def calibration_document(
     rec = None if data is None else _recording(data, "calibration_document")
     if isinstance(cal, JointsResult):
         if cal.calibration is None:
-            j = cal.joints
+            j, r = cal.joints, cal.residuals
+            fit = {}  # how each joint fits the poses it was estimated from, where known
+            for k in range(len(j.child) if r is not None else 0):
+                fit[k] = {
+                    "rms_residual": float(r.rms[k]),
+                    "max_residual": float(r.max[k]),
+                    "n_frames": int(r.frames[k]),
+                }
             return {
-                "units": "m",
+                "units": cal.unit,
                 "joints": [
                     {
                         "parent": j.parent[k],
@@ -761,9 +770,11 @@ def calibration_document(
                         "joint_in_parent": j.joint_in_parent[k].tolist(),
                         "joint_in_child": j.joint_in_child[k].tolist(),
                         "single_axis": bool(j.single_axis[k]),
+                        **fit.get(k, {}),
                     }
                     for k in range(len(j.child))
                 ],
+                "warnings": list(cal.warnings),
                 "notes": list(cal.notes if notes is None else notes),
             }
         cal = cal.calibration

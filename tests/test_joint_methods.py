@@ -527,6 +527,23 @@ def test_sphere_fit_of_a_hinge_is_a_calibration_error(hinge, variant):
         estimate_sphere(*hinge["poses"], variant=variant)
 
 
+def test_a_sphere_the_points_do_not_curve_is_not_located(ball):
+    """An arc of +-10 degrees at 8 cm under 3 mm of noise: the points fit a plane about as well as
+    any sphere, and the geometric fit follows them to a centre 200 km away (before the check).
+    One standard error of the centre larger than the sphere itself is refused; a ball joint moved
+    well is located to a small fraction of its radius."""
+    rng = np.random.default_rng(0)
+    n = 300
+    th = np.deg2rad(10.0) * np.sin(np.linspace(0.0, 4.0 * np.pi, n) + rng.uniform(0.0, 6.0))
+    arc = np.stack([0.08 * np.sin(th), np.zeros(n), -0.08 * np.cos(th)], axis=1)
+    with pytest.raises(
+        CalibrationError, match=r"not located: its centre's standard error .* exceeds its radius"
+    ):
+        geometric_sphere(arc + rng.normal(0.0, 3e-3, (n, 3)))
+    got = estimate_sphere(*ball["poses"], variant="geometric")
+    assert got.fit.sphere.centre_se_m < 1e-6 * float(np.min(got.fit.sphere.radii))  # exact data
+
+
 def test_bad_sphere_options(ball):
     with pytest.raises(CalibrationInputError, match="one of gamage-lasenby, geometric, got 'kasa'"):
         estimate_sphere(*ball["poses"], variant="kasa")

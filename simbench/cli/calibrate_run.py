@@ -164,8 +164,18 @@ def _other_method(args: argparse.Namespace, est: Estimator) -> int:
             jp = " ".join(f"{1000 * v:8.1f}" for v in j.joint_in_parent[k])
             jc = " ".join(f"{1000 * v:8.1f}" for v in j.joint_in_child[k])
             print(f"  {j.parent[k] + '-' + j.child[k]:<28}{jp:>30}{jc:>30}")
+        if got.residuals is not None:  # how the joints fit these poses, beside the least-squares fit
+            r = got.residuals
+            print(f"\n  {'joint':<28}{'rms mm':>9}{'max mm':>9}{'least-squares rms mm':>22}{'frames':>8}")
+            for k in range(len(j.child)):
+                print(
+                    f"  {j.parent[k] + '-' + j.child[k]:<28}{1e3 * r.rms[k]:9.3f}{1e3 * r.max[k]:9.3f}"
+                    f"{1e3 * r.best[k]:22.3f}{r.frames[k]:8d}"
+                )
         for note in (*rec.notes, *got.notes):
             print(f"  note: {note}")
+        for warning in got.warnings:
+            print(f"  warning: {warning}")
         doc = calibration_document(got)  # the joints alone, with the estimator's notes
     doc["method"] = est.name
     if args.json:

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from calibration import Calibration
+from calibration.diagnostics import JointResiduals
 from simbench.errors import InputError
 from simbench.estimators.catalog import DATA, KINDS, NEEDS
 from simbench.estimators.catalog import ENTRY_POINT_GROUP as ENTRY_POINT_GROUP
@@ -125,11 +126,21 @@ class JointsResult:
         calibration: the built-in O'Brien methods' whole :class:`calibration.Calibration` (joint
             residuals, conditioning, warnings), or ``None``.
         notes: what the estimator could not do (a joint it could not fit is left out and named).
+        residuals: for an estimator other than O'Brien's variants, run on poses: how its joints
+            fit them (:class:`calibration.diagnostics.JointResiduals`, the poses' unit), else
+            ``None`` (O'Brien's are in ``calibration``).
+        warnings: with ``residuals``: joints whose residual stands far above the others' or
+            explains almost nothing of their sensors' motion
+            (:func:`calibration.diagnostics.residual_warnings`, as O'Brien's calibration warns).
+        unit: the length unit of the centres and residuals (the poses').
     """
 
     joints: CalibrationJoints
     calibration: Calibration | None = None
     notes: tuple[str, ...] = ()
+    residuals: JointResiduals | None = None
+    warnings: tuple[str, ...] = ()
+    unit: str = "m"
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from calibration import Calibration
+from calibration.diagnostics import estimate_warnings, joint_residuals
 from calibration.orientation import Skeleton
 from simbench.errors import InputError
 from simbench.estimators.builtin import joints_of
@@ -177,6 +178,26 @@ def run_joints(
     return joints_result(got, est.name, data.names, getattr(data, "unit", "m"))
 
 
+def with_residuals(result: JointsResult, rec: PoseRecording) -> JointsResult:
+    """``result`` with how its joints fit ``rec``'s poses and the warnings O'Brien's calibration
+    gives its own joints (:func:`calibration.diagnostics.joint_residuals` and
+    :func:`~calibration.diagnostics.estimate_warnings`: two passes over the poses, which
+    :func:`simbench.calibrate` makes for a user and a study does not)."""
+    j = result.joints
+    res = joint_residuals(
+        rec.R_w_s,
+        rec.p_w_s,
+        j.parent_index,
+        j.child_index,
+        j.joint_in_parent,
+        j.joint_in_child,
+        valid=rec.valid,
+    )
+    pairs = [(int(p), int(c)) for p, c in zip(j.parent_index, j.child_index, strict=True)]
+    warnings = estimate_warnings(rec.names, pairs, res, metres_per_unit(rec.unit))
+    return dataclasses.replace(result, residuals=res, warnings=tuple(warnings))
+
+
 def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") -> JointsResult:
     """What a joints estimator returned, as a checked :class:`JointsResult` in ``unit``: every
     form goes through the calibration document's one check
@@ -219,7 +240,7 @@ def joints_result(got: Any, name: str, names: tuple[str, ...], unit: str = "m") 
         joints.joint_in_child * factor,
         joints.single_axis,
     )
-    return JointsResult(joints, calibration=calibration, notes=tuple(notes))
+    return JointsResult(joints, calibration=calibration, notes=tuple(notes), unit=unit)
 
 
 def _document(joints: CalibrationJoints, unit: str, name: str) -> dict[str, Any]:
