@@ -309,13 +309,16 @@ def lever_corrected(
         if lever.applied:
             warned.append(
                 f"{head}: removed from the accelerometer and the sensor estimated again (the lever "
-                f"settled after {lever.passes} pass{'es' if lever.passes > 1 else ''})"
+                f"refitted from that estimate agrees, chi-square {lever.moved:.3g}, and explains the "
+                "accelerometer better)"
             )
         else:
-            warned.append(
-                f"{head}: did not settle in {lever.passes} passes (it moves with the estimate, chi-square "
-                f"{lever.moved:.3g}): not removed, the estimate is the first one"
+            why = (
+                "the corrected estimate explains the accelerometer no better"
+                if lever.settled
+                else f"the lever refitted from the corrected estimate moves (chi-square {lever.moved:.3g})"
             )
+            warned.append(f"{head}: not removed ({why}), the estimate is the first one")
     return q, tuple(warned)
 
 

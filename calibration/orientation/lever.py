@@ -101,6 +101,7 @@ class Lever:
         moved: the last comparison's chi-square (``nan`` before any).
         explains: the last corrected estimate with its lever explains the accelerometer better
             than the estimate it was made from with its own (a smaller residual mean square).
+        settled: the last refit agreed with the lever removed (``moved`` below its quantile).
     """
 
     sensor: int
@@ -111,6 +112,7 @@ class Lever:
     sd_m: np.ndarray
     moved: float
     explains: bool = False
+    settled: bool = False
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -279,6 +281,14 @@ def lever_compensated(
                 last[k] = refit
     for k in pending:
         done[k] = Lever(
-            k, first[k], False, PASSES, last[k].r_m, np.sqrt(np.diag(last[k].cov)), stat[k], explains[k]
+            k,
+            first[k],
+            False,
+            PASSES,
+            last[k].r_m,
+            np.sqrt(np.diag(last[k].cov)),
+            stat[k],
+            explains[k],
+            stat[k] < limit,
         )
     return q_out, [done[k] for k in sorted(done)]
