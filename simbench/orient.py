@@ -35,6 +35,7 @@ from calibration.orientation import (
     Estimate,
     MagnetometerCalibration,
     Priors,
+    Reference,
     Skeleton,
     SpanCalibration,
     Weighting,
@@ -46,6 +47,7 @@ from calibration.orientation import (
     fit_magnetometer,
     follow_fits,
     fontaine,
+    lever_compensated,
     longest_rest,
     mahony,
     reference_from_data,
@@ -56,6 +58,7 @@ from calibration.orientation import (
     triad,
     wahba,
 )
+from calibration.orientation.lever import FALSE_ALARM as LEVER_FALSE_ALARM
 from calibration.orientation.rotation_acc import FALSE_ALARM as ROTATION_FALSE_ALARM
 from calibration.orientation.rotation_acc import WINDOW_S as ROTATION_WINDOW_S
 from calibration.orientation.trust import DRIFT_SPREADS
@@ -178,13 +181,17 @@ def estimate(
             priors=priors,
             acc_clipped=rec.saturated,
         )
+        # the other lone sensors: a lever fitted to the estimate's own rates, where it settles
+        corrected = [k for k in range(len(rec.names)) if not np.array_equal(acc[:, k], rec.acc[:, k])]
+        tree = skeleton or Skeleton.none(len(rec.names))
+        q, levers = lever_corrected(rec, tree, est.q_w_s, ref, priors, skip=corrected)
         return OrientationRun(
-            est.q_w_s,
+            q,
             est.ok,
             method,
             float(np.linalg.norm(ref.field_w)),
             float(np.rad2deg(ref.inclination)),
-            warned,
+            warned + levers,
         )
     acc, mag = rec.acc, rec.mag
     if smooth_hz and method != "fontaine":  # Fontaine's estimator smooths with its weights
@@ -237,6 +244,82 @@ def rotation_corrected(rec: ImuRecording, skeleton: Skeleton) -> tuple[np.ndarra
             "before the estimate"
         )
     return acc, tuple(warned)
+
+
+def lever_corrected(
+    rec: ImuRecording,
+    skeleton: Skeleton,
+    q_first: np.ndarray,
+    ref: Reference,
+    priors: Priors | None,
+    skip: tuple[int, ...] | list[int] = (),
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Each sensor on its own (:attr:`calibration.orientation.Skeleton.lone`) estimated again with
+    the acceleration of its rotation about a centre away from it removed, where the data show a
+    lever that settles (:func:`calibration.orientation.lever_compensated`), and a warning per
+    sensor where a lever fires (applied, or not settled and left out).
+
+    Args:
+        rec: the recording.
+        skeleton: the skeleton the first estimate was made on.
+        q_first: ``(F, N, 4)`` the first estimate, ENU.
+        ref: the reference it was made with.
+        priors: the priors it was made with.
+        skip: sensors left as they are (those whose sustained acceleration
+            :func:`rotation_corrected` removed: one correction per sensor).
+
+    Returns:
+        ``(F, N, 4)`` the orientations, ENU, and the warnings.
+    """
+    valid = magnetometer_valid(rec)
+
+    def again(acc: np.ndarray, sensors: list[int]) -> np.ndarray:
+        clipped = None if rec.saturated is None else rec.saturated[:, sensors]
+        # gravity and the dip taken again from the corrected readings (the lever biases both)
+        own = reference_from_data(acc, rec.mag[:, sensors], "enu", valid=rec.valid[:, sensors])
+        return skeleton_orientation(
+            acc,
+            rec.mag[:, sensors],
+            rec.rate_hz,
+            None,
+            own,
+            valid=valid[:, sensors],
+            priors=priors,
+            acc_clipped=clipped,
+        ).q_w_s
+
+    q, levers = lever_compensated(
+        rec.acc,
+        q_first,
+        [k for k in skeleton.lone if k not in skip],
+        ref.gravity,
+        rec.rate_hz,
+        again,
+        valid=rec.valid,
+    )
+    warned = []
+    for lever in levers:
+        r = ", ".join(f"{x:.2f}" for x in lever.r_m)
+        sd = max(lever.sd_m)
+        head = (
+            f"{rec.names[lever.sensor]}: an acceleration of rotation about a centre away from the sensor "
+            f"(a lever of ({r}) m +- {sd:.2g} in the sensor frame, from the estimate's rates; false alarm "
+            f"{LEVER_FALSE_ALARM:g})"
+        )
+        if lever.applied:
+            warned.append(
+                f"{head}: removed from the accelerometer and the sensor estimated again (the lever "
+                f"refitted from that estimate agrees, chi-square {lever.moved:.3g}, and explains the "
+                "accelerometer better)"
+            )
+        else:
+            why = (
+                "the corrected estimate explains the accelerometer no better"
+                if lever.settled
+                else f"the lever refitted from the corrected estimate moves (chi-square {lever.moved:.3g})"
+            )
+            warned.append(f"{head}: not removed ({why}), the estimate is the first one")
+    return q, tuple(warned)
 
 
 def vqf_offline(

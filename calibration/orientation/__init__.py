@@ -34,6 +34,9 @@ vectorised over any leading ``(...)`` axes (frames, sensors).
 - :mod:`.rotation_acc`: :func:`rotation_acceleration`, the acceleration that rotation itself
   makes at a sensor away from the centre of rotation, sustained in the sensor frame, where the
   data show one (a test with a stated false-alarm rate per window), for the caller to remove.
+- :mod:`.lever`: :func:`lever_compensated`, the acceleration of rotation about a centre away
+  from the sensor (a lever fixed in the sensor frame, fitted to an estimate's own rates), removed
+  and the sensor estimated again where the lever settles (the refit agrees, a stated test).
 - :mod:`.trust`: inputs that cannot be trusted: an axis held at its range
   (:func:`saturated_axes`), a field strength that drifts (:func:`field_drift`), no rest
   (:func:`longest_rest`).
@@ -49,6 +52,7 @@ aligned with inputs.
 from calibration.orientation.complementary import mahony
 from calibration.orientation.disturbance import Weighting, smooth_vectors, weighted_smooth
 from calibration.orientation.gauss_newton import fontaine
+from calibration.orientation.lever import Lever, LeverFit, fit_lever, lever_compensated
 from calibration.orientation.magnetometer import (
     MagnetometerCalibration,
     SpanCalibration,
@@ -83,6 +87,8 @@ __all__ = [
     "REST_S",
     "R_NED_ENU",
     "Estimate",
+    "Lever",
+    "LeverFit",
     "MagnetometerCalibration",
     "Priors",
     "Reference",
@@ -96,9 +102,11 @@ __all__ = [
     "field_drift",
     "fit_circle_hard_iron",
     "fit_disturbed_spans",
+    "fit_lever",
     "fit_magnetometer",
     "follow_fits",
     "fontaine",
+    "lever_compensated",
     "longest_rest",
     "mahony",
     "orientation_errors",
