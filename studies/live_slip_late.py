@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from simbench.io.poses import PoseRecording
 from simbench.sim.live import recording_with_slip
 from simbench.sim.plan import SessionConfig, load_session_model
 from simbench.sim.session import run_session
@@ -37,18 +38,38 @@ MIN_LENGTH_S = 15.0
 DRAWS = 2
 
 
-def late_runs(label: str, rec: Any) -> list[dict[str, Any]]:
+def late_draw(label: str, rec: PoseRecording, k: int, draw: int) -> tuple[float, int, np.ndarray]:
+    """Slip ``draw`` of sensor ``k``: its time (s after the first frame, before rounding to a
+    frame), its first frame, and the offset ``(3,)`` in the sensor's frame, metres."""
+    rng = np.random.default_rng([7, draw, zlib.crc32(f"{label}/{rec.names[k]}".encode())])
+    t = float(rng.uniform(FIRST_SLIP_S, rec.n_frames / rec.rate_hz - 1.0))
+    offset = rng.normal(size=3)
+    return t, int(np.ceil(t * rec.rate_hz)), SLIP_M * offset / np.linalg.norm(offset)
+
+
+def late_recordings(sim_seeds: int) -> list[tuple[str, PoseRecording]]:
+    """The real recordings longer than :data:`MIN_LENGTH_S` and ``sim_seeds`` skin sessions."""
+    out = []
+    for path in [p for p in REAL if p.exists()]:
+        rec = real_recording(path)
+        if rec.n_frames / rec.rate_hz > MIN_LENGTH_S:
+            out.append((path.name, rec))
+    for seed in range(sim_seeds):
+        config = SessionConfig(
+            model="humanoid", motion="exercise", duration_s=30.0, seed=seed, sensors="skin-paper-human"
+        )
+        out.append((f"skin-paper-human/{seed}", run_session(config, load_session_model(config)).poses()))
+    return out
+
+
+def late_runs(label: str, rec: PoseRecording) -> list[dict[str, Any]]:
     rows = []
     tol = round(TOLERANCE_S * rec.rate_hz)
-    duration = rec.n_frames / rec.rate_hz
     for k in moving_sensors(rec):
         for draw in range(DRAWS):
-            rng = np.random.default_rng([7, draw, zlib.crc32(f"{label}/{rec.names[k]}".encode())])
-            frame = int(np.ceil(float(rng.uniform(FIRST_SLIP_S, duration - 1.0)) * rec.rate_hz))
+            _t, frame, offset = late_draw(label, rec, k, draw)
             if not rec.valid[frame : frame + tol, k].any():
                 continue
-            offset = rng.normal(size=3)
-            offset = SLIP_M * offset / np.linalg.norm(offset)
             live = run_live(recording_with_slip(rec, rec.names[k], float(rec.time_s[frame]), offset))
             t = frame / rec.rate_hz
             near = [a for a in live["alerts"] if 0.0 <= a["raised_s"] - t <= TOLERANCE_S]
@@ -72,15 +93,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
     rows = []
-    for path in [p for p in REAL if p.exists()]:
-        rec = real_recording(path)
-        if rec.n_frames / rec.rate_hz > MIN_LENGTH_S:
-            rows += late_runs(path.name, rec)
-    for seed in range(args.sim_seeds):
-        config = SessionConfig(
-            model="humanoid", motion="exercise", duration_s=30.0, seed=seed, sensors="skin-paper-human"
-        )
-        rows += late_runs(f"skin-paper-human/{seed}", run_session(config, load_session_model(config)).poses())
+    for label, rec in late_recordings(args.sim_seeds):
+        rows += late_runs(label, rec)
     real = [r for r in rows if not r["recording"].startswith("skin")]
     sim = [r for r in rows if r["recording"].startswith("skin")]
     summary = {
