@@ -58,7 +58,9 @@ the batch's). The noise model is the data's own, as the batch's, from the last
   neighbour then moves fast is judged against that movement, not against its quiet history.
 - *Scale* per joint and frame: :func:`calibration.slip_stats.robust_scale`, raised to its upper
   confidence bound (:data:`LIVE_TAIL_CONFIDENCE`, chi-square with the history's independent values,
-  its length over the correlation time): a joint seconds old has few.
+  its length over the correlation time): a joint seconds old has few. (The pooled tail below is
+  fitted to the history whitened by this raised scale, so the bound cancels in the threshold:
+  measured with it in force in ``docs/live-slip.md``, fifth round.)
 - *Tail* pooled over the joints: the exponential tail of the whitened ``z`` above its upper
   quartile (:func:`calibration.slip_stats.tail_threshold`, at :data:`LIVE_TAIL_CONFIDENCE`) is
   fitted to every armed joint's ``z`` together: in units of each joint's own scale the tail's

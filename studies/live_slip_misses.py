@@ -1,6 +1,6 @@
 """Why the live slip monitor misses the slips it misses (issue 42, item 5).
 
-    .venv/bin/python studies/live_slip_misses.py [--real PATH ...] [--out FILE]
+    .venv/bin/python studies/live_slip_misses.py [--real PATH ...] [--late] [--out FILE]
 
 The slips of ``studies/live_slip_real.py`` (the same draws) pushed again, with the monitor's test
 recorded at every frame from the slip to :data:`live_slip_real.TOLERANCE_S` after it, for the joints
@@ -15,6 +15,9 @@ that applies:
 - ``own motion``: it would have crossed undivided;
 - ``below threshold``: not even undivided (the window difference's noise scale, skin motion
   included, and the threshold: ``z / threshold`` and the scale in mm are listed).
+
+With ``--late``, the slips of ``studies/live_slip_late.py`` in the real recordings instead (results
+``studies/results/live_slip_late_misses.json``).
 
 The monitor is observed by wrapping two of its methods (nothing in it changes). Results:
 ``studies/results/live_slip_misses.json``.
@@ -35,6 +38,7 @@ from simbench.io.poses import PoseRecording
 from simbench.sim.live import recording_with_slip
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from live_slip_late import DRAWS, late_draw, late_recordings
 from live_slip_real import (
     FIRST_SLIP_S,
     REAL,
@@ -47,6 +51,7 @@ from live_slip_real import (
 
 HERE = Path(__file__).resolve().parent
 OUT = HERE / "results" / "live_slip_misses.json"
+LATE_OUT = HERE / "results" / "live_slip_late_misses.json"
 
 _TESTS: list[dict[str, Any]] = []  # per _examine call: the test of every joint at its frames
 _STEPS: list[tuple[tuple[int, int], int, bool]] = []  # per _steady call: joint, frame, verdict
@@ -81,9 +86,13 @@ def _recording_steady(self, j, frame, e, ok, M, e0, factor):  # type: ignore[no-
     return verdict
 
 
-def diagnose(label: str, rec: PoseRecording, k: int) -> dict[str, Any] | None:
-    """The slip of sensor ``k`` (as live_slip_real draws it), or ``None`` if skipped there."""
-    _t, frame, offset = slip_draw(label, rec, k, FIRST_SLIP_S)
+def diagnose(label: str, rec: PoseRecording, k: int, draw: int | None = None) -> dict[str, Any] | None:
+    """The slip of sensor ``k`` (as live_slip_real draws it, or live_slip_late's ``draw``), or
+    ``None`` if skipped there."""
+    if draw is None:
+        _t, frame, offset = slip_draw(label, rec, k, FIRST_SLIP_S)
+    else:
+        _t, frame, offset = late_draw(label, rec, k, draw)
     tol = round(TOLERANCE_S * rec.rate_hz)
     if not rec.valid[frame : frame + tol, k].any():
         return None
@@ -146,22 +155,30 @@ def diagnose(label: str, rec: PoseRecording, k: int) -> dict[str, Any] | None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--real", type=Path, nargs="*", default=None, help="C3D files (default: REAL)")
-    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument(
+        "--late", action="store_true", help="live_slip_late's draws (results live_slip_late_misses.json)"
+    )
+    parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
+    out = args.out or (LATE_OUT if args.late else OUT)
     streaming._SlipMonitor._examine = _recording_examine  # type: ignore[method-assign]
     streaming._SlipMonitor._steady = _recording_steady  # type: ignore[method-assign]
+    if args.late:
+        cases = [(label, rec, draw) for label, rec in late_recordings(0) for draw in range(DRAWS)]
+    else:
+        paths = [p for p in (REAL if args.real is None else args.real) if p.exists()]
+        cases = [(path.name, real_recording(path), None) for path in paths]
     rows = []
-    for path in [p for p in (REAL if args.real is None else args.real) if p.exists()]:
-        rec = real_recording(path)
+    for label, rec, draw in cases:
         for k in moving_sensors(rec):
-            row = diagnose(path.name, rec, k)
+            row = diagnose(label, rec, k, draw)
             if row is None:
                 continue
             rows.append(row)
             if not row["hit"]:
                 worst = max(row["joints"].values(), key=lambda r: r["z_raw"], default={})
                 print(
-                    f"{path.name[:45]:45s} {row['sensor'][:28]:28s} {row['slip_s']:6.2f} s "
+                    f"{label[:45]:45s} {row['sensor'][:28]:28s} {row['slip_s']:6.2f} s "
                     f"{row['cause']:18s}"
                     f" z/thr {worst.get('z', 0):.2f} (own motion only {worst.get('z_own', 0):.2f},"
                     f" undivided {worst.get('z_raw', 0):.2f}), scale mm {worst.get('scale_mm')}",
@@ -172,8 +189,8 @@ def main() -> None:
         if row["cause"]:
             causes[row["cause"]] = causes.get(row["cause"], 0) + 1
     doc = {"slips": len(rows), "hits": sum(r["hit"] for r in rows), "causes": causes, "rows": rows}
-    args.out.parent.mkdir(exist_ok=True)
-    args.out.write_text(json.dumps(doc, indent=1) + "\n")
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1) + "\n")
     print(json.dumps({k: doc[k] for k in ("slips", "hits", "causes")}))
 
 
