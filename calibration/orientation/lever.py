@@ -12,7 +12,7 @@ frame are taken by central differences, smoothed over :data:`SMOOTH_S` (a slowly
 the estimate in the world frame leaves them unchanged). The linear acceleration the estimate
 leaves, ``a - R^T g up``, is fitted by least squares with ``(K(dw/dt) + K(w)^2) r`` (``K`` the cross
 product matrix): three unknowns, linear. The covariance of ``r`` is the least-squares one times
-the residuals' long-run variance factor (:func:`.rotation_acc._long_run_factor`, largest over the
+the residuals' long-run variance factor (:func:`.rotation_acc.long_run_factor`, largest over the
 axes: the rest of the motion is correlated, not white); ``r^T Cov^-1 r`` is chi-square with 3
 degrees of freedom without a lever and fires at :data:`FALSE_ALARM`.
 
@@ -52,7 +52,7 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.stats import chi2
 
 from calibration.errors import CalibrationInputError
-from calibration.orientation.rotation_acc import _long_run_factor
+from calibration.orientation.rotation_acc import long_run_factor
 from calibration.rotations import quat_to_matrix
 
 #: The rates' smoothing (a Gaussian's standard deviation), s: the estimate's sample-to-sample
@@ -200,7 +200,7 @@ def fit_lever(
         return none
     r = np.linalg.solve(N, np.einsum("nki,nk->i", A, lin))
     res = lin - A @ r
-    inflate = max(_long_run_factor(res[:, i]) for i in range(3))
+    inflate = max(long_run_factor(res[:, i]) for i in range(3))
     cov = np.linalg.inv(N) * float(np.mean(res**2)) * inflate
     model = np.where(use[:, None], M @ r, 0.0)
     return LeverFit(r, cov, float(r @ np.linalg.solve(cov, r)), model, float(np.mean(res**2)))

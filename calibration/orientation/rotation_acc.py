@@ -117,7 +117,7 @@ class RotationAcceleration:
     median_m_s2: float
 
 
-def _long_run_factor(r: np.ndarray) -> float:
+def long_run_factor(r: np.ndarray) -> float:
     """``1 + 2 sum rho_k`` of a residual series, summed while ``rho_k > 0`` (at least 1)."""
     r = r - r.mean()
     v = float(r @ r)
@@ -203,7 +203,7 @@ def _fit_window(
         c = c - np.linalg.solve(N, Jw.T @ (r * wr))
     r, _ = residuals(c)
     rw = r * np.repeat(w, n)
-    inflate = max(_long_run_factor(rw[k * n : (k + 1) * n]) for k in range(kinds))
+    inflate = max(long_run_factor(rw[k * n : (k + 1) * n]) for k in range(kinds))
     # the readings must turn on the sphere beyond what the rest of the motion spreads them: the
     # spread of a in its second direction against the sphere's residual variance, F-test with
     # the residuals' effective number of samples (the rest of the motion is in a as well)
