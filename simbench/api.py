@@ -80,6 +80,7 @@ from simbench.io.read import POSE_INPUTS, pose_inputs_text, read, read_imu, read
 from simbench.orient import (
     OrientationRun,
     calibrate_magnetometers,
+    convention_warnings,
     describe_fit,
     disturbed_fraction,
     estimate,
@@ -423,8 +424,10 @@ class Orientations:
             recording, uT and degrees (NaN for other estimators).
         notes: the recording's notes, with what the magnetometer calibration did.
         warnings: inputs that cannot be trusted (:func:`simbench.orient.input_warnings`): an
-            axis held at its range, a field strength that drifts, no rest; and what a built-in
-            method found and did about it (:attr:`simbench.orient.OrientationRun.warnings`).
+            axis held at its range, a field strength that drifts, no rest; an estimate that fits
+            the accelerometer better read in another convention
+            (:func:`simbench.orient.convention_warnings`); and what a built-in method found and
+            did about it (:attr:`simbench.orient.OrientationRun.warnings`).
     """
 
     q_w_s: np.ndarray
@@ -537,6 +540,7 @@ def orient(
     else:
         run = run_orientation(est, rec, skeleton=skeleton, params=params, time_limit_s=time_limit_s)
     scored = None if rec.q_true is None else score_orientation(run.q_enu, rec.q_true, rec.names, rec.evaluate)
+    warned = (*warned, *convention_warnings(rec, run.q_enu))
     return Orientations(
         q_w_s=run.q_enu,
         ok=run.ok,

@@ -58,6 +58,7 @@ from calibration.orientation import (
     triad,
     wahba,
 )
+from calibration.orientation.convention import better_reading
 from calibration.orientation.lever import FALSE_ALARM as LEVER_FALSE_ALARM
 from calibration.orientation.rotation_acc import FALSE_ALARM as ROTATION_FALSE_ALARM
 from calibration.orientation.rotation_acc import WINDOW_S as ROTATION_WINDOW_S
@@ -628,6 +629,29 @@ def describe_fit(fit: MagnetometerCalibration | str) -> str:
         f"directions covered {', '.join(f'{x:.2f}' for x in fit.coverage)} (0.58 each all round)"
         + "".join(f"; left out, not determined: {x}" for x in fit.left_out)
     )
+
+
+def convention_warnings(rec: ImuRecording, q_enu: np.ndarray) -> tuple[str, ...]:
+    """A warning for each sensor whose estimate fits the accelerometer significantly better read in
+    another common convention than the stated one (scalar-first, sensor to world, ENU):
+    :func:`calibration.orientation.convention.better_reading`.
+
+    Args:
+        rec: the recording the estimate was made from.
+        q_enu: ``(F, N, 4)`` the estimate, as the estimator returned it.
+    """
+    out = []
+    for k, name in enumerate(rec.names):
+        got = better_reading(q_enu[:, k], rec.acc[:, k], rec.rate_hz, rec.valid[:, k])
+        if got is not None:
+            out.append(
+                f"{name}: the estimate fits the accelerometer better read as {got.alternative} (median "
+                f"tilt error {got.alternative_deg:.3g} deg against {got.stated_deg:.3g} deg as given; "
+                f"better in {got.blocks_better} of {got.blocks} one-second blocks, sign test "
+                f"p = {got.p_value:.2g}): "
+                "orientations are scalar-first quaternions of sensor to world in ENU (docs/conventions.md)"
+            )
+    return tuple(out)
 
 
 def input_warnings(rec: ImuRecording, builtin: bool = False, gyro_aided: bool = False) -> tuple[str, ...]:
