@@ -73,7 +73,7 @@ from calibration.errors import CalibrationInputError
 from calibration.hinge import LITERATURE_RANGE_DEG, WELL_MOVED_RMS_RAD, bias_bounds, systematic_rms
 from calibration.hinge import UNCERTAIN_FRACTION as HINGE_FRACTION
 from calibration.joint import LOCATED_RANK
-from calibration.pairs import PairStatistics, pair_statistics, solve_pairs
+from calibration.pairs import PairStatistics, frame_residuals, pair_statistics, solve_pairs
 from calibration.poses import CHUNK_FRAMES, iter_chunks
 from calibration.rotations import matrix_to_rotvec
 
@@ -521,9 +521,11 @@ def joint_residuals(
     *,
     valid: Any = None,
     chunk_frames: int = CHUNK_FRAMES,
+    keep_frames: bool = True,
 ) -> JointResiduals:
-    """The residual of joints located by any method, over a recording, chunk by chunk, beside
-    the least residual any centre leaves (the least-squares fit of each pair, O'Brien eqs. 9-13).
+    """The residual of joints located by any method, over a recording, beside the least residual
+    any centre leaves (the least-squares fit of each pair, O'Brien eqs. 9-13): one pass for the
+    pairs' statistics, one for the exact residuals of both (:func:`calibration.pairs.frame_residuals`).
 
     The same figures O'Brien's calibration reports for its own joints, for centres found some
     other way, so that :func:`estimate_warnings` judges every estimator's joints alike.
@@ -537,6 +539,9 @@ def joint_residuals(
         joint_in_child: ``(J, 3)`` centres in the child sensor's frame, the same unit.
         valid: optional ``(frames, sensors)`` bool, False where a pose is missing.
         chunk_frames: frames worked on at a time.
+        keep_frames: keep the per-frame residuals for the largest (``frames x 2 J`` floats, as
+            :func:`calibration.pipeline.default_keep_frame_residuals` decides for O'Brien's);
+            without them ``max`` is NaN.
     """
     par = np.asarray(parent, dtype=np.int64).reshape(-1)
     chi = np.asarray(child, dtype=np.int64).reshape(-1)
@@ -550,25 +555,27 @@ def joint_residuals(
     stats = pair_statistics(R_w_s, p_w_s, valid=valid, chunk_frames=chunk_frames, third_differences=False)
     fit = solve_pairs(stats, par, chi)
     # theirs and the least-squares centres, residuals exact from the data (not the normal equations)
-    par2, chi2 = np.concatenate([par, par]), np.concatenate([chi, chi])
-    lp2 = np.concatenate([lp, np.nan_to_num(fit.joint_in_parent)])
-    lc2 = np.concatenate([lc, np.nan_to_num(fit.joint_in_child)])
-    sq, top, dist, count = (np.zeros(len(par2)) for _ in range(4))
-    for _, R, p, ok in iter_chunks(R_w_s, p_w_s, valid, chunk_frames=chunk_frames):
-        both = ok[:, par2] & ok[:, chi2]  # (chunk, 2J)
-        at_p = np.einsum("fjab,jb->fja", R[:, par2], lp2) + p[:, par2]
-        at_c = np.einsum("fjab,jb->fja", R[:, chi2], lc2) + p[:, chi2]
-        r = np.where(both, np.linalg.norm(at_p - at_c, axis=2), 0.0)
-        sq += (r**2).sum(axis=0)
-        top = np.maximum(top, r.max(axis=0, initial=0.0))
-        dist += np.where(both, ((p[:, par2] - p[:, chi2]) ** 2).sum(axis=2), 0.0).sum(axis=0)
-        count += both.sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rms, separation = np.sqrt(sq / count), np.sqrt(dist / count)
-    top[count == 0] = np.nan
+    rms, per_frame = frame_residuals(
+        R_w_s,
+        p_w_s,
+        np.concatenate([par, par]),
+        np.concatenate([chi, chi]),
+        np.concatenate([lp, np.nan_to_num(fit.joint_in_parent)]),
+        np.concatenate([lc, np.nan_to_num(fit.joint_in_child)]),
+        valid=valid,
+        chunk_frames=chunk_frames,
+        keep_frames=keep_frames,
+    )
     j = len(par)
+    count = stats.count[par, chi].astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        separation = np.sqrt(stats.sq_dist[par, chi] / count)
+    top = np.full(j, np.nan)
+    if per_frame is not None and per_frame.shape[0]:
+        seen = count > 0
+        top[seen] = np.nanmax(per_frame[:, :j][:, seen], axis=0)
     best = np.where(np.isfinite(fit.rms_residual), np.minimum(rms[j:], rms[:j]), np.nan)
-    return JointResiduals(rms[:j], top[:j], best, separation[:j], count[:j].astype(np.int64))
+    return JointResiduals(rms[:j], top, best, separation, count.astype(np.int64))
 
 
 def estimate_warnings(

@@ -11,12 +11,11 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter1d
 
-from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matrix
+from calibration.rotations import quat_to_matrix, rotvec_to_matrix
 from simbench.io.imu import ImuRecording
 from simbench.orient import estimate
 from simbench.score import score_orientation
-
-FIELD_W = 48.0 * np.array([0.0, np.cos(np.deg2rad(66.0)), -np.sin(np.deg2rad(66.0))])
+from tests.helpers import stick_recording, stick_total_deg
 
 
 def swung_stick(seed: int, lever_m: float, duration_s: float = 60.0, rate: float = 100.0) -> ImuRecording:
@@ -43,25 +42,7 @@ def swung_stick(seed: int, lever_m: float, duration_s: float = 60.0, rate: float
     p = wrist + R @ np.array([lever_m, 0.0, 0.0])
     a = np.gradient(np.gradient(p, 1 / fine_rate, axis=0), 1 / fine_rate, axis=0)
     R, a, w = R[::sub], a[::sub], w[::sub]
-    acc = np.einsum("fji,fj->fi", R, a + np.array([0.0, 0.0, 9.81])) + rng.normal(scale=0.05, size=(n, 3))
-    mag = np.einsum("fji,j->fi", R, FIELD_W) + rng.normal(scale=0.3, size=(n, 3))
-    return ImuRecording(
-        names=("stick",),
-        time_s=np.arange(n) / rate,
-        acc=acc[:, None],
-        gyro=(w + rng.normal(scale=0.01, size=(n, 3)))[:, None],
-        mag=mag[:, None],
-        valid=np.ones((n, 1), dtype=bool),
-        q_true=matrix_to_quat(R)[:, None],
-        evaluate=None,
-        rate_hz=rate,
-        source="swung stick",
-    )
-
-
-def total_deg(rec: ImuRecording, method: str) -> float:
-    q = estimate(rec, method).q_enu
-    return score_orientation(q, rec.q_true, rec.names).per_sensor["stick"]["total_deg"]
+    return stick_recording(R, a, w, rng, rate, "swung stick")
 
 
 def test_the_swung_stick_is_the_issues_case():
@@ -88,7 +69,7 @@ def test_the_default_is_never_worse_than_triad_on_a_swung_stick():
     rec = swung_stick(0, 0.2)
     run = estimate(rec, "skeleton")
     total = score_orientation(run.q_enu, rec.q_true, rec.names).per_sensor["stick"]["total_deg"]
-    assert total <= total_deg(rec, "triad")
+    assert total <= stick_total_deg(rec, "triad")
     assert len(run.warnings) == 1 and run.warnings[0].startswith(
         "stick: a sustained acceleration in the sensor"
     )
@@ -101,4 +82,4 @@ def test_the_default_is_never_worse_than_triad_on_a_swung_stick():
 def test_the_default_is_never_worse_than_triad_on_every_swung_stick(seed: int, lever_m: float):
     """Seeds 0-4, levers 0.2-0.4 m: measured 0.48-0.85 x TRIAD (before: 0.87-1.06)."""
     rec = swung_stick(seed, lever_m)
-    assert total_deg(rec, "skeleton") <= total_deg(rec, "triad")
+    assert stick_total_deg(rec, "skeleton") <= stick_total_deg(rec, "triad")

@@ -13,8 +13,7 @@ from calibration.rotations import matrix_to_quat, quat_to_matrix, rotvec_to_matr
 from simbench.io.imu import ImuRecording
 from simbench.orient import estimate
 from simbench.score import score_orientation
-
-FIELD_W = 48.0 * np.array([0.0, np.cos(np.deg2rad(66.0)), -np.sin(np.deg2rad(66.0))])
+from tests.helpers import stick_recording, stick_total_deg
 
 
 def swinging_stick(seed: int, lever_m: float, duration_s: float = 60.0, rate: float = 100.0) -> ImuRecording:
@@ -43,25 +42,7 @@ def swinging_stick(seed: int, lever_m: float, duration_s: float = 60.0, rate: fl
     p = wrist + R @ np.array([lever_m, 0.0, 0.0])
     a = np.gradient(np.gradient(p, 1 / fine, axis=0), 1 / fine, axis=0)
     R, a = R[::sub], a[::sub]
-    acc = np.einsum("fji,fj->fi", R, a + np.array([0.0, 0.0, 9.81])) + rng.normal(scale=0.05, size=(n, 3))
-    mag = np.einsum("fji,j->fi", R, FIELD_W) + rng.normal(scale=0.3, size=(n, 3))
-    return ImuRecording(
-        names=("stick",),
-        time_s=np.arange(n) / rate,
-        acc=acc[:, None],
-        gyro=np.full((n, 1, 3), np.nan),
-        mag=mag[:, None],
-        valid=np.ones((n, 1), dtype=bool),
-        q_true=matrix_to_quat(R)[:, None],
-        evaluate=None,
-        rate_hz=rate,
-        source="swinging stick",
-    )
-
-
-def total_deg(rec: ImuRecording, method: str) -> float:
-    q = estimate(rec, method).q_enu
-    return score_orientation(q, rec.q_true, rec.names).per_sensor["stick"]["total_deg"]
+    return stick_recording(R, a, None, rng, rate, "swinging stick")
 
 
 def test_the_lever_is_recovered_from_true_orientations():
@@ -126,8 +107,8 @@ def test_the_lever_reduces_the_swinging_sticks_error(monkeypatch):
     assert len(lines) == 1 and lines[0].startswith("stick: an acceleration of rotation about a centre")
     assert "removed from the accelerometer" in lines[0]
     monkeypatch.setattr(lever, "PASSES", 0)
-    before = total_deg(rec, "skeleton")
-    assert before > total_deg(rec, "triad")  # the failure: worse than TRIAD
+    before = stick_total_deg(rec, "skeleton")
+    assert before > stick_total_deg(rec, "triad")  # the failure: worse than TRIAD
     assert after < 0.9 * before
 
 
@@ -142,7 +123,7 @@ def test_the_lever_never_makes_the_swinging_stick_worse(seed: int, lever_m: floa
     run = estimate(rec, "skeleton")
     after = score_orientation(run.q_enu, rec.q_true, rec.names).per_sensor["stick"]["total_deg"]
     monkeypatch.setattr(lever, "PASSES", 0)
-    before = total_deg(rec, "skeleton")
+    before = stick_total_deg(rec, "skeleton")
     if any("removed from the accelerometer" in w for w in run.warnings):
         assert after < before
     else:

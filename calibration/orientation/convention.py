@@ -20,6 +20,7 @@ blocks cannot reach the rate: a recording shorter than 10 s is not judged.
 
 from __future__ import annotations
 
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -108,26 +109,20 @@ def better_reading(
     if valid is not None:
         use &= np.asarray(valid, dtype=bool)
     per_block = max(1, round(BLOCK_S * rate_hz))
-    n_blocks = int(use.size // per_block)
-    if n_blocks < 1:
-        return None
-    idx = np.flatnonzero(use)
+    n_blocks = use.size // per_block
+    idx = np.flatnonzero(use[: n_blocks * per_block])
     if idx.size == 0:
         return None
     d = a[idx] / norm[idx, None]
-    angles = {
-        k: np.degrees(np.arccos(np.clip(np.sum(g * d, axis=1), -1.0, 1.0)))
-        for k, g in _gravity_directions(q[idx]).items()
-    }
-    block = idx // per_block
-    keep = block < n_blocks
-    block = block[keep]
     medians = {}
-    for k, v in angles.items():
-        v = v[keep]
-        order = np.argsort(block, kind="stable")
-        starts = np.flatnonzero(np.r_[True, np.diff(block[order]) > 0])
-        medians[k] = np.array([np.median(part) for part in np.split(v[order], starts[1:])])
+    for k, g in _gravity_directions(q[idx]).items():
+        angle = np.full(n_blocks * per_block, np.nan)  # NaN where a sample is not used
+        angle[idx] = np.degrees(np.arccos(np.clip(np.sum(g * d, axis=1), -1.0, 1.0)))
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a block without a used sample: NaN
+            medians[k] = np.nanmedian(angle.reshape(n_blocks, per_block), axis=1)
+    seen = np.isfinite(medians["stated"])
+    medians = {k: v[seen] for k, v in medians.items()}
     stated = medians.pop("stated")
     best: Reading | None = None
     for k, alt in medians.items():

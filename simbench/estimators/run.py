@@ -23,6 +23,7 @@ import numpy as np
 from calibration import Calibration
 from calibration.diagnostics import estimate_warnings, joint_residuals
 from calibration.orientation import Skeleton
+from calibration.pipeline import default_keep_frame_residuals
 from simbench.errors import InputError
 from simbench.estimators.builtin import joints_of
 from simbench.estimators.command import EstimatorError
@@ -192,6 +193,7 @@ def with_residuals(result: JointsResult, rec: PoseRecording) -> JointsResult:
         j.joint_in_parent,
         j.joint_in_child,
         valid=rec.valid,
+        keep_frames=default_keep_frame_residuals(rec.R_w_s, len(rec), 2 * len(j.child)),
     )
     pairs = [(int(p), int(c)) for p, c in zip(j.parent_index, j.child_index, strict=True)]
     warnings = estimate_warnings(rec.names, pairs, res, metres_per_unit(rec.unit))
